@@ -1,0 +1,189 @@
+//! Image buffers used throughout the core.
+//!
+//! The core never decodes or encodes files: callers hand it raw pixels.
+//! Colour frames are interleaved 8-bit RGB or RGBA, rows packed without padding
+//! (`stride = width * channels`). Grayscale working images are `f32` in `[0, 1]`.
+//! Pixel centres sit at integer coordinates (OpenCV convention): pixel `(u, v)`
+//! covers `[u - 0.5, u + 0.5] x [v - 0.5, v + 0.5]`.
+
+use crate::error::AmcError;
+use serde::{Deserialize, Serialize};
+
+/// Channel layout of an interleaved 8-bit colour frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PixelFormat {
+    /// 3 bytes per pixel: R, G, B.
+    Rgb8,
+    /// 4 bytes per pixel: R, G, B, A (alpha is ignored on input, 255 on output).
+    Rgba8,
+}
+
+impl PixelFormat {
+    /// Bytes per pixel.
+    pub const fn channels(self) -> usize {
+        match self {
+            PixelFormat::Rgb8 => 3,
+            PixelFormat::Rgba8 => 4,
+        }
+    }
+}
+
+/// A borrowed colour frame.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameRef<'a> {
+    pub width: usize,
+    pub height: usize,
+    pub format: PixelFormat,
+    pub data: &'a [u8],
+}
+
+impl<'a> FrameRef<'a> {
+    /// Wraps `data`, checking that its length matches `width * height * channels`.
+    pub fn new(
+        width: usize,
+        height: usize,
+        format: PixelFormat,
+        data: &'a [u8],
+    ) -> Result<Self, AmcError> {
+        if width == 0 || height == 0 {
+            return Err(AmcError::EmptyFrame { width, height });
+        }
+        let expected = width
+            .checked_mul(height)
+            .and_then(|n| n.checked_mul(format.channels()))
+            .ok_or(AmcError::FrameTooLarge { width, height })?;
+        if data.len() != expected {
+            return Err(AmcError::BufferLength {
+                expected,
+                actual: data.len(),
+            });
+        }
+        Ok(Self {
+            width,
+            height,
+            format,
+            data,
+        })
+    }
+
+    /// Bytes per row.
+    pub fn stride(&self) -> usize {
+        self.width * self.format.channels()
+    }
+}
+
+/// An owned colour frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frame {
+    pub width: usize,
+    pub height: usize,
+    pub format: PixelFormat,
+    pub data: Vec<u8>,
+}
+
+impl Frame {
+    /// A black frame.
+    pub fn new(width: usize, height: usize, format: PixelFormat) -> Self {
+        Self {
+            width,
+            height,
+            format,
+            data: vec![0; width * height * format.channels()],
+        }
+    }
+
+    /// Borrows this frame.
+    pub fn as_ref(&self) -> FrameRef<'_> {
+        FrameRef {
+            width: self.width,
+            height: self.height,
+            format: self.format,
+            data: &self.data,
+        }
+    }
+
+    /// Copies `src` into `self`, reusing the allocation when the size allows.
+    pub fn copy_from(&mut self, src: &FrameRef<'_>) {
+        self.width = src.width;
+        self.height = src.height;
+        self.format = src.format;
+        self.data.clear();
+        self.data.extend_from_slice(src.data);
+    }
+}
+
+/// A single-channel `f32` image with intensities in `[0, 1]`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GrayImage {
+    pub width: usize,
+    pub height: usize,
+    pub data: Vec<f32>,
+}
+
+impl GrayImage {
+    /// A black image.
+    pub fn new(width: usize, height: usize) -> Self {
+        Self {
+            width,
+            height,
+            data: vec![0.0; width * height],
+        }
+    }
+
+    /// Resizes in place (contents unspecified), reusing the allocation.
+    pub fn resize(&mut self, width: usize, height: usize) {
+        self.width = width;
+        self.height = height;
+        self.data.resize(width * height, 0.0);
+    }
+
+    #[inline]
+    pub fn get(&self, x: usize, y: usize) -> f32 {
+        self.data[y * self.width + x]
+    }
+
+    /// Bilinear sample at pixel coordinates; `None` outside `[0, w-1] x [0, h-1]`.
+    #[inline]
+    pub fn sample(&self, x: f32, y: f32) -> Option<f32> {
+        if !(x >= 0.0 && y >= 0.0) {
+            return None;
+        }
+        let max_x = (self.width - 1) as f32;
+        let max_y = (self.height - 1) as f32;
+        if x > max_x || y > max_y {
+            return None;
+        }
+        let x0 = (x as usize).min(self.width.saturating_sub(2));
+        let y0 = (y as usize).min(self.height.saturating_sub(2));
+        let fx = x - x0 as f32;
+        let fy = y - y0 as f32;
+        let i = y0 * self.width + x0;
+        let d = &self.data;
+        let (a, b) = (d[i], d[(i + 1).min(d.len() - 1)]);
+        let (c, e) = (
+            d[(i + self.width).min(d.len() - 1)],
+            d[(i + self.width + 1).min(d.len() - 1)],
+        );
+        let top = a + (b - a) * fx;
+        let bot = c + (e - c) * fx;
+        Some(top + (bot - top) * fy)
+    }
+}
+
+/// Rec. 601 luma weights, the weights ffmpeg and OpenCV use for RGB -> gray.
+pub const LUMA_WEIGHTS: [f32; 3] = [0.299, 0.587, 0.114];
+
+/// Converts an interleaved colour frame to `[0, 1]` luma, into a reused buffer.
+pub fn luma_into(src: &FrameRef<'_>, dst: &mut GrayImage) {
+    dst.resize(src.width, src.height);
+    let c = src.format.channels();
+    let k = [
+        LUMA_WEIGHTS[0] / 255.0,
+        LUMA_WEIGHTS[1] / 255.0,
+        LUMA_WEIGHTS[2] / 255.0,
+    ];
+    for (out, px) in dst.data.iter_mut().zip(src.data.chunks_exact(c)) {
+        *out = k[0] * px[0] as f32 + k[1] * px[1] as f32 + k[2] * px[2] as f32;
+    }
+}

@@ -1,0 +1,31 @@
+//! Errors of the command line. `main` prints them as one line and exits non-zero.
+
+use std::path::PathBuf;
+use thiserror::Error;
+
+#[derive(Debug, Error)]
+pub enum CliError {
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}: {msg}", path.display())]
+    Image { path: PathBuf, msg: String },
+    #[error(transparent)]
+    Core(#[from] amc_core::AmcError),
+    #[error(transparent)]
+    Video(#[from] crate::video::VideoError),
+    /// Bad command-line usage that clap cannot catch (a message a person can act on).
+    #[error("{0}")]
+    Usage(String),
+}
+
+impl CliError {
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        CliError::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}
