@@ -8,5 +8,19 @@ pub mod error;
 pub mod image;
 pub mod lens;
 pub mod so3;
+pub mod synth;
 
 pub use error::AmcError;
+pub mod frontend;
+pub mod metrics;
+pub mod pyramid;
+pub mod render;
+pub mod selfcal;
+pub mod stabilizer;
+pub mod tracker;
+pub mod view;
+
+pub use camera::CameraModel;
+pub use image::{Frame, FrameRef, PixelFormat};
+pub use stabilizer::{Stabilizer, StabilizerParams, Telemetry};
+pub use view::Mode;

@@ -108,7 +108,7 @@ mod tests {
             let r = exp(&Tangent::new(a, b, c));
             prop_assert!(angle_between(&(r * r.transpose()), &Rot::identity()) < 1e-12);
             // R_{0,2} = R_{0,1} R_{1,2}: the body rate of the composition recovers R_{1,2}.
-            let r12 = exp(&Tangent::new(c, a, -b) * 0.1);
+            let r12 = exp(&(Tangent::new(c, a, -b) * 0.1));
             let rate = body_rate(&r, &(r * r12), 0.5);
             prop_assert!((rate * 0.5 - log(&r12)).norm() < 1e-9);
         }

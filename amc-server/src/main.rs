@@ -1,3 +1,88 @@
+//! `amc`: the command line of Artificial Microsaccade Compensation.
+
+mod cli;
+mod demo;
 mod error;
+mod eval;
+mod gt;
+mod pipeline;
+mod plot;
+mod synth_cmd;
 mod video;
-fn main() {}
+
+use clap::Parser;
+use cli::{Cli, Command, StabilizeArgs};
+use error::CliError;
+use pipeline::RunConfig;
+use std::process::ExitCode;
+use std::time::Duration;
+
+fn stabilize(args: &StabilizeArgs) -> Result<(), CliError> {
+    let params = args.tuning.params(args.mode);
+    params.validate()?;
+    let timeout = Duration::from_secs(args.tuning.timeout);
+    let lens = pipeline::resolve_lens(&args.lens.choice()?, &args.input, &params, args.tuning.fps, timeout, args.quiet)?;
+    let run = pipeline::run(&RunConfig {
+        input: &args.input,
+        output: Some(&args.output),
+        params,
+        lens,
+        telemetry: args.telemetry.as_deref(),
+        fps: args.tuning.fps,
+        timeout,
+        crf: args.crf,
+        progress: !args.quiet,
+        keep_per_frame: false,
+        label: "stabilize",
+    })?;
+    if let Some(p) = &args.metrics {
+        let json = serde_json::to_string_pretty(&run).map_err(|e| CliError::Usage(e.to_string()))?;
+        pipeline::write_atomic(p, json.as_bytes())?;
+    }
+    if !args.quiet {
+        let m = &run.metrics;
+        eprintln!(
+            "wrote {} ({} frames, {}x{}, {:.0} frames/s): normal flow {:.3} px, frame change {:.4}, valid {:.1}%, view {:.1} deg/s vs camera {:.1} deg/s",
+            args.output.display(),
+            run.frames,
+            run.output_size.0,
+            run.output_size.1,
+            run.frames_per_second,
+            m.rms_normal_flow,
+            m.rms_change,
+            100.0 * m.valid_fraction,
+            m.rms_speed_view_dps,
+            m.rms_speed_est_dps
+        );
+    }
+    Ok(())
+}
+
+fn run(cli: Cli) -> Result<(), CliError> {
+    match cli.command {
+        Command::Stabilize(a) => stabilize(&a),
+        Command::Eval(a) => {
+            let report = eval::run(&a)?;
+            if a.json {
+                let s = serde_json::to_string_pretty(&report).map_err(|e| CliError::Usage(e.to_string()))?;
+                println!("{s}");
+            } else {
+                print!("{}", eval::markdown(&report));
+            }
+            Ok(())
+        }
+        Command::Synth(a) => synth_cmd::run(&a),
+        Command::Demo(a) => demo::run(&a),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

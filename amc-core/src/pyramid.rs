@@ -1,0 +1,150 @@
+//! Grayscale preparation and image pyramids for the tracker.
+//!
+//! Invalid pixels (outside the lens's image, or outside the source frame after
+//! undistortion) are stored as `NaN`. Every operation propagates `NaN`, so a
+//! pixel whose neighbourhood touches invalid data is itself invalid, and the
+//! tracker never has to consult a separate mask.
+
+use crate::image::{FrameRef, GrayImage, LUMA_WEIGHTS};
+
+/// Box-downscales a colour frame by an integer factor `s` while converting it to
+/// `[0, 1]` luma. Output pixel `(u, v)` averages source pixels
+/// `[s u, s u + s) x [s v, s v + s)`, so its centre lies at source coordinate
+/// `s u + (s - 1) / 2` (see [`crate::camera::CameraModel::box_downscaled`]).
+pub fn luma_box_downscale_into(src: &FrameRef<'_>, s: usize, dst: &mut GrayImage) {
+    let s = s.max(1);
+    let (w, h) = (src.width / s, src.height / s);
+    dst.resize(w, h);
+    let c = src.format.channels();
+    let stride = src.stride();
+    let norm = 1.0 / (255.0 * (s * s) as f32);
+    let k = [
+        LUMA_WEIGHTS[0] * norm,
+        LUMA_WEIGHTS[1] * norm,
+        LUMA_WEIGHTS[2] * norm,
+    ];
+    if s == 1 {
+        for (out, px) in dst.data.iter_mut().zip(src.data.chunks_exact(c)) {
+            *out = (k[0] * px[0] as f32) + (k[1] * px[1] as f32) + (k[2] * px[2] as f32);
+        }
+        return;
+    }
+    // Sum s rows of channel sums into a row accumulator, then box columns.
+    let mut acc = vec![[0u32; 3]; w];
+    for v in 0..h {
+        acc.iter_mut().for_each(|a| *a = [0; 3]);
+        for dy in 0..s {
+            let row = &src.data[(v * s + dy) * stride..][..w * s * c];
+            for (u, a) in acc.iter_mut().enumerate() {
+                for px in row[u * s * c..(u + 1) * s * c].chunks_exact(c) {
+                    a[0] += px[0] as u32;
+                    a[1] += px[1] as u32;
+                    a[2] += px[2] as u32;
+                }
+            }
+        }
+        let out = &mut dst.data[v * w..(v + 1) * w];
+        for (o, a) in out.iter_mut().zip(&acc) {
+            *o = k[0] * a[0] as f32 + k[1] * a[1] as f32 + k[2] * a[2] as f32;
+        }
+    }
+}
+
+/// Halves an image with a 2x2 box filter (centre of output `(u, v)` at input
+/// `(2u + 0.5, 2v + 0.5)`). `NaN` propagates.
+pub fn half_into(src: &GrayImage, dst: &mut GrayImage) {
+    let (w, h) = (src.width / 2, src.height / 2);
+    dst.resize(w, h);
+    for v in 0..h {
+        let r0 = &src.data[(2 * v) * src.width..];
+        let r1 = &src.data[(2 * v + 1) * src.width..];
+        let out = &mut dst.data[v * w..(v + 1) * w];
+        for (u, o) in out.iter_mut().enumerate() {
+            *o = 0.25 * (r0[2 * u] + r0[2 * u + 1] + r1[2 * u] + r1[2 * u + 1]);
+        }
+    }
+}
+
+/// A coarse-to-fine image pyramid: `levels[0]` is the finest.
+#[derive(Clone, Debug, Default)]
+pub struct Pyramid {
+    pub levels: Vec<GrayImage>,
+}
+
+/// Smallest side (pixels) a pyramid level may have: below this a level holds
+/// too few pixels to constrain three rotation parameters reliably.
+pub const MIN_LEVEL_SIDE: usize = 12;
+
+impl Pyramid {
+    /// Number of levels that fit for a base image of this size, capped at `max_levels`.
+    pub fn level_count(width: usize, height: usize, max_levels: usize) -> usize {
+        let mut n = 1;
+        let (mut w, mut h) = (width, height);
+        while n < max_levels && w / 2 >= MIN_LEVEL_SIDE && h / 2 >= MIN_LEVEL_SIDE {
+            w /= 2;
+            h /= 2;
+            n += 1;
+        }
+        n
+    }
+
+    /// Rebuilds levels `1..n` from `levels[0]` (which the caller filled), reusing buffers.
+    pub fn rebuild(&mut self, n_levels: usize) {
+        let n = n_levels.max(1);
+        self.levels.resize_with(n, GrayImage::default);
+        for l in 1..n {
+            let (fine, coarse) = self.levels.split_at_mut(l);
+            half_into(&fine[l - 1], &mut coarse[0]);
+        }
+    }
+}
+
+/// Maps tracking-camera pixels to source pixels for undistortion: a dense table
+/// of source coordinates (`NaN` where the lens has no image).
+#[derive(Clone, Debug, Default)]
+pub struct RemapTable {
+    pub width: usize,
+    pub height: usize,
+    pub coords: Vec<[f32; 2]>,
+}
+
+/// Bilinear remap of `src` through `table` into `dst` (`NaN` outside `src`).
+pub fn remap_into(src: &GrayImage, table: &RemapTable, dst: &mut GrayImage) {
+    dst.resize(table.width, table.height);
+    for (o, c) in dst.data.iter_mut().zip(&table.coords) {
+        *o = src.sample(c[0], c[1]).unwrap_or(f32::NAN);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::image::{Frame, PixelFormat};
+
+    #[test]
+    fn downscale_averages_blocks() {
+        let mut f = Frame::new(4, 2, PixelFormat::Rgb8);
+        for (i, px) in f.data.chunks_exact_mut(3).enumerate() {
+            px.fill((i * 10) as u8);
+        }
+        let mut g = GrayImage::default();
+        luma_box_downscale_into(&f.as_ref(), 2, &mut g);
+        assert_eq!((g.width, g.height), (2, 1));
+        // Block 0 holds values 0, 10, 40, 50 -> mean 25.
+        assert!((g.data[0] - 25.0 / 255.0).abs() < 1e-5);
+        assert!((g.data[1] - 45.0 / 255.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn pyramid_levels_and_nan_propagation() {
+        let mut p = Pyramid::default();
+        p.levels.push(GrayImage::new(64, 40));
+        p.levels[0].data[0] = f32::NAN;
+        let n = Pyramid::level_count(64, 40, 8);
+        assert_eq!(n, 2);
+        p.rebuild(n);
+        assert_eq!((p.levels[1].width, p.levels[1].height), (32, 20));
+        assert!(p.levels[1].data[0].is_nan());
+        assert_eq!(p.levels[1].data[1], 0.0);
+    }
+}

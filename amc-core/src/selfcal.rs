@@ -1,0 +1,139 @@
+//! Focal-length self-calibration from the footage (`--fov auto`).
+//!
+//! Under a pure rotation, frames align exactly only through the true intrinsics:
+//! with a wrong focal length `f'` the rotational flow field
+//! `u_dot = f (1 + x^2) w_y - f x y w_x - f y w_z` (and its `v` twin) cannot be
+//! matched by any rotation, most visibly toward the image edges and under roll.
+//! So the estimate is the horizontal field of view whose tracking leaves the
+//! least photometric error:
+//! ```text
+//! hfov* = argmin_hfov  mean_j  rms_residual_j(hfov)^2
+//! ```
+//! searched on a coarse grid, then refined by golden-section search. Pyramids of
+//! a pinhole source do not depend on the focal length, so they are built once.
+//! Small, translation-like shakes constrain `f` only weakly (a pan of `theta`
+//! looks like a shift of `f theta` to first order); roll and large rotations
+//! constrain it well. See the README for measured accuracy.
+
+use crate::camera::CameraModel;
+use crate::error::AmcError;
+use crate::frontend::TrackingFrontend;
+use crate::image::FrameRef;
+use crate::pyramid::Pyramid;
+use crate::tracker::{Tracker, TrackerParams};
+
+/// Search range of the horizontal field of view, degrees.
+pub const HFOV_RANGE_DEG: (f64, f64) = (20.0, 160.0);
+/// Frames needed for a meaningful estimate.
+pub const MIN_FRAMES: usize = 10;
+
+/// Result of the self-calibration.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FocalEstimate {
+    /// Estimated horizontal field of view, degrees.
+    pub hfov_deg: f64,
+    /// The pinhole camera with that field of view.
+    pub camera: CameraModel,
+    /// `(hfov_deg, score)` pairs evaluated, for diagnostics.
+    pub curve: Vec<(f64, f64)>,
+}
+
+/// Estimates the focal length of a pinhole camera from `frames` (with their
+/// timestamps in seconds), e.g. the first 2-3 seconds of a clip.
+pub fn estimate_hfov(
+    frames: &[(FrameRef<'_>, f64)],
+    track_width: usize,
+    tracker: &TrackerParams,
+) -> Result<FocalEstimate, AmcError> {
+    if frames.len() < MIN_FRAMES {
+        return Err(AmcError::TooFewFrames {
+            needed: MIN_FRAMES,
+            got: frames.len(),
+        });
+    }
+    let (w, h) = (frames[0].0.width, frames[0].0.height);
+    let probe = CameraModel::pinhole_hfov(w, h, 60.0)?;
+    let mut frontend = TrackingFrontend::new(&probe, track_width)?;
+    let levels = Tracker::new(frontend.camera(), tracker.clone())?.levels();
+    let mut pyramids = Vec::with_capacity(frames.len());
+    for (f, _) in frames {
+        if f.width != w || f.height != h {
+            return Err(AmcError::FrameSizeChanged {
+                expected_w: w,
+                expected_h: h,
+                actual_w: f.width,
+                actual_h: f.height,
+            });
+        }
+        let mut p = Pyramid::default();
+        frontend.prepare(f, &mut p, levels);
+        pyramids.push(p);
+    }
+    let times: Vec<f64> = frames.iter().map(|(_, t)| *t).collect();
+    let mut curve = Vec::new();
+    let mut score = |hfov: f64| -> Result<f64, AmcError> {
+        let cam = CameraModel::pinhole_hfov(w, h, hfov)?;
+        let track_cam = TrackingFrontend::new(&cam, track_width)?.camera().clone();
+        let mut tr = Tracker::new(&track_cam, tracker.clone())?;
+        let (mut sum, mut n) = (0.0, 0usize);
+        for (p, &t) in pyramids.iter().zip(&times) {
+            let (_, info) = tr.track(p, t);
+            if info.iterations > 0 && info.rms_residual.is_finite() {
+                sum += (info.rms_residual as f64).powi(2);
+                n += 1;
+            }
+        }
+        let s = if n > 0 { sum / n as f64 } else { f64::INFINITY };
+        curve.push((hfov, s));
+        Ok(s)
+    };
+
+    // Coarse grid, uniform in log focal length (where the error is smoother).
+    let (lo, hi) = HFOV_RANGE_DEG;
+    let to_f = |hfov: f64| 1.0 / (hfov.to_radians() / 2.0).tan();
+    let to_hfov = |f: f64| 2.0 * (1.0 / f).atan().to_degrees();
+    let (lf_lo, lf_hi) = (to_f(hi).ln(), to_f(lo).ln());
+    const GRID: usize = 15;
+    let mut grid = Vec::with_capacity(GRID);
+    for i in 0..GRID {
+        let lf = lf_lo + (lf_hi - lf_lo) * i as f64 / (GRID - 1) as f64;
+        grid.push((lf, score(to_hfov(lf.exp()))?));
+    }
+    let best = grid
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1 .1.total_cmp(&b.1 .1))
+        .map_or(0, |(i, _)| i);
+    let (mut a, mut b) = (
+        grid[best.saturating_sub(1)].0,
+        grid[(best + 1).min(GRID - 1)].0,
+    );
+    // Golden-section refinement in log focal length.
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let mut c = b - g * (b - a);
+    let mut d = a + g * (b - a);
+    let mut fc = score(to_hfov(c.exp()))?;
+    let mut fd = score(to_hfov(d.exp()))?;
+    for _ in 0..12 {
+        if fc < fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - g * (b - a);
+            fc = score(to_hfov(c.exp()))?;
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + g * (b - a);
+            fd = score(to_hfov(d.exp()))?;
+        }
+    }
+    let hfov_deg = to_hfov(((a + b) / 2.0).exp());
+    curve.sort_by(|x, y| x.0.total_cmp(&y.0));
+    Ok(FocalEstimate {
+        hfov_deg,
+        camera: CameraModel::pinhole_hfov(w, h, hfov_deg)?,
+        curve,
+    })
+}

@@ -1,0 +1,395 @@
+//! The streaming stabilizer: push a frame and its timestamp, get the stabilized
+//! frame and its telemetry back.
+//!
+//! Per frame `j` (paper, Algorithm 1):
+//! 1. track: `R_hat_{0,j} = R_hat_{0,k} R_hat_{k,j}` (template `k` reset every `N_track` frames);
+//! 2. view: `R^view_{0,j}` from the SO(3) low-pass filter (or fixed, in saccade mode);
+//! 3. render: warp frames `i = j - N_avg + 1 ..= j` by `R_hat_{0,i}^T R^view_{0,j}` and average.
+//!
+//! Memory is bounded by the averaging window (plus `lookahead` frames): the
+//! frame ring, the accumulator and (saccade) the warped slots are allocated once
+//! and reused; steady state allocates nothing per frame.
+
+use crate::camera::CameraModel;
+use crate::error::AmcError;
+use crate::frontend::TrackingFrontend;
+use crate::image::{Frame, FrameRef, PixelFormat};
+use crate::pyramid::Pyramid;
+use crate::render::{Accumulator, RenderParams, WarpedFrame, Warper};
+use crate::so3::{self, Rot};
+use crate::tracker::{TrackInfo, Tracker, TrackerParams};
+use crate::view::{backward_pass, Mode, ViewParams};
+use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
+
+/// All parameters of the stabilizer: one definition shared by the CLI, the REST
+/// API and the WASM API.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct StabilizerParams {
+    /// Width (pixels) of the grayscale image the tracker works on; frames are
+    /// box-averaged by `floor(width / track_width)`. Range 32..=8192.
+    pub track_width: usize,
+    pub tracker: TrackerParams,
+    pub view: ViewParams,
+    pub render: RenderParams,
+}
+
+impl Default for StabilizerParams {
+    fn default() -> Self {
+        Self {
+            track_width: 320,
+            tracker: TrackerParams::default(),
+            view: ViewParams::default(),
+            render: RenderParams::default(),
+        }
+    }
+}
+
+impl StabilizerParams {
+    /// Checks every stage's parameters.
+    pub fn validate(&self) -> Result<(), AmcError> {
+        if !(32..=8192).contains(&self.track_width) {
+            return Err(AmcError::invalid("track_width", self.track_width, "32..=8192 pixels"));
+        }
+        self.tracker.validate()?;
+        self.view.validate()?;
+        self.render.validate()
+    }
+}
+
+/// What the stabilizer knows about one output frame.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Telemetry {
+    /// Index of the input frame this output shows (0-based).
+    pub frame: u64,
+    /// Its timestamp, seconds.
+    pub t: f64,
+    /// Rotation vector (radians) of the estimated orientation `R_hat_{0,j}`.
+    pub r_est: [f64; 3],
+    /// Rotation vector (radians) of the view `R^view_{0,j}`.
+    pub r_view: [f64; 3],
+    /// Body angular velocity of the estimate, `log(R_{0,j-1}^T R_{0,j}) / dt`, rad/s.
+    pub rate_est: [f64; 3],
+    /// Body angular velocity of the view, rad/s.
+    pub rate_view: [f64; 3],
+    /// Share of output pixels covered by every averaged frame.
+    pub valid_fraction: f64,
+    /// Frames averaged into this output.
+    pub frames_averaged: usize,
+    /// True when the saccade view was re-centred at this frame.
+    pub saccade: bool,
+    /// Tracking quality.
+    pub track: TrackInfo,
+}
+
+struct Buffered {
+    frame: Frame,
+    index: u64,
+    t: f64,
+    r_est: Rot,
+    info: TrackInfo,
+    /// Forward-filtered view at this frame.
+    view_fwd: Rot,
+}
+
+/// The streaming stabilizer (one per clip).
+pub struct Stabilizer {
+    params: StabilizerParams,
+    width: usize,
+    height: usize,
+    format: Option<PixelFormat>,
+    frontend: TrackingFrontend,
+    tracker: Tracker,
+    pyr: Pyramid,
+    warper: Warper,
+    out_cam: CameraModel,
+    ring: VecDeque<Buffered>,
+    spare: Vec<Frame>,
+    view_fwd: Rot,
+    saccade_view: Option<Rot>,
+    slots: VecDeque<WarpedFrame>,
+    spare_slots: Vec<WarpedFrame>,
+    acc: Accumulator,
+    output: Frame,
+    next_out: u64,
+    received: u64,
+    last_t: Option<f64>,
+    last_shown: Option<(f64, Rot, Rot)>,
+}
+
+impl Stabilizer {
+    /// A stabilizer for `width x height` frames through `lens`. A lens calibrated
+    /// at another resolution of the same aspect ratio is rescaled.
+    pub fn new(
+        lens: &CameraModel,
+        width: usize,
+        height: usize,
+        params: StabilizerParams,
+    ) -> Result<Self, AmcError> {
+        params.validate()?;
+        if width == 0 || height == 0 {
+            return Err(AmcError::EmptyFrame { width, height });
+        }
+        if width > 16384 || height > 16384 {
+            return Err(AmcError::FrameTooLarge { width, height });
+        }
+        lens.validate()?;
+        let cam = if lens.width == width && lens.height == height {
+            lens.clone()
+        } else {
+            let (ra, rb) = (lens.width as f64 / lens.height as f64, width as f64 / height as f64);
+            if (ra / rb - 1.0).abs() > 0.01 {
+                return Err(AmcError::LensAspectMismatch {
+                    width,
+                    height,
+                    lens_w: lens.width,
+                    lens_h: lens.height,
+                });
+            }
+            lens.rescaled(width, height)
+        };
+        let frontend = TrackingFrontend::new(&cam, params.track_width)?;
+        let tracker = Tracker::new(frontend.camera(), params.tracker.clone())?;
+        let out_cam = params.render.output_camera(&cam)?;
+        let warper = Warper::new(&cam, &out_cam);
+        Ok(Self {
+            width,
+            height,
+            format: None,
+            frontend,
+            tracker,
+            pyr: Pyramid::default(),
+            warper,
+            out_cam,
+            ring: VecDeque::new(),
+            spare: Vec::new(),
+            view_fwd: Rot::identity(),
+            saccade_view: None,
+            slots: VecDeque::new(),
+            spare_slots: Vec::new(),
+            acc: Accumulator::default(),
+            output: Frame::new(0, 0, PixelFormat::Rgb8),
+            next_out: 0,
+            received: 0,
+            last_t: None,
+            last_shown: None,
+            params,
+        })
+    }
+
+    /// Output frame size.
+    pub fn output_size(&self) -> (usize, usize) {
+        (self.out_cam.width, self.out_cam.height)
+    }
+
+    /// The output (pinhole) camera.
+    pub fn output_camera(&self) -> &CameraModel {
+        &self.out_cam
+    }
+
+    /// The undistorted pinhole camera the tracker works on.
+    pub fn tracking_camera(&self) -> &CameraModel {
+        self.frontend.camera()
+    }
+
+    /// Parameters in use.
+    pub fn params(&self) -> &StabilizerParams {
+        &self.params
+    }
+
+    /// The latest output frame (valid after `push`/`finish` returned telemetry).
+    pub fn output(&self) -> FrameRef<'_> {
+        self.output.as_ref()
+    }
+
+    /// Per-pixel count of frames averaged into the latest output (0 = black border).
+    pub fn output_coverage(&self) -> &[u8] {
+        &self.acc.count
+    }
+
+    /// Pushes frame `t` seconds into the clip. Returns the telemetry of the
+    /// output frame that became ready (`None` while the lookahead fills); read
+    /// the pixels with [`Stabilizer::output`].
+    pub fn push(&mut self, frame: FrameRef<'_>, t: f64) -> Result<Option<Telemetry>, AmcError> {
+        if frame.width != self.width || frame.height != self.height {
+            return Err(AmcError::FrameSizeChanged {
+                expected_w: self.width,
+                expected_h: self.height,
+                actual_w: frame.width,
+                actual_h: frame.height,
+            });
+        }
+        let expected = self.width * self.height * frame.format.channels();
+        if frame.data.len() != expected {
+            return Err(AmcError::BufferLength {
+                expected,
+                actual: frame.data.len(),
+            });
+        }
+        if !t.is_finite() {
+            return Err(AmcError::NonFiniteTimestamp(t));
+        }
+        if let Some(prev) = self.last_t {
+            if t <= prev {
+                return Err(AmcError::NonMonotonicTimestamp { t, prev });
+            }
+        }
+        let dt = self.last_t.map_or(0.0, |p| t - p);
+        self.last_t = Some(t);
+        if self.format.is_none() {
+            self.format = Some(frame.format);
+            let (w, h) = self.output_size();
+            self.output = Frame::new(w, h, frame.format);
+        }
+
+        let levels = self.tracker.levels();
+        self.frontend.prepare(&frame, &mut self.pyr, levels);
+        let (r_est, info) = self.tracker.track(&self.pyr, t);
+        self.view_fwd = if self.received == 0 {
+            r_est
+        } else {
+            self.params.view.step(&self.view_fwd, &r_est, dt)
+        };
+
+        let capacity = self.params.render.n_avg + self.params.view.lookahead;
+        if self.ring.len() >= capacity {
+            if let Some(old) = self.ring.pop_front() {
+                self.spare.push(old.frame);
+            }
+        }
+        let mut buf = self.spare.pop().unwrap_or_else(|| Frame::new(0, 0, frame.format));
+        buf.copy_from(&frame);
+        self.ring.push_back(Buffered {
+            frame: buf,
+            index: self.received,
+            t,
+            r_est,
+            info,
+            view_fwd: self.view_fwd,
+        });
+        self.received += 1;
+
+        if self.received > self.params.view.lookahead as u64 {
+            Ok(Some(self.render_next()))
+        } else {
+            Ok(None)
+        }
+    }
+
+    /// After the last frame: returns the next output still held back by the
+    /// lookahead, or `None` when all are out.
+    pub fn finish(&mut self) -> Option<Telemetry> {
+        (self.next_out < self.received).then(|| self.render_next())
+    }
+
+    /// Renders output frame `self.next_out` from the ring.
+    fn render_next(&mut self) -> Telemetry {
+        let j = self.next_out;
+        self.next_out += 1;
+        let pos = self.ring.iter().position(|b| b.index == j).unwrap_or(0);
+        let cur = &self.ring[pos];
+        let (t, r_est, info) = (cur.t, cur.r_est, cur.info);
+        let mode = self.params.view.mode;
+        let window = match mode {
+            Mode::None => 1,
+            _ => self.params.render.n_avg,
+        };
+        let first = pos + 1 - window.min(pos + 1);
+        let mut saccade = false;
+        let r_view = match mode {
+            Mode::None => r_est,
+            Mode::Stabilize => {
+                if self.params.view.lookahead == 0 {
+                    cur.view_fwd
+                } else {
+                    let fwd: Vec<(f64, Rot)> = self.ring.iter().skip(pos).map(|b| (b.t, b.view_fwd)).collect();
+                    backward_pass(&self.params.view, &fwd)
+                }
+            }
+            Mode::Saccade => *self.saccade_view.get_or_insert(r_est),
+        };
+
+        let n_px = self.out_cam.width * self.out_cam.height;
+        let channels = self.output.format.channels();
+        let valid_fraction;
+        if mode == Mode::Saccade {
+            self.saccade_update(first, pos, &r_view);
+            let full = self.slots.len() as u8;
+            let mut vf = self.acc.finish_into(&mut self.output.data, channels, full);
+            if vf < self.params.view.saccade_coverage && j > 0 {
+                // Re-centre the view on the current estimate and rebuild the sums.
+                saccade = true;
+                self.saccade_view = Some(r_est);
+                self.slots.drain(..).for_each(|s| self.spare_slots.push(s));
+                self.saccade_update(first, pos, &r_est);
+                let full = self.slots.len() as u8;
+                vf = self.acc.finish_into(&mut self.output.data, channels, full);
+            }
+            valid_fraction = vf;
+        } else {
+            self.acc.reset(n_px);
+            for b in self.ring.range(first..=pos) {
+                let m = b.r_est.matrix().transpose() * r_view.matrix();
+                let (sum, count) = (&mut self.acc.sum, &mut self.acc.count);
+                self.warper.warp(&b.frame.as_ref(), &m, |i, rgb| {
+                    sum[3 * i] += rgb[0];
+                    sum[3 * i + 1] += rgb[1];
+                    sum[3 * i + 2] += rgb[2];
+                    count[i] += 1;
+                });
+            }
+            valid_fraction = self.acc.finish_into(&mut self.output.data, channels, (pos + 1 - first) as u8);
+        }
+        let r_view = if saccade { r_est } else { r_view };
+
+        let (rate_est, rate_view) = match self.last_shown {
+            Some((tp, rp, vp)) if t > tp => (
+                so3::body_rate(&rp, &r_est, t - tp),
+                so3::body_rate(&vp, &r_view, t - tp),
+            ),
+            _ => Default::default(),
+        };
+        self.last_shown = Some((t, r_est, r_view));
+        Telemetry {
+            frame: j,
+            t,
+            r_est: so3::log(&r_est).into(),
+            r_view: so3::log(&r_view).into(),
+            rate_est: rate_est.into(),
+            rate_view: rate_view.into(),
+            valid_fraction,
+            frames_averaged: pos + 1 - first,
+            saccade,
+            track: info,
+        }
+    }
+
+    /// Saccade mode's recursive update: keeps one warped slot per frame of the
+    /// window, warps only frames not yet warped into `view`, and maintains the
+    /// running sum by adding the newest and subtracting the oldest.
+    fn saccade_update(&mut self, first: usize, pos: usize, view: &Rot) {
+        let n_px = self.out_cam.width * self.out_cam.height;
+        let first_index = self.ring[first].index;
+        if self.slots.is_empty() {
+            self.acc.reset(n_px);
+        }
+        while self.slots.front().is_some_and(|s| s.index < first_index) {
+            if let Some(old) = self.slots.pop_front() {
+                old.apply(&mut self.acc, false);
+                self.spare_slots.push(old);
+            }
+        }
+        let have_until = self.slots.back().map(|s| s.index + 1).unwrap_or(first_index);
+        for b in self.ring.range(first..=pos) {
+            if b.index < have_until {
+                continue;
+            }
+            let m = b.r_est.matrix().transpose() * view.matrix();
+            let mut slot = self.spare_slots.pop().unwrap_or_default();
+            slot.fill(&mut self.warper, &b.frame.as_ref(), &m, b.index);
+            slot.apply(&mut self.acc, true);
+            self.slots.push_back(slot);
+        }
+    }
+}

@@ -1,0 +1,140 @@
+//! `amc eval`: the paper's table for one clip: none / stabilize / saccade.
+
+use crate::cli::EvalArgs;
+use crate::error::CliError;
+use crate::gt::{self, GtReport};
+use crate::pipeline::{self, RunConfig, RunSummary};
+use crate::plot::{self, ModeSeries};
+use amc_core::so3::{self, Tangent};
+use amc_core::view::Mode;
+use serde::Serialize;
+use std::time::Duration;
+
+/// One row of the table.
+#[derive(Serialize)]
+pub struct ModeResult {
+    pub mode: String,
+    #[serde(flatten)]
+    pub run: RunSummary,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ground_truth: Option<GtReport>,
+}
+
+/// The whole evaluation.
+#[derive(Serialize)]
+pub struct EvalReport {
+    pub input: String,
+    pub lens: amc_core::CameraModel,
+    pub hfov_deg: f64,
+    pub modes: Vec<ModeResult>,
+}
+
+pub fn run(args: &EvalArgs) -> Result<EvalReport, CliError> {
+    let timeout = Duration::from_secs(args.tuning.timeout);
+    let base = args.tuning.params(Mode::Stabilize);
+    base.validate()?;
+    let lens = pipeline::resolve_lens(&args.lens.choice()?, &args.input, &base, args.tuning.fps, timeout, args.quiet)?;
+    let gt_rot = match &args.gt {
+        Some(p) => Some(gt::read_orientations(p)?),
+        None => None,
+    };
+    let mut modes = Vec::new();
+    for mode in [Mode::None, Mode::Stabilize, Mode::Saccade] {
+        let label = mode.to_string();
+        let cfg = RunConfig {
+            input: &args.input,
+            output: None,
+            params: args.tuning.params(mode),
+            lens: lens.clone(),
+            telemetry: None,
+            fps: args.tuning.fps,
+            timeout,
+            crf: None,
+            progress: !args.quiet,
+            keep_per_frame: true,
+            label: &label,
+        };
+        let run = pipeline::run(&cfg)?;
+        let ground_truth = gt_rot.as_ref().filter(|_| mode == Mode::Stabilize).map(|g| {
+            let est: Vec<_> = run
+                .per_frame
+                .iter()
+                .map(|r| so3::exp(&Tangent::from(r.telemetry.r_est)))
+                .collect();
+            gt::compare(g, &est)
+        });
+        modes.push(ModeResult { mode: label, run, ground_truth });
+    }
+    if let Some(path) = &args.plot {
+        let series: Vec<ModeSeries> = modes
+            .iter()
+            .map(|m| {
+                let speed = |v: [f64; 3]| Tangent::from(v).norm().to_degrees();
+                let pf = &m.run.per_frame;
+                ModeSeries {
+                    mode: m.mode.clone(),
+                    t: pf.iter().map(|r| r.telemetry.t).collect(),
+                    est_speed_dps: pf.iter().map(|r| speed(r.telemetry.rate_est)).collect(),
+                    view_speed_dps: pf.iter().map(|r| speed(r.telemetry.rate_view)).collect(),
+                    normal_flow: pf.iter().map(|r| r.metrics.rms_normal_flow).collect(),
+                    saccade: pf.iter().map(|r| r.telemetry.saccade).collect(),
+                }
+            })
+            .collect();
+        let title = format!("{}", args.input.display());
+        plot::write_plot(path, &title, &series)?;
+    }
+    Ok(EvalReport {
+        input: args.input.display().to_string(),
+        hfov_deg: lens.hfov_deg(),
+        lens,
+        modes,
+    })
+}
+
+/// The paper's table, in Markdown.
+pub fn markdown(r: &EvalReport) -> String {
+    let mut s = format!(
+        "Clip: `{}`; lens hfov {:.1} deg\n\n| mode | RMS normal flow (px) | RMS frame change | sharpness | valid px (mean / min) | est. speed (deg/s) | view speed (deg/s) | saccades | frames/s |\n|---|---|---|---|---|---|---|---|---|\n",
+        r.input, r.hfov_deg
+    );
+    let none = r.modes.first().map(|m| m.run.metrics.clone());
+    for m in &r.modes {
+        let c = &m.run.metrics;
+        let ratio = |v: f64, base: Option<f64>| match base {
+            Some(b) if b > 0.0 && m.mode != "none" => format!(" ({:.2}x)", v / b),
+            _ => String::new(),
+        };
+        s += &format!(
+            "| {} | {:.3}{} | {:.4}{} | {:.4}{} | {:.1}% / {:.1}% | {:.1} | {:.1} | {} | {:.0} |\n",
+            m.mode,
+            c.rms_normal_flow,
+            ratio(c.rms_normal_flow, none.as_ref().map(|n| n.rms_normal_flow)),
+            c.rms_change,
+            ratio(c.rms_change, none.as_ref().map(|n| n.rms_change)),
+            c.sharpness,
+            ratio(c.sharpness, none.as_ref().map(|n| n.sharpness)),
+            100.0 * c.valid_fraction,
+            100.0 * c.min_valid_fraction,
+            c.rms_speed_est_dps,
+            c.rms_speed_view_dps,
+            c.saccades,
+            m.run.frames_per_second,
+        );
+    }
+    for m in &r.modes {
+        if let Some(g) = &m.ground_truth {
+            s += &format!(
+                "\nGround truth ({} frames): per-frame rotation error median {:.4} deg, mean {:.4}, p95 {:.4}, max {:.4}; orientation error final {:.3} deg, max {:.3} deg\n",
+                g.frames,
+                g.median_frame_error_deg,
+                g.mean_frame_error_deg,
+                g.p95_frame_error_deg,
+                g.max_frame_error_deg,
+                g.final_orientation_error_deg,
+                g.max_orientation_error_deg
+            );
+        }
+    }
+    s
+}

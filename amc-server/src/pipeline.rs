@@ -1,0 +1,263 @@
+//! One stabilization run over a whole input: decode -> stabilize -> encode,
+//! with telemetry, metrics and progress. Shared by `stabilize`, `eval` and `demo`.
+
+use crate::cli::LensChoice;
+use crate::error::CliError;
+use crate::video::{self, FrameSource, InputOptions, OutputSpec};
+use amc_core::metrics::{ClipMetrics, FrameMetrics, MetricsAccumulator};
+use amc_core::selfcal;
+use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams, Telemetry};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde::Serialize;
+use std::io::{BufWriter, IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Frames read for `--fov auto` (about 3 s at 30 fps).
+pub const AUTO_FOV_FRAMES: usize = 90;
+
+/// Header of the telemetry CSV. The first eight columns are a stable contract.
+pub const TELEMETRY_HEADER: &str = "frame,t,rx,ry,rz,vx,vy,vz,est_speed_dps,view_speed_dps,valid_fraction,frames_averaged,saccade,iterations,rms_residual,track_valid_fraction,lost,template_reset";
+
+/// What a run needs.
+pub struct RunConfig<'a> {
+    pub input: &'a Path,
+    pub output: Option<&'a Path>,
+    pub params: StabilizerParams,
+    pub lens: CameraModel,
+    pub telemetry: Option<&'a Path>,
+    pub fps: Option<f64>,
+    pub timeout: Duration,
+    pub crf: Option<u8>,
+    pub progress: bool,
+    /// Keep per-frame records (for plots); memory grows with clip length.
+    pub keep_per_frame: bool,
+    pub label: &'a str,
+}
+
+/// One output frame's record.
+#[derive(Clone, Debug, Serialize)]
+pub struct FrameRecord {
+    pub telemetry: Telemetry,
+    pub metrics: FrameMetrics,
+}
+
+/// What a run produced.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunSummary {
+    pub frames: u64,
+    pub input_size: (usize, usize),
+    pub output_size: (usize, usize),
+    pub seconds: f64,
+    pub frames_per_second: f64,
+    pub metrics: ClipMetrics,
+    #[serde(skip)]
+    pub per_frame: Vec<FrameRecord>,
+}
+
+fn input_options(fps: Option<f64>, timeout: Duration) -> InputOptions {
+    InputOptions {
+        fps_override: fps,
+        timeout,
+    }
+}
+
+/// Resolves `--lens`/`--fov` to a camera for frames of `input`.
+pub fn resolve_lens(
+    choice: &LensChoice,
+    input: &Path,
+    params: &StabilizerParams,
+    fps: Option<f64>,
+    timeout: Duration,
+    quiet: bool,
+) -> Result<CameraModel, CliError> {
+    match choice {
+        LensChoice::File(p) => {
+            let text = std::fs::read_to_string(p).map_err(|e| CliError::io(p, e))?;
+            amc_core::lens::parse_lens(&text).map_err(|e| CliError::Usage(format!("{}: {e}", p.display())))
+        }
+        LensChoice::Fov(deg) => {
+            let src = video::open_input(input, &input_options(fps, timeout))?;
+            let info = src.info();
+            Ok(CameraModel::pinhole_hfov(info.width, info.height, *deg).map_err(amc_core::AmcError::from)?)
+        }
+        LensChoice::Auto => {
+            let mut src = video::open_input(input, &input_options(fps, timeout))?;
+            let mut frames = Vec::new();
+            let mut buf = Frame::new(0, 0, PixelFormat::Rgb8);
+            while frames.len() < AUTO_FOV_FRAMES {
+                match src.next_frame(&mut buf)? {
+                    Some(t) => frames.push((buf.clone(), t)),
+                    None => break,
+                }
+            }
+            let refs: Vec<_> = frames.iter().map(|(f, t)| (f.as_ref(), *t)).collect();
+            let est = selfcal::estimate_hfov(&refs, params.track_width, &params.tracker)?;
+            if !quiet {
+                eprintln!(
+                    "estimated horizontal field of view: {:.1} deg (from {} frames; pass --fov or --lens to set it)",
+                    est.hfov_deg,
+                    frames.len()
+                );
+            }
+            Ok(est.camera)
+        }
+    }
+}
+
+fn progress_bar(total: Option<u64>, enabled: bool, label: &str) -> ProgressBar {
+    let pb = match total {
+        Some(n) => ProgressBar::new(n),
+        None => ProgressBar::new_spinner(),
+    };
+    if !enabled || !std::io::stderr().is_terminal() {
+        pb.set_draw_target(ProgressDrawTarget::hidden());
+    }
+    let style = ProgressStyle::with_template(
+        "{prefix:>10} [{bar:30}] {pos}/{len} frames {per_sec} eta {eta}",
+    )
+    .unwrap_or_else(|_| ProgressStyle::default_bar())
+    .progress_chars("=> ");
+    pb.set_style(style);
+    pb.set_prefix(label.to_string());
+    pb
+}
+
+/// A file written beside its final path and moved there only on success.
+struct AtomicFile {
+    tmp: tempfile::NamedTempFile,
+    path: PathBuf,
+}
+
+impl AtomicFile {
+    fn create(path: &Path) -> Result<Self, CliError> {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        let tmp = tempfile::Builder::new()
+            .prefix(".amc-partial-")
+            .tempfile_in(dir)
+            .map_err(|e| CliError::io(path, e))?;
+        Ok(Self {
+            tmp,
+            path: path.to_path_buf(),
+        })
+    }
+
+    fn persist(self) -> Result<(), CliError> {
+        let path = self.path;
+        self.tmp.persist(&path).map_err(|e| CliError::io(&path, e.error))?;
+        Ok(())
+    }
+}
+
+/// Writes `bytes` to `path` atomically.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CliError> {
+    let mut f = AtomicFile::create(path)?;
+    f.tmp.write_all(bytes).map_err(|e| CliError::io(path, e))?;
+    f.persist()
+}
+
+fn telemetry_row(t: &Telemetry) -> String {
+    let speed = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt().to_degrees();
+    format!(
+        "{},{:.6},{:e},{:e},{:e},{:e},{:e},{:e},{:.4},{:.4},{:.5},{},{},{},{:.6},{:.4},{},{}\n",
+        t.frame,
+        t.t,
+        t.r_est[0],
+        t.r_est[1],
+        t.r_est[2],
+        t.r_view[0],
+        t.r_view[1],
+        t.r_view[2],
+        speed(t.rate_est),
+        speed(t.rate_view),
+        t.valid_fraction,
+        t.frames_averaged,
+        t.saccade as u8,
+        t.track.iterations,
+        t.track.rms_residual,
+        t.track.valid_fraction,
+        t.track.lost as u8,
+        t.track.template_reset as u8,
+    )
+}
+
+/// Runs the stabilizer over the whole input.
+pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
+    let mut src: Box<dyn FrameSource> = video::open_input(cfg.input, &input_options(cfg.fps, cfg.timeout))?;
+    let info = src.info().clone();
+    let mut stab = Stabilizer::new(&cfg.lens, info.width, info.height, cfg.params.clone())?;
+    let (ow, oh) = stab.output_size();
+    let mut sink = match cfg.output {
+        Some(path) => {
+            let mut spec = OutputSpec::new(ow, oh, cfg.fps.unwrap_or(info.fps));
+            spec.audio_from = info.has_audio.then(|| cfg.input.to_path_buf());
+            spec.timeout = cfg.timeout;
+            spec.crf = cfg.crf;
+            Some(video::create_output(path, &spec)?)
+        }
+        None => None,
+    };
+    let mut telemetry = match cfg.telemetry {
+        Some(p) => {
+            let f = AtomicFile::create(p)?;
+            let mut w = BufWriter::new(f.tmp);
+            writeln!(w, "{TELEMETRY_HEADER}").map_err(|e| CliError::io(p, e))?;
+            Some((w, f.path))
+        }
+        None => None,
+    };
+    let pb = progress_bar(info.frame_count, cfg.progress, cfg.label);
+    let mut metrics = MetricsAccumulator::new();
+    let mut per_frame = Vec::new();
+    let mut frame = Frame::new(info.width, info.height, PixelFormat::Rgb8);
+    let start = Instant::now();
+    let mut frames = 0u64;
+    let mut emit = |stab: &Stabilizer, tel: Telemetry| -> Result<(), CliError> {
+        if let Some(s) = sink.as_mut() {
+            s.write_frame(&stab.output())?;
+        }
+        let m = metrics.push(&stab.output(), stab.output_coverage(), tel.valid_fraction, Some(&tel));
+        if let Some((w, path)) = telemetry.as_mut() {
+            w.write_all(telemetry_row(&tel).as_bytes()).map_err(|e| CliError::io(&*path, e))?;
+        }
+        if cfg.keep_per_frame {
+            per_frame.push(FrameRecord { telemetry: tel, metrics: m });
+        }
+        frames += 1;
+        pb.inc(1);
+        Ok(())
+    };
+    while let Some(t) = src.next_frame(&mut frame)? {
+        if let Some(tel) = stab.push(frame.as_ref(), t)? {
+            emit(&stab, tel)?;
+        }
+    }
+    while let Some(tel) = stab.finish() {
+        emit(&stab, tel)?;
+    }
+    drop(emit);
+    pb.finish_and_clear();
+    if frames == 0 {
+        return Err(CliError::Usage(format!("{}: no frames could be read", cfg.input.display())));
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    if let Some(s) = sink {
+        s.finish()?;
+    }
+    if let Some((w, path)) = telemetry {
+        let tmp = w.into_inner().map_err(|e| CliError::io(&path, e.into_error()))?;
+        AtomicFile { tmp, path }.persist()?;
+    }
+    Ok(RunSummary {
+        frames,
+        input_size: (info.width, info.height),
+        output_size: (ow, oh),
+        seconds,
+        frames_per_second: frames as f64 / seconds.max(1e-9),
+        metrics: metrics.summary(),
+        per_frame,
+    })
+}

@@ -1,0 +1,509 @@
+//! Decoding and encoding through ffmpeg child processes piping raw RGB.
+//!
+//! Decoding: `ffmpeg -i IN -map 0:V -vf showinfo -fps_mode passthrough -f rawvideo
+//! -pix_fmt rgb24 pipe:1`. Frames are read straight into the caller's buffer.
+//! Presentation timestamps come from the `showinfo` filter's log lines on
+//! stderr, which ffmpeg writes before the frame itself reaches stdout, so each
+//! frame gets its real timestamp (variable frame rate clips exist) without a
+//! second pass over the file.
+//!
+//! Encoding: `ffmpeg -f rawvideo -pix_fmt rgb24 -i pipe:0 [-i AUDIO_SRC] ... TMP`,
+//! renamed onto the output path once ffmpeg has succeeded.
+
+use super::probe::{probe, Probe};
+use super::process::{run_capture, Proc};
+use super::{
+    as_rgb, check_frame, fps_rational, no_frames, parent_dir, partial_builder, partial_prefix,
+    shape_rgb, FrameSink, FrameSource, InputOptions, OutputSpec, VideoError, VideoInfo,
+};
+use amc_core::image::{Frame, FrameRef};
+use std::ffi::OsString;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{channel, Receiver};
+use std::sync::OnceLock;
+use std::time::Duration;
+
+/// How long to wait for a frame's `showinfo` line once the frame has arrived.
+/// The line is written before the frame, so this only matters if the ffmpeg
+/// build prints something else, in which case we fall back to `i / fps`.
+const PTS_LINE_WAIT: Duration = Duration::from_secs(2);
+
+/// Options that differ between ffmpeg versions, detected once.
+struct Caps {
+    /// `-fps_mode` (ffmpeg >= 5.1); older ones only know `-vsync`.
+    fps_mode: bool,
+    /// `showinfo=checksum=0` (ffmpeg >= 5.0) skips hashing every frame.
+    showinfo_checksum: bool,
+}
+
+fn caps() -> &'static Caps {
+    static CAPS: OnceLock<Caps> = OnceLock::new();
+    CAPS.get_or_init(|| {
+        let help = |topic: &str| -> String {
+            let args: Vec<OsString> = ["-hide_banner", "-h", topic]
+                .iter()
+                .map(OsString::from)
+                .collect();
+            run_capture(
+                "ffmpeg",
+                &args,
+                Path::new("ffmpeg"),
+                Duration::from_secs(20),
+            )
+            .map(|(_, out, _)| String::from_utf8_lossy(&out).into_owned())
+            .unwrap_or_default()
+        };
+        Caps {
+            fps_mode: help("long").contains("-fps_mode"),
+            showinfo_checksum: help("filter=showinfo").contains("checksum"),
+        }
+    })
+}
+
+fn os_args(args: &[&str]) -> Vec<OsString> {
+    args.iter().map(OsString::from).collect()
+}
+
+/// Frames decoded by an ffmpeg child.
+pub(crate) struct FfmpegSource {
+    proc: Proc,
+    info: VideoInfo,
+    /// `pts_time` of each decoded frame, from the stderr reader.
+    pts_rx: Receiver<f64>,
+    /// Whether timestamps come from `pts_rx` (false: `i / fps`).
+    use_pts: bool,
+    fps_override: Option<f64>,
+    /// Raw timestamp of the first frame (timestamps are relative to it).
+    first_pts: Option<f64>,
+    last_t: f64,
+    index: u64,
+    done: bool,
+}
+
+impl FfmpegSource {
+    /// Probes `path` and starts decoding it.
+    pub fn open(path: &Path, opts: &InputOptions) -> Result<Self, VideoError> {
+        let Probe {
+            mut info,
+            video_index,
+            ..
+        } = probe(path, opts.timeout)?;
+        if let Some(fps) = opts.fps_override {
+            info.fps = fps;
+            info.duration_s = info.frame_count.map(|n| n as f64 / fps);
+        }
+        let caps = caps();
+        let mut args = os_args(&[
+            "-hide_banner",
+            "-nostdin",
+            "-nostats",
+            // `level+` tags each line so showinfo's info lines can be told
+            // from errors.
+            "-loglevel",
+            "level+info",
+            "-i",
+        ]);
+        args.push(path.as_os_str().to_owned());
+        args.extend(os_args(&[
+            // Only the video stream: files can carry audio and data streams
+            // (GoPro telemetry) that rawvideo output cannot take.
+            "-map",
+            &format!("0:{video_index}"),
+            "-vf",
+            if caps.showinfo_checksum {
+                "showinfo=checksum=0"
+            } else {
+                "showinfo"
+            },
+            // One output frame per decoded frame: no duplicates or drops to
+            // force a constant rate.
+            if caps.fps_mode { "-fps_mode" } else { "-vsync" },
+            "passthrough",
+            "-f",
+            "rawvideo",
+            "-pix_fmt",
+            "rgb24",
+            "pipe:1",
+        ]));
+        let (tx, pts_rx) = channel();
+        let proc = Proc::spawn("ffmpeg", &args, path, opts.timeout, false, Some(tx))?;
+        Ok(Self {
+            proc,
+            info,
+            pts_rx,
+            use_pts: opts.fps_override.is_none(),
+            fps_override: opts.fps_override,
+            first_pts: None,
+            last_t: 0.0,
+            index: 0,
+            done: false,
+        })
+    }
+
+    /// The timestamp of the frame just read, relative to the first.
+    fn timestamp(&mut self) -> f64 {
+        let step = 1.0 / self.info.fps;
+        if let Some(fps) = self.fps_override {
+            return self.index as f64 / fps;
+        }
+        let mut raw = f64::NAN;
+        if self.use_pts {
+            match self.pts_rx.recv_timeout(PTS_LINE_WAIT) {
+                Ok(t) => raw = t,
+                // No line: this ffmpeg logs differently; stop waiting for them.
+                Err(_) => self.use_pts = false,
+            }
+        }
+        if self.index == 0 {
+            self.first_pts = raw.is_finite().then_some(raw);
+            return 0.0;
+        }
+        let t = match self.first_pts {
+            Some(first) if raw.is_finite() => raw - first,
+            _ => self.last_t + step,
+        };
+        // Timestamps must increase for the stabilizer's smoothing; a broken
+        // or duplicated stamp becomes one nominal frame after the previous.
+        if t > self.last_t {
+            t
+        } else {
+            self.last_t + step
+        }
+    }
+
+    /// Ends the stream: reaps ffmpeg and reports how it went.
+    fn end(&mut self) -> Result<Option<f64>, VideoError> {
+        self.done = true;
+        let status = self.proc.wait()?;
+        if self.proc.timed_out() {
+            return Err(self.proc.timeout_error());
+        }
+        if self.index == 0 {
+            // Failing before the first frame means the file is not something
+            // ffmpeg can decode, even though ffprobe recognised it.
+            return Err(VideoError::NotAVideo {
+                path: self.proc.path.clone(),
+                detail: self.proc.error_detail(if status.success() {
+                    "it decodes to no frames"
+                } else {
+                    "ffmpeg decoded no frames"
+                }),
+            });
+        }
+        if !status.success() {
+            return Err(self.proc.failure(Some(status)));
+        }
+        Ok(None)
+    }
+}
+
+impl FrameSource for FfmpegSource {
+    fn info(&self) -> &VideoInfo {
+        &self.info
+    }
+
+    fn next_frame(&mut self, buf: &mut Frame) -> Result<Option<f64>, VideoError> {
+        if self.done {
+            return Ok(None);
+        }
+        shape_rgb(buf, self.info.width, self.info.height);
+        self.proc.arm();
+        let read = match self.proc.stdout.as_mut() {
+            Some(stdout) => read_full(stdout, &mut buf.data),
+            None => Ok(0),
+        };
+        self.proc.disarm();
+        let n = match read {
+            Ok(n) => n,
+            Err(e) => {
+                self.done = true;
+                self.proc.kill();
+                if self.proc.timed_out() {
+                    return Err(self.proc.timeout_error());
+                }
+                return Err(VideoError::io(&self.proc.path, "read decoded frames", e));
+            }
+        };
+        if n == 0 {
+            return self.end();
+        }
+        if n < buf.data.len() {
+            // Only a dying ffmpeg stops mid-frame.
+            self.done = true;
+            let status = self.proc.wait().ok();
+            if status.is_some_and(|s| s.success()) && !self.proc.timed_out() {
+                return Err(VideoError::Ffmpeg {
+                    path: self.proc.path.clone(),
+                    tool: "ffmpeg",
+                    detail: format!(
+                        "decoded frame {} is {n} bytes instead of {}",
+                        self.index,
+                        buf.data.len()
+                    ),
+                });
+            }
+            return Err(self.proc.failure(status));
+        }
+        let t = self.timestamp();
+        self.last_t = t;
+        self.index += 1;
+        Ok(Some(t))
+    }
+}
+
+/// Reads until `buf` is full or the stream ends; returns the bytes read.
+fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut filled = 0;
+    while filled < buf.len() {
+        match r.read(&mut buf[filled..]) {
+            Ok(0) => break,
+            Ok(n) => filled += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(filled)
+}
+
+/// The video containers ffmpeg writes for us.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Container {
+    /// H.264 + (copied or AAC) audio.
+    Mp4,
+    /// H.264 + copied audio.
+    Mkv,
+    /// VP9 + Opus audio.
+    Webm,
+}
+
+impl Container {
+    /// The container for a lower-case extension.
+    pub fn from_extension(ext: &str) -> Option<Self> {
+        match ext {
+            "mp4" => Some(Container::Mp4),
+            "mkv" => Some(Container::Mkv),
+            "webm" => Some(Container::Webm),
+            _ => None,
+        }
+    }
+
+    fn muxer(self) -> &'static str {
+        match self {
+            Container::Mp4 => "mp4",
+            Container::Mkv => "matroska",
+            Container::Webm => "webm",
+        }
+    }
+
+    fn suffix(self) -> &'static str {
+        match self {
+            Container::Mp4 => ".mp4",
+            Container::Mkv => ".mkv",
+            Container::Webm => ".webm",
+        }
+    }
+
+    /// Video codec arguments for quality `crf` (codec default when `None`).
+    fn video_args(self, crf: Option<u8>) -> Vec<String> {
+        let v = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        match self {
+            Container::Mp4 | Container::Mkv => {
+                let mut a = v(&["-c:v", "libx264", "-preset", "veryfast", "-crf"]);
+                a.push(crf.unwrap_or(20).min(51).to_string());
+                a
+            }
+            Container::Webm => {
+                // Realtime VP9 at the fastest setting: libvpx is otherwise
+                // far slower than the stabilizer.
+                let mut a = v(&[
+                    "-c:v",
+                    "libvpx-vp9",
+                    "-deadline",
+                    "realtime",
+                    "-cpu-used",
+                    "8",
+                    "-row-mt",
+                    "1",
+                    "-b:v",
+                    "0",
+                    "-crf",
+                ]);
+                a.push(crf.unwrap_or(32).min(63).to_string());
+                a
+            }
+        }
+    }
+
+    /// Audio arguments for an input audio codec: copy when the container can
+    /// hold it, else re-encode.
+    fn audio_args(self, codec: &str) -> &'static [&'static str] {
+        const COPY: &[&str] = &["-c:a", "copy"];
+        match self {
+            Container::Mkv => COPY,
+            Container::Mp4 => match codec {
+                "aac" | "mp3" | "alac" | "ac3" | "eac3" | "opus" | "flac" => COPY,
+                _ => &["-c:a", "aac", "-b:a", "192k"],
+            },
+            Container::Webm => match codec {
+                "opus" | "vorbis" => COPY,
+                _ => &["-c:a", "libopus", "-b:a", "128k"],
+            },
+        }
+    }
+}
+
+/// Frames encoded by an ffmpeg child into a temporary sibling of the output.
+pub(crate) struct FfmpegSink {
+    // Field order matters: `proc` drops (killing ffmpeg) before `temp`
+    // deletes the partial file.
+    proc: Proc,
+    temp: tempfile::TempPath,
+    path: PathBuf,
+    width: usize,
+    height: usize,
+    scratch: Vec<u8>,
+    frames: u64,
+    failed: bool,
+}
+
+impl FfmpegSink {
+    /// Starts an encoder writing `container` for frames of `spec`.
+    pub fn create(
+        path: &Path,
+        spec: &OutputSpec,
+        container: Container,
+    ) -> Result<Self, VideoError> {
+        let dir = parent_dir(path)?;
+        let audio = match &spec.audio_from {
+            Some(src) => audio_codec_of(src, spec.timeout)?.map(|c| (src.clone(), c)),
+            None => None,
+        };
+        let temp = partial_builder(&partial_prefix(path), container.suffix(), false)
+            .tempfile_in(&dir)
+            .map_err(|e| VideoError::io(path, "create output", e))?
+            .into_temp_path();
+
+        let (num, den) = fps_rational(spec.fps);
+        let mut args: Vec<String> = [
+            "-hide_banner",
+            "-nostdin",
+            "-nostats",
+            "-loglevel",
+            "level+error",
+            "-y",
+            "-f",
+            "rawvideo",
+            "-pix_fmt",
+            "rgb24",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        args.extend([
+            "-video_size".into(),
+            format!("{}x{}", spec.width, spec.height),
+            "-framerate".into(),
+            format!("{num}/{den}"),
+            "-i".into(),
+            "pipe:0".into(),
+        ]);
+        let mut os: Vec<OsString> = args.into_iter().map(OsString::from).collect();
+        let mut more: Vec<String> = Vec::new();
+        if let Some((src, _)) = &audio {
+            os.push("-i".into());
+            os.push(src.as_os_str().to_owned());
+            more.extend(["-map", "0:v:0", "-map", "1:a?"].map(String::from));
+        } else {
+            more.extend(["-map", "0:v:0"].map(String::from));
+        }
+        if spec.width % 2 == 1 || spec.height % 2 == 1 {
+            // yuv420p needs even sizes: add one black row/column rather than fail.
+            more.extend(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2"].map(String::from));
+        }
+        more.extend(container.video_args(spec.crf));
+        more.extend(["-pix_fmt", "yuv420p"].map(String::from));
+        if let Some((_, codec)) = &audio {
+            more.extend(container.audio_args(codec).iter().map(|s| s.to_string()));
+        }
+        if container == Container::Mp4 {
+            // Index at the front so players can start before downloading all.
+            more.extend(["-movflags", "+faststart"].map(String::from));
+        }
+        more.extend(["-f", container.muxer()].map(String::from));
+        os.extend(more.into_iter().map(OsString::from));
+        os.push(temp.as_os_str().to_owned());
+
+        let proc = Proc::spawn("ffmpeg", &os, path, spec.timeout, true, None)?;
+        Ok(Self {
+            proc,
+            temp,
+            path: path.to_path_buf(),
+            width: spec.width,
+            height: spec.height,
+            scratch: Vec::new(),
+            frames: 0,
+            failed: false,
+        })
+    }
+
+    /// The error after ffmpeg stopped taking frames.
+    fn died(&mut self) -> VideoError {
+        self.failed = true;
+        if self.proc.timed_out() {
+            self.proc.kill();
+            return self.proc.timeout_error();
+        }
+        let status = self.proc.wait().ok();
+        self.proc.failure(status)
+    }
+}
+
+/// The audio codec of the input `src`, when it is a file with audio.
+fn audio_codec_of(src: &Path, timeout: Duration) -> Result<Option<String>, VideoError> {
+    if src.is_dir() || super::extension(src).as_deref() == Some("y4m") {
+        return Ok(None);
+    }
+    Ok(probe(src, timeout)?.audio_codec)
+}
+
+impl FrameSink for FfmpegSink {
+    fn write_frame(&mut self, frame: &FrameRef<'_>) -> Result<(), VideoError> {
+        check_frame(&self.path, self.width, self.height, frame)?;
+        if self.failed {
+            return Err(self.proc.failure(None));
+        }
+        let rgb = as_rgb(frame, &mut self.scratch);
+        self.proc.arm();
+        let written = match self.proc.stdin.as_mut() {
+            Some(stdin) => stdin.write_all(rgb),
+            None => Err(std::io::ErrorKind::BrokenPipe.into()),
+        };
+        self.proc.disarm();
+        match written {
+            Ok(()) => {
+                self.frames += 1;
+                Ok(())
+            }
+            // A broken pipe means ffmpeg exited: its stderr says why.
+            Err(_) => Err(self.died()),
+        }
+    }
+
+    fn finish(self: Box<Self>) -> Result<(), VideoError> {
+        let mut this = *self;
+        if this.frames == 0 {
+            return Err(no_frames(&this.path));
+        }
+        if this.failed {
+            return Err(this.proc.failure(None));
+        }
+        let status = this.proc.wait()?;
+        if !status.success() {
+            return Err(this.proc.failure(Some(status)));
+        }
+        let FfmpegSink { temp, path, .. } = this;
+        temp.persist(&path)
+            .map_err(|e| VideoError::io(&path, "move the finished output into place", e.error))
+    }
+}

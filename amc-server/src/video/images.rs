@@ -1,0 +1,320 @@
+//! Directories of still images as video: input from image files in natural
+//! order (`frame-9` before `frame-10`), output as `frame-000000.png`, ...
+
+use super::process::run_capture;
+use super::{
+    as_rgb, check_frame, no_frames, parent_dir, partial_builder, partial_prefix, shape_rgb,
+    FrameSink, FrameSource, InputOptions, OutputSpec, VideoError, VideoInfo, IMAGE_EXTENSIONS,
+};
+use amc_core::image::{Frame, FrameRef};
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+
+/// Frames read from the image files of a directory.
+pub(crate) struct ImageDirSource {
+    files: Vec<PathBuf>,
+    info: VideoInfo,
+    /// The first image, decoded by `open` to learn the size, handed out first.
+    first: Option<Vec<u8>>,
+    index: usize,
+    timeout: std::time::Duration,
+}
+
+impl ImageDirSource {
+    /// Lists the images of `dir` and decodes the first to learn the frame size.
+    pub fn open(dir: &Path, opts: &InputOptions) -> Result<Self, VideoError> {
+        let entries = std::fs::read_dir(dir).map_err(|e| VideoError::io(dir, "list", e))?;
+        let mut files = Vec::new();
+        for entry in entries {
+            let entry = entry.map_err(|e| VideoError::io(dir, "list", e))?;
+            let path = entry.path();
+            let is_image =
+                super::extension(&path).is_some_and(|ext| IMAGE_EXTENSIONS.contains(&ext.as_str()));
+            // Hidden files are editor/OS litter (`._frame.png` on macOS volumes).
+            let hidden = entry.file_name().to_string_lossy().starts_with('.');
+            if is_image && !hidden && path.is_file() {
+                files.push(path);
+            }
+        }
+        if files.is_empty() {
+            return Err(VideoError::NoImages {
+                path: dir.to_path_buf(),
+            });
+        }
+        files.sort_by(|a, b| {
+            let name = |p: &PathBuf| {
+                p.file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+                    .into_owned()
+            };
+            natord::compare(&name(a), &name(b))
+        });
+        let (width, height, first) = decode(&files[0], opts.timeout)?;
+        let fps = opts.fps_override.unwrap_or(super::DEFAULT_IMAGE_FPS);
+        let n = files.len() as u64;
+        Ok(Self {
+            info: VideoInfo {
+                width,
+                height,
+                fps,
+                frame_count: Some(n),
+                duration_s: Some(n as f64 / fps),
+                has_audio: false,
+            },
+            files,
+            first: Some(first),
+            index: 0,
+            timeout: opts.timeout,
+        })
+    }
+}
+
+impl FrameSource for ImageDirSource {
+    fn info(&self) -> &VideoInfo {
+        &self.info
+    }
+
+    fn next_frame(&mut self, buf: &mut Frame) -> Result<Option<f64>, VideoError> {
+        let Some(path) = self.files.get(self.index) else {
+            return Ok(None);
+        };
+        let (w, h) = (self.info.width, self.info.height);
+        let data = match self.first.take() {
+            Some(data) => data,
+            None => {
+                let (width, height, data) = decode(path, self.timeout)?;
+                if (width, height) != (w, h) {
+                    return Err(VideoError::SizeMismatch {
+                        path: path.clone(),
+                        width,
+                        height,
+                        first: self.files[0].clone(),
+                        first_width: w,
+                        first_height: h,
+                    });
+                }
+                data
+            }
+        };
+        // The decoder hands us a fresh buffer anyway: take it instead of copying.
+        buf.data = data;
+        shape_rgb(buf, w, h);
+        let t = self.index as f64 / self.info.fps;
+        self.index += 1;
+        Ok(Some(t))
+    }
+}
+
+/// Decodes an image file to packed RGB8: `(width, height, pixels)`.
+fn decode(
+    path: &Path,
+    timeout: std::time::Duration,
+) -> Result<(usize, usize, Vec<u8>), VideoError> {
+    let err = |detail: String| VideoError::Image {
+        path: path.to_path_buf(),
+        detail,
+    };
+    // Sniffing the content rather than trusting the extension copes with
+    // misnamed files (a JPEG called .png).
+    let reader = image::ImageReader::open(path)
+        .map_err(|e| VideoError::io(path, "open image", e))?
+        .with_guessed_format()
+        .map_err(|e| VideoError::io(path, "read image", e))?;
+    let is_tiff = reader.format() == Some(image::ImageFormat::Tiff)
+        || matches!(super::extension(path).as_deref(), Some("tif" | "tiff"));
+    match reader.decode() {
+        Ok(img) => {
+            let rgb = img.into_rgb8();
+            let (w, h) = (rgb.width() as usize, rgb.height() as usize);
+            Ok((w, h, rgb.into_raw()))
+        }
+        // Formats this build of the image crate lacks (TIFF) go through ffmpeg.
+        Err(image::ImageError::Unsupported(_)) if is_tiff => decode_with_ffmpeg(path, timeout),
+        Err(e) => Err(err(format!("cannot decode image: {e}"))),
+    }
+}
+
+/// Decodes one image with ffmpeg into a binary PPM on stdout, whose header
+/// carries the size.
+fn decode_with_ffmpeg(
+    path: &Path,
+    timeout: std::time::Duration,
+) -> Result<(usize, usize, Vec<u8>), VideoError> {
+    let err = |detail: String| VideoError::Image {
+        path: path.to_path_buf(),
+        detail: format!("cannot decode image: {detail}"),
+    };
+    let mut args: Vec<OsString> = ["-hide_banner", "-nostdin", "-loglevel", "level+error", "-i"]
+        .iter()
+        .map(OsString::from)
+        .collect();
+    args.push(path.as_os_str().to_owned());
+    args.extend(
+        [
+            "-frames:v",
+            "1",
+            "-f",
+            "image2pipe",
+            "-c:v",
+            "ppm",
+            "-pix_fmt",
+            "rgb24",
+            "pipe:1",
+        ]
+        .iter()
+        .map(OsString::from),
+    );
+    let (_, out, failure) = run_capture("ffmpeg", &args, path, timeout)?;
+    if let Some(detail) = failure {
+        return Err(err(detail));
+    }
+    parse_ppm(&out).ok_or_else(|| err("ffmpeg produced no picture".into()))
+}
+
+/// Parses a binary 8-bit PPM (`P6 W H 255` + RGB data).
+fn parse_ppm(data: &[u8]) -> Option<(usize, usize, Vec<u8>)> {
+    let mut fields = Vec::with_capacity(4);
+    let mut pos = 0;
+    while fields.len() < 4 {
+        while data.get(pos)?.is_ascii_whitespace() {
+            pos += 1;
+        }
+        let start = pos;
+        while !data.get(pos)?.is_ascii_whitespace() {
+            pos += 1;
+        }
+        fields.push(std::str::from_utf8(&data[start..pos]).ok()?);
+    }
+    pos += 1; // the single whitespace byte before the pixels
+    let (w, h): (usize, usize) = (fields[1].parse().ok()?, fields[2].parse().ok()?);
+    if fields[0] != "P6" || fields[3] != "255" || w == 0 || h == 0 {
+        return None;
+    }
+    let pixels = data.get(pos..pos + w.checked_mul(h)?.checked_mul(3)?)?;
+    Some((w, h, pixels.to_vec()))
+}
+
+/// Frames written as PNG files into a temporary directory, renamed onto the
+/// output directory by `finish`.
+pub(crate) struct PngDirSink {
+    path: PathBuf,
+    /// Deleted with its contents on drop unless `finish` moves it into place.
+    temp: tempfile::TempDir,
+    width: usize,
+    height: usize,
+    scratch: Vec<u8>,
+    frames: u64,
+}
+
+impl PngDirSink {
+    /// Checks that `path` is new or an empty directory and creates the temporary one.
+    pub fn create(path: &Path, spec: &OutputSpec) -> Result<Self, VideoError> {
+        // `out/` names the directory `out`.
+        let path: PathBuf = path.components().collect();
+        check_replaceable(&path)?;
+        let dir = parent_dir(&path)?;
+        let temp = partial_builder(&partial_prefix(&path), "", true)
+            .tempdir_in(dir)
+            .map_err(|e| VideoError::io(&path, "create output directory", e))?;
+        Ok(Self {
+            path,
+            temp,
+            width: spec.width,
+            height: spec.height,
+            scratch: Vec::new(),
+            frames: 0,
+        })
+    }
+}
+
+/// Whether the output directory may be (re)placed: it must not exist, or be
+/// an empty directory.
+fn check_replaceable(path: &Path) -> Result<(), VideoError> {
+    match std::fs::symlink_metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(VideoError::io(path, "inspect output", e)),
+        Ok(meta) if meta.is_dir() => {
+            let mut entries =
+                std::fs::read_dir(path).map_err(|e| VideoError::io(path, "list", e))?;
+            if entries.next().is_some() {
+                Err(VideoError::OutputDirNotEmpty {
+                    path: path.to_path_buf(),
+                })
+            } else {
+                Ok(())
+            }
+        }
+        Ok(_) => Err(VideoError::io(
+            path,
+            "create output directory",
+            std::io::Error::new(
+                std::io::ErrorKind::AlreadyExists,
+                "a file with this name exists (PNG frames need a directory)",
+            ),
+        )),
+    }
+}
+
+impl FrameSink for PngDirSink {
+    fn write_frame(&mut self, frame: &FrameRef<'_>) -> Result<(), VideoError> {
+        use image::ImageEncoder;
+        check_frame(&self.path, self.width, self.height, frame)?;
+        let rgb = as_rgb(frame, &mut self.scratch);
+        let name = format!("frame-{:06}.png", self.frames);
+        let file_path = self.temp.path().join(&name);
+        let file = std::fs::File::create(&file_path)
+            .map_err(|e| VideoError::io(&self.path, "write a frame", e))?;
+        // Fast compression: default zlib levels make encoding the bottleneck.
+        let encoder = image::codecs::png::PngEncoder::new_with_quality(
+            std::io::BufWriter::new(file),
+            image::codecs::png::CompressionType::Fast,
+            image::codecs::png::FilterType::Adaptive,
+        );
+        encoder
+            .write_image(
+                rgb,
+                self.width as u32,
+                self.height as u32,
+                image::ExtendedColorType::Rgb8,
+            )
+            .map_err(|e| VideoError::Image {
+                path: self.path.join(name),
+                detail: format!("cannot write PNG: {e}"),
+            })?;
+        self.frames += 1;
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>) -> Result<(), VideoError> {
+        if self.frames == 0 {
+            return Err(no_frames(&self.path));
+        }
+        let PngDirSink { path, temp, .. } = *self;
+        // Checked again: something may have appeared there meanwhile.
+        check_replaceable(&path)?;
+        if path.is_dir() {
+            std::fs::remove_dir(&path).map_err(|e| VideoError::io(&path, "replace", e))?;
+        }
+        let temp_path = temp.path().to_path_buf();
+        std::fs::rename(&temp_path, &path)
+            .map_err(|e| VideoError::io(&path, "move the finished output into place", e))?;
+        // The directory now lives at `path`; stop `TempDir` from deleting it.
+        let _ = temp.keep();
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_ppm() {
+        let mut data = b"P6\n2 1\n255\n".to_vec();
+        data.extend_from_slice(&[1, 2, 3, 4, 5, 6]);
+        assert_eq!(parse_ppm(&data), Some((2, 1, vec![1, 2, 3, 4, 5, 6])));
+        assert_eq!(parse_ppm(&data[..12]), None);
+        assert_eq!(parse_ppm(b"P5\n2 1\n255\n\0\0"), None);
+    }
+}

@@ -1,0 +1,168 @@
+//! `ffprobe`: size, rate, length and audio of a video file.
+
+use super::process::run_capture;
+use super::{VideoError, VideoInfo};
+use serde_json::Value;
+use std::ffi::OsString;
+use std::path::Path;
+use std::time::Duration;
+
+/// What ffprobe says about a file.
+#[derive(Clone, Debug)]
+pub(crate) struct Probe {
+    pub info: VideoInfo,
+    /// Index (among all streams) of the video stream to decode.
+    pub video_index: u64,
+    /// Codec of the first audio stream (`aac`, `opus`, ...), if any.
+    pub audio_codec: Option<String>,
+}
+
+/// Probes `path`. A file ffprobe cannot open, or one without a video stream,
+/// is [`VideoError::NotAVideo`].
+pub(crate) fn probe(path: &Path, timeout: Duration) -> Result<Probe, VideoError> {
+    let args: Vec<OsString> = [
+        "-hide_banner",
+        "-loglevel",
+        "level+error",
+        // Counting packets demuxes the file (no decoding: fast) and gives a
+        // frame count for containers without one in their header (mkv, webm).
+        "-count_packets",
+        "-show_entries",
+        "stream=index,codec_type,codec_name,width,height,avg_frame_rate,r_frame_rate,\
+         nb_frames,nb_read_packets,duration:stream_side_data=rotation:stream_tags=rotate:\
+         stream_disposition=attached_pic:format=duration",
+        "-of",
+        "json",
+    ]
+    .iter()
+    .map(OsString::from)
+    .chain([path.as_os_str().to_owned()])
+    .collect();
+    let (_, out, err) = run_capture("ffprobe", &args, path, timeout)?;
+    if let Some(detail) = err {
+        return Err(VideoError::NotAVideo {
+            path: path.to_path_buf(),
+            detail,
+        });
+    }
+    parse(path, &out)
+}
+
+/// Interprets ffprobe's JSON.
+fn parse(path: &Path, json: &[u8]) -> Result<Probe, VideoError> {
+    let not_video = |detail: &str| VideoError::NotAVideo {
+        path: path.to_path_buf(),
+        detail: detail.to_string(),
+    };
+    let root: Value = serde_json::from_slice(json)
+        .map_err(|e| not_video(&format!("unexpected ffprobe output ({e})")))?;
+    let streams = root["streams"].as_array().cloned().unwrap_or_default();
+    let is_type = |s: &Value, t: &str| s["codec_type"].as_str() == Some(t);
+    // Cover art is a "video" stream of one picture; `-map 0:v:0` would pick it
+    // if it came first, but it is not what anyone wants stabilized, so the
+    // decoder maps the stream chosen here by its index.
+    let video = streams
+        .iter()
+        .filter(|s| is_type(s, "video"))
+        .find(|s| s["disposition"]["attached_pic"].as_i64() != Some(1))
+        .ok_or_else(|| not_video("it has no video stream"))?;
+    let audio_codec = streams
+        .iter()
+        .find(|s| is_type(s, "audio"))
+        .map(|s| s["codec_name"].as_str().unwrap_or("unknown").to_string());
+
+    let dim = |key: &str| video[key].as_u64().filter(|&v| v > 0).map(|v| v as usize);
+    let (Some(mut width), Some(mut height)) = (dim("width"), dim("height")) else {
+        return Err(not_video("its video stream has no frame size"));
+    };
+    // ffmpeg applies the rotation flag of phone videos when decoding, so a
+    // quarter turn swaps the size the frames come out with.
+    if quarter_turn(video) {
+        std::mem::swap(&mut width, &mut height);
+    }
+    let fps = [
+        video["avg_frame_rate"].as_str(),
+        video["r_frame_rate"].as_str(),
+    ]
+    .into_iter()
+    .flatten()
+    .filter_map(parse_rate)
+    .next()
+    .unwrap_or(super::DEFAULT_IMAGE_FPS);
+    let number = |v: &Value| -> Option<f64> {
+        match v {
+            Value::String(s) => s.parse().ok(),
+            Value::Number(n) => n.as_f64(),
+            _ => None,
+        }
+    };
+    let frame_count = [&video["nb_frames"], &video["nb_read_packets"]]
+        .into_iter()
+        .filter_map(number)
+        .find(|&n| n >= 1.0)
+        .map(|n| n as u64);
+    let duration_s = [&video["duration"], &root["format"]["duration"]]
+        .into_iter()
+        .filter_map(number)
+        .find(|d| d.is_finite() && *d > 0.0);
+    Ok(Probe {
+        info: VideoInfo {
+            width,
+            height,
+            fps,
+            frame_count,
+            duration_s,
+            has_audio: audio_codec.is_some(),
+        },
+        audio_codec,
+        video_index: video["index"].as_u64().unwrap_or(0),
+    })
+}
+
+/// `"30000/1001"` -> 29.97; `None` for `0/0` and nonsense.
+fn parse_rate(s: &str) -> Option<f64> {
+    let (n, d) = s.split_once('/').unwrap_or((s, "1"));
+    let r = n.trim().parse::<f64>().ok()? / d.trim().parse::<f64>().ok()?;
+    (r.is_finite() && r > 0.0 && r <= 10_000.0).then_some(r)
+}
+
+/// Whether the stream is flagged to be displayed rotated by 90 or 270 degrees.
+fn quarter_turn(stream: &Value) -> bool {
+    let from_side_data = stream["side_data_list"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|sd| sd["rotation"].as_f64());
+    let from_tag = stream["tags"]["rotate"]
+        .as_str()
+        .and_then(|s| s.parse::<f64>().ok());
+    from_side_data
+        .chain(from_tag)
+        .next()
+        .map(|r| (r.round() as i64).rem_euclid(180) == 90)
+        .unwrap_or(false)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_rates_and_rotation() {
+        assert!((parse_rate("30000/1001").unwrap() - 29.97).abs() < 0.01);
+        assert_eq!(parse_rate("0/0"), None);
+        assert_eq!(parse_rate("25"), Some(25.0));
+        let json = br#"{"streams":[{"codec_type":"video","width":640,"height":480,
+            "avg_frame_rate":"0/0","r_frame_rate":"25/1",
+            "side_data_list":[{"rotation":-90}]}],"format":{"duration":"2.0"}}"#;
+        let p = parse(Path::new("x.mov"), json).unwrap();
+        assert_eq!((p.info.width, p.info.height), (480, 640));
+        assert_eq!(p.info.fps, 25.0);
+        assert_eq!(p.info.duration_s, Some(2.0));
+        assert_eq!(p.info.frame_count, None);
+        assert!(!p.info.has_audio);
+        let json = br#"{"streams":[{"codec_type":"audio","codec_name":"mp3"}]}"#;
+        let e = parse(Path::new("x.mp3"), json).unwrap_err();
+        assert!(e.to_string().contains("no video stream"), "{e}");
+    }
+}

@@ -1,0 +1,441 @@
+//! YUV4MPEG2 (`.y4m`) reading and writing, done here rather than through
+//! ffmpeg: the format is trivial and this keeps uncompressed workflows free of
+//! child processes.
+//!
+//! A file is a header line `YUV4MPEG2 W640 H480 F30000:1001 Ip A1:1 C420jpeg`
+//! followed by frames, each a `FRAME` line and the raw planes (Y, then Cb, Cr).
+//! Colours are converted with BT.601 limited-range matrices, as ffmpeg does by
+//! default (full range when the header says `XCOLORRANGE=FULL`).
+
+use super::{
+    check_frame, fps_rational, no_frames, parent_dir, partial_builder, partial_prefix, shape_rgb,
+    FrameSink, FrameSource, InputOptions, OutputSpec, VideoError, VideoInfo,
+};
+use amc_core::image::{Frame, FrameRef};
+use std::fs::File;
+use std::io::{BufRead, BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+/// Longest header or `FRAME` line accepted (real ones are well under 100 bytes).
+const MAX_LINE: u64 = 4096;
+
+/// Chroma subsampling of a Y4M file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Chroma {
+    /// Half width, half height (`C420jpeg`, `C420paldv`, `C420mpeg2`, `C420`).
+    C420,
+    /// Half width, full height.
+    C422,
+    /// Full resolution.
+    C444,
+    /// Luma only.
+    Mono,
+}
+
+/// Plane geometry of one frame.
+#[derive(Clone, Copy, Debug)]
+struct Layout {
+    width: usize,
+    height: usize,
+    chroma: Chroma,
+    full_range: bool,
+}
+
+impl Layout {
+    /// (width, height) of each chroma plane, or `None` for mono.
+    fn chroma_size(&self) -> Option<(usize, usize)> {
+        let (w, h) = (self.width, self.height);
+        match self.chroma {
+            Chroma::C420 => Some((w.div_ceil(2), h.div_ceil(2))),
+            Chroma::C422 => Some((w.div_ceil(2), h)),
+            Chroma::C444 => Some((w, h)),
+            Chroma::Mono => None,
+        }
+    }
+
+    fn frame_bytes(&self) -> usize {
+        self.width * self.height + self.chroma_size().map_or(0, |(cw, ch)| 2 * cw * ch)
+    }
+}
+
+/// Frames read from a `.y4m` file.
+pub(crate) struct Y4mSource {
+    path: PathBuf,
+    reader: BufReader<File>,
+    layout: Layout,
+    info: VideoInfo,
+    /// Raw planes of the current frame (reused).
+    planes: Vec<u8>,
+    line: Vec<u8>,
+    index: u64,
+}
+
+impl Y4mSource {
+    /// Opens `path` and parses its header.
+    pub fn open(path: &Path, opts: &InputOptions) -> Result<Self, VideoError> {
+        let file = File::open(path).map_err(|e| VideoError::io(path, "open", e))?;
+        let file_len = file.metadata().map(|m| m.len()).ok();
+        let mut reader = BufReader::with_capacity(1 << 20, file);
+        let mut line = Vec::new();
+        let n = read_line(&mut reader, &mut line).map_err(|e| VideoError::io(path, "read", e))?;
+        let bad = |detail: String| VideoError::Y4m {
+            path: path.to_path_buf(),
+            detail,
+        };
+        let header = match n {
+            LineRead::Line => String::from_utf8_lossy(&line).into_owned(),
+            LineRead::Eof => return Err(bad("the file is empty".into())),
+            LineRead::TooLong => return Err(bad("no YUV4MPEG2 header line".into())),
+        };
+        let (layout, file_fps) = parse_header(&header).map_err(bad)?;
+        let fps = opts
+            .fps_override
+            .or(file_fps)
+            .unwrap_or(super::DEFAULT_IMAGE_FPS);
+        // With plain `FRAME` lines (the usual case) the count follows from the size.
+        let per_frame = 6 + layout.frame_bytes() as u64;
+        let frame_count = file_len
+            .map(|len| len.saturating_sub(header.len() as u64 + 1))
+            .filter(|body| body % per_frame == 0)
+            .map(|body| body / per_frame);
+        Ok(Self {
+            path: path.to_path_buf(),
+            reader,
+            layout,
+            info: VideoInfo {
+                width: layout.width,
+                height: layout.height,
+                fps,
+                frame_count,
+                duration_s: frame_count.map(|n| n as f64 / fps),
+                has_audio: false,
+            },
+            planes: vec![0; layout.frame_bytes()],
+            line,
+            index: 0,
+        })
+    }
+
+    fn bad(&self, detail: String) -> VideoError {
+        VideoError::Y4m {
+            path: self.path.clone(),
+            detail,
+        }
+    }
+}
+
+impl FrameSource for Y4mSource {
+    fn info(&self) -> &VideoInfo {
+        &self.info
+    }
+
+    fn next_frame(&mut self, buf: &mut Frame) -> Result<Option<f64>, VideoError> {
+        let read = read_line(&mut self.reader, &mut self.line)
+            .map_err(|e| VideoError::io(&self.path, "read", e))?;
+        match read {
+            LineRead::Eof => return Ok(None),
+            LineRead::TooLong => {
+                return Err(self.bad(format!("frame {} has no FRAME line", self.index)))
+            }
+            LineRead::Line if self.line.starts_with(b"FRAME") => {}
+            LineRead::Line => {
+                return Err(self.bad(format!(
+                    "frame {} starts with {:?} instead of FRAME",
+                    self.index,
+                    String::from_utf8_lossy(&self.line[..self.line.len().min(20)])
+                )))
+            }
+        }
+        if let Err(e) = self.reader.read_exact(&mut self.planes) {
+            return Err(if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                self.bad(format!(
+                    "frame {} is truncated (the file ends inside it)",
+                    self.index
+                ))
+            } else {
+                VideoError::io(&self.path, "read", e)
+            });
+        }
+        shape_rgb(buf, self.layout.width, self.layout.height);
+        yuv_to_rgb(&self.layout, &self.planes, &mut buf.data);
+        let t = self.index as f64 / self.info.fps;
+        self.index += 1;
+        Ok(Some(t))
+    }
+}
+
+enum LineRead {
+    Line,
+    Eof,
+    TooLong,
+}
+
+/// Reads one `\n`-terminated line (without the `\n`) of at most [`MAX_LINE`] bytes.
+fn read_line(r: &mut impl BufRead, line: &mut Vec<u8>) -> std::io::Result<LineRead> {
+    line.clear();
+    let n = r.take(MAX_LINE).read_until(b'\n', line)?;
+    if n == 0 {
+        return Ok(LineRead::Eof);
+    }
+    if line.last() != Some(&b'\n') {
+        return Ok(LineRead::TooLong);
+    }
+    line.pop();
+    Ok(LineRead::Line)
+}
+
+/// Parses a header line into the frame layout and the frame rate (if given).
+fn parse_header(header: &str) -> Result<(Layout, Option<f64>), String> {
+    let mut tokens = header.split_ascii_whitespace();
+    if tokens.next() != Some("YUV4MPEG2") {
+        return Err("it does not start with \"YUV4MPEG2\"".into());
+    }
+    let (mut width, mut height, mut fps) = (None, None, None);
+    let mut chroma = Chroma::C420;
+    let mut full_range = false;
+    for tok in tokens {
+        let (key, val) = tok.split_at(1);
+        match key {
+            "W" => width = val.parse::<usize>().ok().filter(|&w| w > 0),
+            "H" => height = val.parse::<usize>().ok().filter(|&h| h > 0),
+            "F" => {
+                let rate = val
+                    .split_once(':')
+                    .and_then(|(n, d)| Some(n.parse::<f64>().ok()? / d.parse::<f64>().ok()?))
+                    .filter(|r| r.is_finite() && *r > 0.0);
+                fps = Some(rate.ok_or_else(|| format!("bad frame rate \"{tok}\"")))
+            }
+            "C" => {
+                chroma = match val {
+                    "420jpeg" | "420paldv" | "420mpeg2" | "420" => Chroma::C420,
+                    "422" => Chroma::C422,
+                    "444" => Chroma::C444,
+                    "mono" => Chroma::Mono,
+                    _ => {
+                        return Err(format!(
+                    "colour space \"{val}\" is not supported (only 8-bit 420, 422, 444 and mono)"
+                ))
+                    }
+                }
+            }
+            "X" if val == "COLORRANGE=FULL" => full_range = true,
+            // Interlacing, aspect ratio and other extensions do not change the data.
+            _ => {}
+        }
+    }
+    let (Some(width), Some(height)) = (width, height) else {
+        return Err("the header lacks a valid width (W) or height (H)".into());
+    };
+    // Guard the allocation against absurd sizes in corrupt headers.
+    if width.saturating_mul(height) > 1 << 28 {
+        return Err(format!("frame size {width}x{height} is implausibly large"));
+    }
+    let fps = fps.transpose()?;
+    Ok((
+        Layout {
+            width,
+            height,
+            chroma,
+            full_range,
+        },
+        fps,
+    ))
+}
+
+/// Converts planar YUV to packed RGB (chroma upsampled by nearest neighbour).
+fn yuv_to_rgb(layout: &Layout, planes: &[u8], rgb: &mut [u8]) {
+    let (w, h) = (layout.width, layout.height);
+    let (luma, chroma) = planes.split_at(w * h);
+    // Fixed-point (16.16) BT.601 coefficients.
+    let (ky, off, kr, kgu, kgv, kb) = if layout.full_range {
+        (65536, 0, 91881, 22554, 46802, 116130)
+    } else {
+        (76309, 16, 104597, 25675, 53279, 132201)
+    };
+    let sub = layout.chroma_size();
+    let (sx, sy) = match layout.chroma {
+        Chroma::C420 => (1, 1),
+        Chroma::C422 => (1, 0),
+        _ => (0, 0),
+    };
+    for y in 0..h {
+        let yrow = &luma[y * w..(y + 1) * w];
+        let out = &mut rgb[y * w * 3..(y + 1) * w * 3];
+        match sub {
+            None => {
+                for (px, &l) in out.chunks_exact_mut(3).zip(yrow) {
+                    let c = ((l as i32 - off) * ky + 32768) >> 16;
+                    px.fill(c.clamp(0, 255) as u8);
+                }
+            }
+            Some((cw, ch)) => {
+                let (cb, cr) = chroma.split_at(cw * ch);
+                let crow = (y >> sy) * cw;
+                for (x, (px, &l)) in out.chunks_exact_mut(3).zip(yrow).enumerate() {
+                    let c = (l as i32 - off) * ky + 32768;
+                    let d = cb[crow + (x >> sx)] as i32 - 128;
+                    let e = cr[crow + (x >> sx)] as i32 - 128;
+                    px[0] = ((c + kr * e) >> 16).clamp(0, 255) as u8;
+                    px[1] = ((c - kgu * d - kgv * e) >> 16).clamp(0, 255) as u8;
+                    px[2] = ((c + kb * d) >> 16).clamp(0, 255) as u8;
+                }
+            }
+        }
+    }
+}
+
+/// Converts packed RGB/RGBA (`channels` bytes per pixel) to planar 4:2:0 YUV,
+/// BT.601 limited range, chroma from the average colour of each 2x2 block
+/// (centred siting, as `C420jpeg` says).
+fn rgb_to_yuv420(width: usize, height: usize, channels: usize, rgb: &[u8], out: &mut Vec<u8>) {
+    let (cw, ch) = (width.div_ceil(2), height.div_ceil(2));
+    out.clear();
+    out.resize(width * height + 2 * cw * ch, 0);
+    let (luma, chroma) = out.split_at_mut(width * height);
+    let (cb, cr) = chroma.split_at_mut(cw * ch);
+    for (px, yv) in rgb.chunks_exact(channels).zip(luma.iter_mut()) {
+        let (r, g, b) = (px[0] as i32, px[1] as i32, px[2] as i32);
+        *yv = (((16 << 16) + 16829 * r + 33039 * g + 6416 * b + 32768) >> 16) as u8;
+    }
+    for cy in 0..ch {
+        for cx in 0..cw {
+            let (mut r, mut g, mut b, mut n) = (0i32, 0i32, 0i32, 0i32);
+            for y in 2 * cy..(2 * cy + 2).min(height) {
+                for x in 2 * cx..(2 * cx + 2).min(width) {
+                    let i = (y * width + x) * channels;
+                    r += rgb[i] as i32;
+                    g += rgb[i + 1] as i32;
+                    b += rgb[i + 2] as i32;
+                    n += 1;
+                }
+            }
+            // Coefficients scaled by 65536 / n fold the averaging in.
+            let round = 32768 * n;
+            let u = ((128 << 16) * n - 9714 * r - 19071 * g + 28784 * b + round) / (65536 * n);
+            let v = ((128 << 16) * n + 28784 * r - 24103 * g - 4681 * b + round) / (65536 * n);
+            cb[cy * cw + cx] = u.clamp(0, 255) as u8;
+            cr[cy * cw + cx] = v.clamp(0, 255) as u8;
+        }
+    }
+}
+
+/// Frames written to a `.y4m` file (4:2:0, `C420jpeg`).
+pub(crate) struct Y4mSink {
+    path: PathBuf,
+    /// Deleted on drop unless persisted by `finish`.
+    out: BufWriter<tempfile::NamedTempFile>,
+    width: usize,
+    height: usize,
+    planes: Vec<u8>,
+    frames: u64,
+}
+
+impl Y4mSink {
+    /// Creates the temporary file and writes the header.
+    pub fn create(path: &Path, spec: &OutputSpec) -> Result<Self, VideoError> {
+        let dir = parent_dir(path)?;
+        let temp = partial_builder(&partial_prefix(path), ".y4m", false)
+            .tempfile_in(dir)
+            .map_err(|e| VideoError::io(path, "create output", e))?;
+        let mut out = BufWriter::with_capacity(1 << 20, temp);
+        let (num, den) = fps_rational(spec.fps);
+        writeln!(
+            out,
+            "YUV4MPEG2 W{} H{} F{num}:{den} Ip A1:1 C420jpeg",
+            spec.width, spec.height
+        )
+        .map_err(|e| VideoError::io(path, "write", e))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            out,
+            width: spec.width,
+            height: spec.height,
+            planes: Vec::new(),
+            frames: 0,
+        })
+    }
+}
+
+impl FrameSink for Y4mSink {
+    fn write_frame(&mut self, frame: &FrameRef<'_>) -> Result<(), VideoError> {
+        check_frame(&self.path, self.width, self.height, frame)?;
+        rgb_to_yuv420(
+            self.width,
+            self.height,
+            frame.format.channels(),
+            frame.data,
+            &mut self.planes,
+        );
+        self.out
+            .write_all(b"FRAME\n")
+            .and_then(|()| self.out.write_all(&self.planes))
+            .map_err(|e| VideoError::io(&self.path, "write", e))?;
+        self.frames += 1;
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>) -> Result<(), VideoError> {
+        if self.frames == 0 {
+            return Err(no_frames(&self.path));
+        }
+        let path = self.path;
+        let temp = self
+            .out
+            .into_inner()
+            .map_err(|e| VideoError::io(&path, "write", e.into_error()))?;
+        temp.as_file()
+            .sync_all()
+            .map_err(|e| VideoError::io(&path, "write", e))?;
+        temp.persist(&path)
+            .map_err(|e| VideoError::io(&path, "move the finished output into place", e.error))?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_headers() {
+        let (l, fps) =
+            parse_header("YUV4MPEG2 W64 H48 F30000:1001 Ip A1:1 C420mpeg2 XYSCSS=420MPEG2")
+                .unwrap();
+        assert_eq!((l.width, l.height, l.chroma), (64, 48, Chroma::C420));
+        assert!((fps.unwrap() - 29.97).abs() < 0.01);
+        let (l, fps) = parse_header("YUV4MPEG2 W3 H3 Cmono").unwrap();
+        assert_eq!((l.chroma, fps, l.frame_bytes()), (Chroma::Mono, None, 9));
+        let (l, _) = parse_header("YUV4MPEG2 W5 H3 F25:1 C420").unwrap();
+        assert_eq!(l.frame_bytes(), 15 + 2 * 3 * 2);
+        for bad in [
+            "YUV4MPEG W64 H48",
+            "YUV4MPEG2 H48",
+            "YUV4MPEG2 W64 H48 C420p10",
+            "YUV4MPEG2 W64 H48 F0:0",
+            "YUV4MPEG2 W99999999 H99999999",
+        ] {
+            assert!(parse_header(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn colour_round_trip_is_close() {
+        // A flat colour survives 4:2:0 exactly up to rounding.
+        for rgb in [[0u8, 0, 0], [255, 255, 255], [200, 30, 90], [12, 180, 240]] {
+            let img: Vec<u8> = rgb.iter().copied().cycle().take(4 * 4 * 3).collect();
+            let mut planes = Vec::new();
+            rgb_to_yuv420(4, 4, 3, &img, &mut planes);
+            let layout = Layout {
+                width: 4,
+                height: 4,
+                chroma: Chroma::C420,
+                full_range: false,
+            };
+            let mut back = vec![0; img.len()];
+            yuv_to_rgb(&layout, &planes, &mut back);
+            for (a, b) in img.iter().zip(&back) {
+                assert!((*a as i32 - *b as i32).abs() <= 2, "{rgb:?} -> {back:?}");
+            }
+        }
+    }
+}
