@@ -48,6 +48,9 @@
 //! (sum of the negative terms of the derivative polynomial) settles almost every call;
 //! only rays near the limit run the exact root isolation, which allocates nothing.
 
+// Negated float comparisons (`!(x > 0.0)`) are deliberate throughout: they also reject NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use nalgebra::{Matrix3, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -597,8 +600,7 @@ fn undistort_fisheye(k: &[f64; 4], theta_d: f64) -> Option<f64> {
         }
     }
     let t = th * th;
-    if th >= 0.0
-        && th < PI
+    if (0.0..PI).contains(&th)
         && (th * poly_eval(&pcoef, t) - theta_d).abs() <= 1e-12 * (1.0 + theta_d)
         && monotone_on(&dcoef, t)
     {
@@ -837,8 +839,7 @@ fn roots_in(c: &[f64; 5], lo: f64, hi: f64, out: &mut [f64; 4]) -> usize {
     if fa == 0.0 {
         push(lo, &mut n);
     }
-    for i in 0..=nc {
-        let b = if i < nc { crit[i] } else { hi };
+    for b in crit[..nc].iter().copied().chain(std::iter::once(hi)) {
         if b <= a {
             continue;
         }

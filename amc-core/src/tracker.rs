@@ -36,6 +36,14 @@
 //!   a constant angular-velocity prediction, and the template pose itself.
 //!   Flapping-wing shake at 12-20 Hz sampled at 60 fps reverses within 2-3
 //!   frames, so a constant-velocity guess alone can be worse than none.
+//! * Camera-fixed regions (a car's dashboard, an FPV on-screen display,
+//!   propellers in view) agree with "no rotation" and pull a least-squares
+//!   estimate toward zero. After each frame, every template pixel whose image
+//!   moved by more than [`STATIC_MIN_DISPLACEMENT_PX`] votes: if the current
+//!   frame at the *same* location explains it much better than at the rotated
+//!   location (`|e_id| < |e_rot| / 2`), it is camera-fixed. Votes are averaged
+//!   per image location with an exponential moving average, and locations whose
+//!   average exceeds [`STATIC_THRESHOLD`] are left out of later templates.
 //! * Only pixels valid in both images count (`NaN` marks invalid pixels).
 //! * Per level, only the strongest-gradient pixel of each small block is used
 //!   (at most `max_points`): low-gradient pixels carry almost no information
@@ -70,6 +78,10 @@ pub struct TrackerParams {
     pub convergence_px: f64,
     /// Try a constant angular-velocity prediction as a warm start.
     pub predict: bool,
+    /// Detect and ignore camera-fixed image regions (dashboards, overlays).
+    /// Off by default: on cc9 (dashboard in view) it changed the gyro agreement
+    /// by under 0.001 deg, so it is opt-in until footage shows a benefit.
+    pub reject_static: bool,
 }
 
 impl Default for TrackerParams {
@@ -82,6 +94,7 @@ impl Default for TrackerParams {
             max_iterations: 30,
             convergence_px: 0.002,
             predict: true,
+            reject_static: false,
         }
     }
 }
@@ -114,6 +127,15 @@ const MIN_GRADIENT: f32 = 0.5 / 255.0;
 const MAX_BACKTRACK: usize = 8;
 /// Fewer valid template pixels than this share means the frame is lost at that level.
 const MIN_VALID_SHARE: f32 = 0.15;
+/// A pixel votes on being camera-fixed only if the rotation moved it this far
+/// (pixels, finest level): below this "fixed" and "rotating" look alike.
+pub const STATIC_MIN_DISPLACEMENT_PX: f32 = 0.3;
+/// Residuals below this (intensity units, ~1.5/255) are noise, not evidence.
+const STATIC_NOISE: f32 = 1.5 / 255.0;
+/// Weight of one frame's vote in the per-location moving average.
+const STATIC_VOTE_GAIN: f32 = 0.25;
+/// Average vote above which a location is treated as camera-fixed.
+pub const STATIC_THRESHOLD: f32 = 0.3;
 
 /// Pinhole intrinsics at one pyramid level, in `f32` for the hot loop.
 #[derive(Clone, Copy, Debug)]
@@ -158,6 +180,8 @@ struct LevelTemplate {
     tv: Vec<f32>,
     /// Steepest-descent images (3 per pixel).
     sd: Vec<[f32; 3]>,
+    /// Pixel index `v * width + u` in the level image.
+    loc: Vec<u32>,
 }
 
 /// Sums of one pass over a level's template pixels.
@@ -225,6 +249,8 @@ pub struct Tracker {
     rate: Tangent,
     frames_since_reset: usize,
     grad: Vec<(f32, f32)>,
+    /// Per finest-level pixel: moving average of "camera-fixed" votes in [-1, 1].
+    static_votes: Vec<f32>,
 }
 
 impl Tracker {
@@ -251,6 +277,7 @@ impl Tracker {
             rate: Tangent::zeros(),
             frames_since_reset: 0,
             grad: Vec::new(),
+            static_votes: vec![0.0; camera.width * camera.height],
             params,
         })
     }
@@ -323,6 +350,9 @@ impl Tracker {
             }
         }
         self.r_kj = so3::renormalize(&r);
+        if self.params.reject_static && !info.lost {
+            self.vote_static(&pyr.levels[0], &self.r_kj.clone());
+        }
         let r_0j = so3::renormalize(&(self.r_0k * self.r_kj));
         if dt.is_finite() && dt > 0.0 {
             self.rate = so3::body_rate(&r_prev, &r_0j, dt);
@@ -337,6 +367,50 @@ impl Tracker {
             info.template_reset = true;
         }
         (r_0j, info)
+    }
+
+    /// Updates the camera-fixed votes from the finest level at the final estimate.
+    fn vote_static(&mut self, img: &GrayImage, r: &Rot) {
+        let tpl = &self.template[0];
+        let Some(k) = tpl.k else { return };
+        let m = r.matrix().transpose().map(|v| v as f32);
+        let w = img.width;
+        if self.static_votes.len() != w * img.height {
+            return;
+        }
+        for i in 0..tpl.xs.len() {
+            let (x, y) = (tpl.xs[i], tpl.ys[i]);
+            let zc = m[(2, 0)] * x + m[(2, 1)] * y + m[(2, 2)];
+            if zc <= 1e-6 {
+                continue;
+            }
+            let xn = (m[(0, 0)] * x + m[(0, 1)] * y + m[(0, 2)]) / zc;
+            let yn = (m[(1, 0)] * x + m[(1, 1)] * y + m[(1, 2)]) / zc;
+            let u = k.fx * xn + k.skew * yn + k.cx;
+            let v = k.fy * yn + k.cy;
+            let loc = tpl.loc[i] as usize;
+            let (u0, v0) = ((loc % w) as f32, (loc / w) as f32);
+            let disp = ((u - u0).powi(2) + (v - v0).powi(2)).sqrt();
+            if disp < STATIC_MIN_DISPLACEMENT_PX {
+                continue;
+            }
+            let (Some(at_rot), Some(&at_id)) = (img.sample(u, v), img.data.get(loc)) else {
+                continue;
+            };
+            let (e_rot, e_id) = ((at_rot - tpl.tv[i]).abs(), (at_id - tpl.tv[i]).abs());
+            if !(e_rot.is_finite() && e_id.is_finite()) {
+                continue;
+            }
+            let vote = if e_rot > STATIC_NOISE && e_id < 0.5 * e_rot {
+                1.0
+            } else if e_id > STATIC_NOISE && e_rot < 0.5 * e_id {
+                -1.0
+            } else {
+                continue;
+            };
+            let s = &mut self.static_votes[loc];
+            *s += STATIC_VOTE_GAIN * (vote - *s);
+        }
     }
 
     /// Iterates Gauss-Newton with backtracking at one level.
@@ -459,6 +533,11 @@ impl Tracker {
     fn set_template(&mut self, pyr: &Pyramid) {
         self.frames_since_reset = 0;
         let mut k = self.base;
+        let votes = if self.params.reject_static {
+            Some((&self.static_votes[..], self.width))
+        } else {
+            None
+        };
         for level in 0..self.n_levels {
             let img = &pyr.levels[level];
             build_level_template(
@@ -466,11 +545,22 @@ impl Tracker {
                 k,
                 self.params.max_points,
                 &mut self.grad,
+                votes.map(|(v, w)| (v, w, level)),
                 &mut self.template[level],
             );
             k = k.halved();
         }
     }
+}
+
+/// True when level pixel `(u, v)` lies on a camera-fixed location (votes are
+/// kept at the finest level; a level-`l` pixel's centre is at `2^l u + (2^l - 1)/2`).
+fn is_static(votes: Option<(&[f32], usize, usize)>, u: usize, v: usize) -> bool {
+    let Some((votes, w, level)) = votes else {
+        return false;
+    };
+    let (fu, fv) = ((u << level) + ((1 << level) >> 1), (v << level) + ((1 << level) >> 1));
+    votes.get(fv * w + fu).is_some_and(|&s| s > STATIC_THRESHOLD)
 }
 
 /// Fills `tpl` from `img`: per block, the pixel of largest gradient.
@@ -479,9 +569,11 @@ fn build_level_template(
     k: Intrinsics,
     max_points: usize,
     grad: &mut Vec<(f32, f32)>,
+    static_votes: Option<(&[f32], usize, usize)>,
     tpl: &mut LevelTemplate,
 ) {
     tpl.k = Some(k);
+    tpl.loc.clear();
     tpl.xs.clear();
     tpl.ys.clear();
     tpl.tv.clear();
@@ -515,7 +607,11 @@ fn build_level_template(
                     let (gx, gy) = grad[i];
                     let g2 = gx * gx + gy * gy;
                     // NaN compares false: invalid pixels are never selected.
-                    if g2 > min_g2 && img.data[i].is_finite() && best.is_none_or(|b| g2 > b.1) {
+                    if g2 > min_g2
+                        && img.data[i].is_finite()
+                        && best.is_none_or(|b| g2 > b.1)
+                        && !is_static(static_votes, u, v)
+                    {
                         best = Some((i, g2));
                     }
                 }
@@ -537,6 +633,7 @@ fn build_level_template(
                 tpl.ys.push(y);
                 tpl.tv.push(img.data[i]);
                 tpl.sd.push(sd);
+                tpl.loc.push(i as u32);
             }
             u0 += block;
         }

@@ -157,7 +157,7 @@ fn fisheye_camera(
     let mut prev = 0.0;
     for i in 1..=steps {
         let td = kb_theta_d(&k, half * i as f64 / steps as f64);
-        if !(td > prev) {
+        if td.is_nan() || td <= prev {
             return Err(CliError::Usage(format!(
                 "--fisheye {},{},{},{}: the lens mapping is not increasing up to half the --fov ({} deg); \
                  use smaller coefficients or a smaller --fov",
@@ -260,7 +260,7 @@ fn plan(args: &SynthArgs) -> Result<Plan, CliError> {
             && args.rolling_shutter_ms <= period_ms + 1e-9,
         || {
             format!(
-                "--rolling-shutter-ms must be 0 to the frame period ({period_ms} ms at --fps {}), got {}",
+                "--rolling-shutter-ms must be 0 to the frame period ({period_ms:.3} ms at --fps {}), got {}",
                 args.fps, args.rolling_shutter_ms
             )
         },
