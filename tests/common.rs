@@ -71,7 +71,11 @@ pub fn amc() -> PathBuf {
     let bin = target_dir()
         .join("release")
         .join(format!("amc{}", std::env::consts::EXE_SUFFIX));
-    assert!(bin.exists(), "release binary not found at {}", bin.display());
+    assert!(
+        bin.exists(),
+        "release binary not found at {}",
+        bin.display()
+    );
     bin
 }
 
@@ -263,17 +267,20 @@ pub struct GtErrors {
     pub frame: Vec<f64>,
     /// Orientation error (deg) for j = 0..n: angle of Rgt_j^T Rest_j.
     pub orientation: Vec<f64>,
+    /// Frames whose estimated rotation is not finite (NaN/inf in the telemetry); their errors
+    /// are NaN in `frame`/`orientation` and left out of the statistics.
+    pub nonfinite: Vec<usize>,
 }
 
 impl GtErrors {
     pub fn median_frame(&self) -> f64 {
-        median(&self.frame)
+        median(&finite(&self.frame))
     }
     pub fn final_orientation(&self) -> f64 {
         *self.orientation.last().expect("no frames")
     }
     pub fn max_orientation(&self) -> f64 {
-        max(&self.orientation)
+        max(&finite(&self.orientation))
     }
 }
 
@@ -282,9 +289,17 @@ pub fn gt_errors(gt_csv: &Path, telemetry_csv: &Path) -> GtErrors {
     let gt = rotations(&Csv::read(gt_csv), "rx", "ry", "rz");
     let est = rotations(&Csv::read(telemetry_csv), "rx", "ry", "rz");
     let n = gt.len();
-    assert_eq!(est.len(), n, "telemetry has {} frames, gt.csv has {n}", est.len());
+    assert_eq!(
+        est.len(),
+        n,
+        "telemetry has {} frames, gt.csv has {n}",
+        est.len()
+    );
     let mut frame = Vec::new();
     let mut orientation = Vec::new();
+    let nonfinite = (0..n)
+        .filter(|j| est[j].iter().flatten().any(|x| !x.is_finite()))
+        .collect();
     for j in 0..n {
         let (g, e) = (&gt[&j], &est[&j]);
         orientation.push(angle_between_deg(g, e));
@@ -294,15 +309,25 @@ pub fn gt_errors(gt_csv: &Path, telemetry_csv: &Path) -> GtErrors {
             frame.push(angle_between_deg(&dg, &de));
         }
     }
-    GtErrors { frame, orientation }
+    GtErrors {
+        frame,
+        orientation,
+        nonfinite,
+    }
 }
 
 // ---------------------------------------------------------------- statistics
 
+/// The finite values of `v`.
+pub fn finite(v: &[f64]) -> Vec<f64> {
+    v.iter().cloned().filter(|x| x.is_finite()).collect()
+}
+
+/// Median (NaN sorts last, so a NaN-free slice gives the usual median).
 pub fn median(v: &[f64]) -> f64 {
     assert!(!v.is_empty(), "median of nothing");
     let mut s = v.to_vec();
-    s.sort_by(|a, b| a.partial_cmp(b).expect("NaN in data"));
+    s.sort_by(|a, b| a.total_cmp(b));
     let n = s.len();
     if n % 2 == 1 {
         s[n / 2]
@@ -354,7 +379,14 @@ pub fn ffprobe_frames(path: &Path) -> u64 {
 /// Codec types (`video`, `audio`, `data`, ...) of a file's streams, per ffprobe.
 pub fn ffprobe_stream_types(path: &Path) -> Vec<String> {
     let out = Command::new("ffprobe")
-        .args(["-v", "error", "-show_entries", "stream=codec_type", "-of", "csv=p=0"])
+        .args([
+            "-v",
+            "error",
+            "-show_entries",
+            "stream=codec_type",
+            "-of",
+            "csv=p=0",
+        ])
         .arg(path)
         .output()
         .expect("could not run ffprobe");

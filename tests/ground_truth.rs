@@ -28,13 +28,25 @@ fn run_clip(dir: &Path, synth_args: &[&str]) -> GtErrors {
 fn report(name: &str, e: &GtErrors) {
     eprintln!(
         "[{name}] frames {}: per-frame error median {:.5} deg, mean {:.5} deg, max {:.5} deg; \
-         orientation error final {:.4} deg, max {:.4} deg",
+         orientation error final {:.4} deg, max {:.4} deg; non-finite estimates: {} frames {:?}",
         e.orientation.len(),
         e.median_frame(),
-        mean(&e.frame),
-        max(&e.frame),
+        mean(&finite(&e.frame)),
+        max(&finite(&e.frame)),
         e.final_orientation(),
-        e.max_orientation()
+        e.max_orientation(),
+        e.nonfinite.len(),
+        &e.nonfinite[..e.nonfinite.len().min(10)]
+    );
+}
+
+/// Every frame's estimate must be a finite rotation.
+fn assert_finite(e: &GtErrors) {
+    assert!(
+        e.nonfinite.is_empty(),
+        "{} frames have non-finite (NaN) estimated rotations in the telemetry, first: {:?}",
+        e.nonfinite.len(),
+        &e.nonfinite[..e.nonfinite.len().min(10)]
     );
 }
 
@@ -42,8 +54,22 @@ fn report(name: &str, e: &GtErrors) {
 fn ground_truth_100dps_pinhole() {
     let tmp = tempfile::tempdir().unwrap();
     let args = [
-        "--width", "320", "--height", "180", "--fps", "60", "--fov", "90", "--shake-band",
-        "12,20", "--shake-dps", "100", "--seconds", "10", "--seed", "1",
+        "--width",
+        "320",
+        "--height",
+        "180",
+        "--fps",
+        "60",
+        "--fov",
+        "90",
+        "--shake-band",
+        "12,20",
+        "--shake-dps",
+        "100",
+        "--seconds",
+        "10",
+        "--seed",
+        "1",
     ];
     let e = run_clip(tmp.path(), &args);
     report("100 deg/s pinhole", &e);
@@ -85,7 +111,12 @@ fn ground_truth_100dps_pinhole() {
         e.median_frame()
     );
 
-    assert!(e.median_frame() < 0.03, "median per-frame error {} >= 0.03 deg", e.median_frame());
+    assert_finite(&e);
+    assert!(
+        e.median_frame() < 0.03,
+        "median per-frame error {} >= 0.03 deg",
+        e.median_frame()
+    );
     assert!(
         e.final_orientation() < 1.0,
         "final orientation error {} >= 1 deg",
@@ -97,11 +128,26 @@ fn ground_truth_100dps_pinhole() {
 fn ground_truth_300dps_no_divergence() {
     let tmp = tempfile::tempdir().unwrap();
     let args = [
-        "--width", "320", "--height", "180", "--fps", "60", "--fov", "90", "--shake-band",
-        "12,20", "--shake-dps", "300", "--seconds", "10", "--seed", "2",
+        "--width",
+        "320",
+        "--height",
+        "180",
+        "--fps",
+        "60",
+        "--fov",
+        "90",
+        "--shake-band",
+        "12,20",
+        "--shake-dps",
+        "300",
+        "--seconds",
+        "10",
+        "--seed",
+        "2",
     ];
     let e = run_clip(tmp.path(), &args);
     report("300 deg/s pinhole", &e);
+    assert_finite(&e);
     assert!(
         e.final_orientation() < 3.0,
         "final orientation error {} >= 3 deg",
@@ -118,13 +164,33 @@ fn ground_truth_300dps_no_divergence() {
 fn ground_truth_100dps_fisheye() {
     let tmp = tempfile::tempdir().unwrap();
     let args = [
-        "--width", "320", "--height", "180", "--fps", "60", "--fov", "150", "--fisheye",
-        "0.05,-0.01,0.002,-0.0005", "--shake-band", "12,20", "--shake-dps", "100", "--seconds",
-        "10", "--seed", "3",
+        "--width",
+        "320",
+        "--height",
+        "180",
+        "--fps",
+        "60",
+        "--fov",
+        "150",
+        "--fisheye",
+        "0.05,-0.01,0.002,-0.0005",
+        "--shake-band",
+        "12,20",
+        "--shake-dps",
+        "100",
+        "--seconds",
+        "10",
+        "--seed",
+        "3",
     ];
     let e = run_clip(tmp.path(), &args);
     report("100 deg/s fisheye 150 deg", &e);
-    assert!(e.median_frame() < 0.03, "median per-frame error {} >= 0.03 deg", e.median_frame());
+    assert_finite(&e);
+    assert!(
+        e.median_frame() < 0.03,
+        "median per-frame error {} >= 0.03 deg",
+        e.median_frame()
+    );
     assert!(
         e.final_orientation() < 1.0,
         "final orientation error {} >= 1 deg",

@@ -1,1 +1,118 @@
-fn main() {}
+//! Throughput benchmarks (one thread): `cargo bench -p amc-core --bench pipeline`.
+//!
+//! Frames are rendered in memory from a procedural equirectangular scene with
+//! flapping-wing shake (100 deg/s RMS, 12-20 Hz, 60 fps), so the numbers need
+//! no data files. Each iteration processes one frame; criterion reports
+//! frames/s as "elem/s".
+
+use amc_core::camera::CameraModel;
+use amc_core::frontend::TrackingFrontend;
+use amc_core::pyramid::Pyramid;
+use amc_core::synth::{EquirectRenderer, Shake, ShakeParams};
+use amc_core::tracker::{Tracker, TrackerParams};
+use amc_core::view::Mode;
+use amc_core::{Frame, PixelFormat, Stabilizer, StabilizerParams};
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use std::hint::black_box;
+
+const FPS: f64 = 60.0;
+const CLIP_FRAMES: usize = 60;
+
+/// A 2048x1024 scene of random rectangles over a textured background.
+fn panorama() -> Frame {
+    let (w, h) = (2048usize, 1024usize);
+    let mut f = Frame::new(w, h, PixelFormat::Rgb8);
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut rnd = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    for (i, px) in f.data.chunks_exact_mut(3).enumerate() {
+        let (x, y) = (i % w, i / w);
+        let v = (((x / 24) + (y / 24)) % 2 * 40 + 60) as u8 + (rnd() % 20) as u8;
+        px.copy_from_slice(&[v, v.wrapping_add(20), v / 2 + 40]);
+    }
+    for _ in 0..1500 {
+        let (cx, cy) = ((rnd() % w as u64) as usize, (rnd() % h as u64) as usize);
+        let (rw, rh) = (4 + (rnd() % 40) as usize, 4 + (rnd() % 40) as usize);
+        let c = [
+            (rnd() % 256) as u8,
+            (rnd() % 256) as u8,
+            (rnd() % 256) as u8,
+        ];
+        for y in cy..(cy + rh).min(h) {
+            for x in cx..(cx + rw).min(w) {
+                f.data[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&c);
+            }
+        }
+    }
+    f
+}
+
+/// A shaky clip of `CLIP_FRAMES` frames at `width x height` (90 deg pinhole).
+fn clip(width: usize, height: usize) -> (CameraModel, Vec<Frame>) {
+    let cam = CameraModel::pinhole_hfov(width, height, 90.0).expect("camera");
+    let pano = panorama();
+    let renderer = EquirectRenderer::new(&cam, 1).expect("renderer");
+    let shake = Shake::new(&ShakeParams::default()).expect("shake");
+    let frames = (0..CLIP_FRAMES)
+        .map(|j| {
+            let mut out = Frame::new(width, height, PixelFormat::Rgb8);
+            let r = shake.orientation_at(j as f64 / FPS);
+            renderer
+                .render_into(&pano.as_ref(), &r, &mut out)
+                .expect("render");
+            out
+        })
+        .collect();
+    (cam, frames)
+}
+
+fn bench_tracking(c: &mut Criterion) {
+    let (cam, frames) = clip(320, 180);
+    let mut g = c.benchmark_group("track");
+    g.throughput(Throughput::Elements(1));
+    g.bench_function("320x180", |b| {
+        let mut frontend = TrackingFrontend::new(&cam, 320).expect("frontend");
+        let mut tracker =
+            Tracker::new(frontend.camera(), TrackerParams::default()).expect("tracker");
+        let mut pyr = Pyramid::default();
+        let mut j = 0usize;
+        b.iter(|| {
+            let f = &frames[j % CLIP_FRAMES];
+            frontend.prepare(&f.as_ref(), &mut pyr, tracker.levels());
+            black_box(tracker.track(&pyr, j as f64 / FPS));
+            j += 1;
+        })
+    });
+    g.finish();
+}
+
+fn bench_stabilize(c: &mut Criterion) {
+    let mut g = c.benchmark_group("stabilize");
+    g.throughput(Throughput::Elements(1));
+    for (name, w, h, mode) in [
+        ("320x180", 320, 180, Mode::Stabilize),
+        ("320x180-saccade", 320, 180, Mode::Saccade),
+        ("1280x720", 1280, 720, Mode::Stabilize),
+    ] {
+        let (cam, frames) = clip(w, h);
+        g.bench_function(name, |b| {
+            let mut params = StabilizerParams::default();
+            params.view.mode = mode;
+            let mut stab = Stabilizer::new(&cam, w, h, params).expect("stabilizer");
+            let mut j = 0usize;
+            b.iter(|| {
+                let f = &frames[j % CLIP_FRAMES];
+                black_box(stab.push(f.as_ref(), j as f64 / FPS).expect("push"));
+                j += 1;
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench_tracking, bench_stabilize);
+criterion_main!(benches);

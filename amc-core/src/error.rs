@@ -26,7 +26,9 @@ pub enum AmcError {
         actual_w: usize,
         actual_h: usize,
     },
-    #[error("timestamp {t} s is not after the previous frame's {prev} s; timestamps must increase")]
+    #[error(
+        "timestamp {t} s is not after the previous frame's {prev} s; timestamps must increase"
+    )]
     NonMonotonicTimestamp { t: f64, prev: f64 },
     #[error("timestamp {0} is not a finite number")]
     NonFiniteTimestamp(f64),
@@ -47,7 +49,11 @@ pub enum AmcError {
 
 impl AmcError {
     /// Shorthand for [`AmcError::InvalidParameter`].
-    pub fn invalid(name: &'static str, value: impl std::fmt::Display, allowed: &'static str) -> Self {
+    pub fn invalid(
+        name: &'static str,
+        value: impl std::fmt::Display,
+        allowed: &'static str,
+    ) -> Self {
         AmcError::InvalidParameter {
             name,
             value: value.to_string(),

@@ -47,7 +47,11 @@ impl TrackingFrontend {
     /// Front end for frames of `source` (a camera at the frames' resolution).
     pub fn new(source: &CameraModel, track_width: usize) -> Result<Self, AmcError> {
         if track_width < MIN_TRACK_WIDTH || track_width > 8192 {
-            return Err(AmcError::invalid("track_width", track_width, "32..=8192 pixels"));
+            return Err(AmcError::invalid(
+                "track_width",
+                track_width,
+                "32..=8192 pixels",
+            ));
         }
         let scale = (source.width / track_width).max(1);
         let down = box_downscaled(source, scale);

@@ -94,7 +94,12 @@ pub fn masked_luma_into(frame: &FrameRef<'_>, coverage: &[u8], dst: &mut GrayIma
     dst.resize(frame.width, frame.height);
     let c = frame.format.channels();
     let k = LUMA_WEIGHTS.map(|w| w / 255.0);
-    for ((o, px), &n) in dst.data.iter_mut().zip(frame.data.chunks_exact(c)).zip(coverage) {
+    for ((o, px), &n) in dst
+        .data
+        .iter_mut()
+        .zip(frame.data.chunks_exact(c))
+        .zip(coverage)
+    {
         *o = if n == 0 {
             f32::NAN
         } else {
@@ -110,8 +115,17 @@ fn sharpness_sums(frame: &FrameRef<'_>, coverage: &[u8], chan: &mut GrayImage) -
     let (mut sum, mut n) = (0f64, 0u64);
     for ch in 0..3 {
         chan.resize(w, h);
-        for ((o, px), &cv) in chan.data.iter_mut().zip(frame.data.chunks_exact(c)).zip(coverage) {
-            *o = if cv == 0 { f32::NAN } else { px[ch] as f32 / 255.0 };
+        for ((o, px), &cv) in chan
+            .data
+            .iter_mut()
+            .zip(frame.data.chunks_exact(c))
+            .zip(coverage)
+        {
+            *o = if cv == 0 {
+                f32::NAN
+            } else {
+                px[ch] as f32 / 255.0
+            };
         }
         for v in 1..h.saturating_sub(1) {
             for u in 1..w - 1 {
@@ -219,7 +233,11 @@ impl MetricsAccumulator {
             rms_normal_flow: rms(self.nf_sq, self.nf_n),
             rms_change: rms(self.ch_sq, self.ch_n),
             sharpness: rms(self.sh_sq, self.sh_n),
-            valid_fraction: if self.frames > 0 { self.valid_sum / self.frames as f64 } else { 0.0 },
+            valid_fraction: if self.frames > 0 {
+                self.valid_sum / self.frames as f64
+            } else {
+                0.0
+            },
             min_valid_fraction: if self.frames > 0 { self.valid_min } else { 0.0 },
             rms_speed_est_dps: rms(self.est_sq, self.speed_n).to_degrees(),
             rms_speed_view_dps: rms(self.view_sq, self.speed_n).to_degrees(),

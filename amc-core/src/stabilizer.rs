@@ -50,7 +50,11 @@ impl StabilizerParams {
     /// Checks every stage's parameters.
     pub fn validate(&self) -> Result<(), AmcError> {
         if !(32..=8192).contains(&self.track_width) {
-            return Err(AmcError::invalid("track_width", self.track_width, "32..=8192 pixels"));
+            return Err(AmcError::invalid(
+                "track_width",
+                self.track_width,
+                "32..=8192 pixels",
+            ));
         }
         self.tracker.validate()?;
         self.view.validate()?;
@@ -111,6 +115,7 @@ pub struct Stabilizer {
     slots: VecDeque<WarpedFrame>,
     spare_slots: Vec<WarpedFrame>,
     acc: Accumulator,
+    rotations: Vec<nalgebra::Matrix3<f64>>,
     output: Frame,
     next_out: u64,
     received: u64,
@@ -138,7 +143,10 @@ impl Stabilizer {
         let cam = if lens.width == width && lens.height == height {
             lens.clone()
         } else {
-            let (ra, rb) = (lens.width as f64 / lens.height as f64, width as f64 / height as f64);
+            let (ra, rb) = (
+                lens.width as f64 / lens.height as f64,
+                width as f64 / height as f64,
+            );
             if (ra / rb - 1.0).abs() > 0.01 {
                 return Err(AmcError::LensAspectMismatch {
                     width,
@@ -169,6 +177,7 @@ impl Stabilizer {
             slots: VecDeque::new(),
             spare_slots: Vec::new(),
             acc: Accumulator::default(),
+            rotations: Vec::new(),
             output: Frame::new(0, 0, PixelFormat::Rgb8),
             next_out: 0,
             received: 0,
@@ -258,8 +267,13 @@ impl Stabilizer {
                 self.spare.push(old.frame);
             }
         }
-        let mut buf = self.spare.pop().unwrap_or_else(|| Frame::new(0, 0, frame.format));
+        let mut buf = self
+            .spare
+            .pop()
+            .unwrap_or_else(|| Frame::new(0, 0, frame.format));
         buf.copy_from(&frame);
+        // Tail padding for the vectorized sampler's dword gathers.
+        buf.data.extend_from_slice(&[0; crate::simd::FRAME_PADDING]);
         self.ring.push_back(Buffered {
             frame: buf,
             index: self.received,
@@ -303,14 +317,18 @@ impl Stabilizer {
                 if self.params.view.lookahead == 0 {
                     cur.view_fwd
                 } else {
-                    let fwd: Vec<(f64, Rot)> = self.ring.iter().skip(pos).map(|b| (b.t, b.view_fwd)).collect();
+                    let fwd: Vec<(f64, Rot)> = self
+                        .ring
+                        .iter()
+                        .skip(pos)
+                        .map(|b| (b.t, b.view_fwd))
+                        .collect();
                     backward_pass(&self.params.view, &fwd)
                 }
             }
             Mode::Saccade => *self.saccade_view.get_or_insert(r_est),
         };
 
-        let n_px = self.out_cam.width * self.out_cam.height;
         let channels = self.output.format.channels();
         let valid_fraction;
         if mode == Mode::Saccade {
@@ -328,18 +346,20 @@ impl Stabilizer {
             }
             valid_fraction = vf;
         } else {
-            self.acc.reset(n_px);
-            for b in self.ring.range(first..=pos) {
-                let m = b.r_est.matrix().transpose() * r_view.matrix();
-                let (sum, count) = (&mut self.acc.sum, &mut self.acc.count);
-                self.warper.warp(&b.frame.as_ref(), &m, |i, rgb| {
-                    sum[3 * i] += rgb[0];
-                    sum[3 * i + 1] += rgb[1];
-                    sum[3 * i + 2] += rgb[2];
-                    count[i] += 1;
-                });
-            }
-            valid_fraction = self.acc.finish_into(&mut self.output.data, channels, (pos + 1 - first) as u8);
+            self.rotations.clear();
+            self.rotations.extend(
+                self.ring
+                    .range(first..=pos)
+                    .map(|b| b.r_est.matrix().transpose() * r_view.matrix()),
+            );
+            let ring = &self.ring;
+            valid_fraction = self.warper.average_into(
+                |i| ring[first + i].frame.as_ref(),
+                &self.rotations,
+                &mut self.output.data,
+                channels,
+                &mut self.acc.count,
+            );
         }
         let r_view = if saccade { r_est } else { r_view };
 
@@ -380,7 +400,11 @@ impl Stabilizer {
                 self.spare_slots.push(old);
             }
         }
-        let have_until = self.slots.back().map(|s| s.index + 1).unwrap_or(first_index);
+        let have_until = self
+            .slots
+            .back()
+            .map(|s| s.index + 1)
+            .unwrap_or(first_index);
         for b in self.ring.range(first..=pos) {
             if b.index < have_until {
                 continue;

@@ -103,19 +103,47 @@ impl TrackerParams {
     /// Checks every field against its documented range.
     pub fn validate(&self) -> Result<(), AmcError> {
         if !(1..=1000).contains(&self.n_track) {
-            return Err(AmcError::invalid("n_track", self.n_track, "1..=1000 frames"));
+            return Err(AmcError::invalid(
+                "n_track",
+                self.n_track,
+                "1..=1000 frames",
+            ));
         }
         if !(1..=8).contains(&self.pyramid_levels) {
-            return Err(AmcError::invalid("pyramid_levels", self.pyramid_levels, "1..=8"));
+            return Err(AmcError::invalid(
+                "pyramid_levels",
+                self.pyramid_levels,
+                "1..=8",
+            ));
         }
         if !(64..=1_000_000).contains(&self.max_points) {
-            return Err(AmcError::invalid("max_points", self.max_points, "64..=1000000"));
+            return Err(AmcError::invalid(
+                "max_points",
+                self.max_points,
+                "64..=1000000",
+            ));
         }
-        check_range("huber_delta", self.huber_delta, 0.001, 1.0, "0.001..=1 (intensity units)")?;
+        check_range(
+            "huber_delta",
+            self.huber_delta,
+            0.001,
+            1.0,
+            "0.001..=1 (intensity units)",
+        )?;
         if !(1..=200).contains(&self.max_iterations) {
-            return Err(AmcError::invalid("max_iterations", self.max_iterations, "1..=200"));
+            return Err(AmcError::invalid(
+                "max_iterations",
+                self.max_iterations,
+                "1..=200",
+            ));
         }
-        check_range("convergence_px", self.convergence_px, 1e-5, 1.0, "0.00001..=1 pixels")?;
+        check_range(
+            "convergence_px",
+            self.convergence_px,
+            1e-5,
+            1.0,
+            "0.00001..=1 pixels",
+        )?;
         Ok(())
     }
 }
@@ -125,6 +153,10 @@ impl TrackerParams {
 const MIN_GRADIENT: f32 = 0.5 / 255.0;
 /// Line-search halvings before a level gives up (2^-8 of a step is negligible).
 const MAX_BACKTRACK: usize = 8;
+/// Points per chunk of the evaluation loop (fits L1 with room to spare).
+const CHUNK: usize = 64;
+/// Convergence threshold of coarse levels relative to the finest level's.
+const COARSE_TOLERANCE_FACTOR: f64 = 20.0;
 /// Fewer valid template pixels than this share means the frame is lost at that level.
 const MIN_VALID_SHARE: f32 = 0.15;
 /// A pixel votes on being camera-fixed only if the rotation moved it this far
@@ -212,7 +244,9 @@ impl Eval {
         let m = Matrix3::new(h[0], h[1], h[2], h[1], h[3], h[4], h[2], h[4], h[5]);
         // A whisper of Levenberg damping keeps textureless axes from exploding.
         let damped = m + Matrix3::identity() * (1e-9 * m.trace() + 1e-18);
-        let d = damped.cholesky()?.solve(&Vector3::new(self.g[0], self.g[1], self.g[2]));
+        let d = damped
+            .cholesky()?
+            .solve(&Vector3::new(self.g[0], self.g[1], self.g[2]));
         d.iter().all(|v| v.is_finite()).then_some(d)
     }
 }
@@ -326,7 +360,9 @@ impl Tracker {
         let mut r = candidates[0];
         let mut best = f64::INFINITY;
         for c in candidates {
-            let e = self.evaluate(coarsest, &pyr.levels[coarsest], &c).mean_loss();
+            let e = self
+                .evaluate(coarsest, &pyr.levels[coarsest], &c)
+                .mean_loss();
             if e < best {
                 best = e;
                 r = c;
@@ -414,10 +450,21 @@ impl Tracker {
     }
 
     /// Iterates Gauss-Newton with backtracking at one level.
+    ///
+    /// A step shorter than the level's convergence threshold ends the level
+    /// without being tried: near the optimum such steps are noise, and testing
+    /// them (with halvings) would cost full passes for nothing.
     fn refine(&self, level: usize, img: &GrayImage, mut r: Rot) -> (Rot, Eval, u32) {
         let tpl = &self.template[level];
         let min_valid = ((tpl.xs.len() as f32) * MIN_VALID_SHARE).max(8.0) as u32;
         let f_level = tpl.k.map_or(1.0, |k| k.fx.max(k.fy)) as f64;
+        // Coarse levels only need to land inside the next level's basin.
+        let tol = self.params.convergence_px
+            * if level == 0 {
+                1.0
+            } else {
+                COARSE_TOLERANCE_FACTOR
+            };
         let mut cur = self.evaluate(level, img, &r);
         let mut iters = 0;
         for _ in 0..self.params.max_iterations {
@@ -425,6 +472,10 @@ impl Tracker {
                 break;
             }
             let Some(delta) = cur.step() else { break };
+            let step_px = delta.norm() * f_level;
+            if step_px < tol {
+                break;
+            }
             iters += 1;
             let mut s = 1.0;
             let mut accepted = false;
@@ -438,8 +489,11 @@ impl Tracker {
                     break;
                 }
                 s *= 0.5;
+                if step_px * s < tol {
+                    break;
+                }
             }
-            if !accepted || delta.norm() * s * f_level < self.params.convergence_px {
+            if !accepted || step_px * s < tol {
                 break;
             }
         }
@@ -458,73 +512,109 @@ impl Tracker {
         if w < 2 || h < 2 {
             return Eval::default();
         }
+        let (k_fx, k_fy, k_skew, k_cx, k_cy) = (k.fx, k.fy, k.skew, k.cx, k.cy);
         let (umax, vmax) = ((w - 1) as f32, (h - 1) as f32);
         let c = self.params.huber_delta as f32;
         let data = &img.data[..];
         let mut ev = Eval::default();
-        // f32 partial sums per chunk, flushed to f64: fast and accurate enough.
-        for chunk in 0..tpl.xs.len().div_ceil(256) {
-            let lo = chunk * 256;
-            let hi = (lo + 256).min(tpl.xs.len());
-            let (mut loss, mut sq, mut n) = (0f32, 0f32, 0u32);
+        let (mut pu, mut pv, mut pe) = ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
+        let m = [
+            m[(0, 0)],
+            m[(0, 1)],
+            m[(0, 2)],
+            m[(1, 0)],
+            m[(1, 1)],
+            m[(1, 2)],
+            m[(2, 0)],
+            m[(2, 1)],
+            m[(2, 2)],
+        ];
+        let n_pts = tpl.xs.len();
+        let mut lo = 0;
+        while lo < n_pts {
+            let hi = (lo + CHUNK).min(n_pts);
+            let len = hi - lo;
+            let (xs, ys) = (&tpl.xs[lo..hi], &tpl.ys[lo..hi]);
+            // Pass 1 (branch-free, vectorizes): project the rotated rays.
+            // Rays behind the camera get an out-of-image coordinate.
+            for k in 0..len {
+                let (x, y) = (xs[k], ys[k]);
+                let zc = m[6] * x + m[7] * y + m[8];
+                let iz = if zc > 1e-6 { 1.0 / zc } else { -1e9 };
+                let xn = (m[0] * x + m[1] * y + m[2]) * iz;
+                let yn = (m[3] * x + m[4] * y + m[5]) * iz;
+                pu[k] = k_fx * xn + k_skew * yn + k_cx;
+                pv[k] = k_fy * yn + k_cy;
+            }
+            // Pass 2 (gathers): bilinear residuals, NaN where invalid.
+            let tv = &tpl.tv[lo..hi];
+            for k in 0..len {
+                let (u, v) = (pu[k], pv[k]);
+                pe[k] = if u >= 0.0 && v >= 0.0 && u < umax && v < vmax {
+                    let (x0, y0) = (u as usize, v as usize);
+                    let (ax, ay) = (u - x0 as f32, v - y0 as f32);
+                    let idx = y0 * w + x0;
+                    match (data.get(idx..idx + 2), data.get(idx + w..idx + w + 2)) {
+                        (Some(t), Some(b)) => {
+                            let top = t[0] + (t[1] - t[0]) * ax;
+                            let bot = b[0] + (b[1] - b[0]) * ax;
+                            top + (bot - top) * ay - tv[k]
+                        }
+                        _ => f32::NAN,
+                    }
+                } else {
+                    f32::NAN
+                };
+            }
+            // Pass 3 (branch-free, vectorizes): Huber loss and IRLS sums.
+            let sd = &tpl.sd[lo..hi];
+            let (mut loss, mut sq, mut n) = (0f32, 0f32, 0f32);
             let mut g = [0f32; 3];
             let mut hh = [0f32; 6];
-            for i in lo..hi {
-                let (x, y) = (tpl.xs[i], tpl.ys[i]);
-                let zc = m[(2, 0)] * x + m[(2, 1)] * y + m[(2, 2)];
-                if zc <= 1e-6 {
-                    continue;
-                }
-                let iz = 1.0 / zc;
-                let xn = (m[(0, 0)] * x + m[(0, 1)] * y + m[(0, 2)]) * iz;
-                let yn = (m[(1, 0)] * x + m[(1, 1)] * y + m[(1, 2)]) * iz;
-                let u = k.fx * xn + k.skew * yn + k.cx;
-                let v = k.fy * yn + k.cy;
-                if !(u >= 0.0 && v >= 0.0 && u < umax && v < vmax) {
-                    continue;
-                }
-                let (x0, y0) = (u as usize, v as usize);
-                let (ax, ay) = (u - x0 as f32, v - y0 as f32);
-                let idx = y0 * w + x0;
-                let (p00, p01) = (data[idx], data[idx + 1]);
-                let (p10, p11) = (data[idx + w], data[idx + w + 1]);
-                let top = p00 + (p01 - p00) * ax;
-                let bot = p10 + (p11 - p10) * ax;
-                let e = top + (bot - top) * ay - tpl.tv[i];
-                if !e.is_finite() {
-                    continue;
-                }
+            for k in 0..len {
+                let e = pe[k];
+                let valid = e.is_finite();
+                let e = if valid { e } else { 0.0 };
                 let ae = e.abs();
-                let (rho, wt) = if ae <= c {
-                    (0.5 * e * e, 1.0)
+                let inlier = ae <= c;
+                let rho = if inlier {
+                    0.5 * e * e
                 } else {
-                    (c * (ae - 0.5 * c), c / ae)
+                    c * (ae - 0.5 * c)
                 };
-                let sd = tpl.sd[i];
+                let wt = if !valid {
+                    0.0
+                } else if inlier {
+                    1.0
+                } else {
+                    c / ae
+                };
                 loss += rho;
                 sq += e * e;
-                n += 1;
+                n += if valid { 1.0 } else { 0.0 };
+                let [s0, s1, s2] = sd[k];
                 let we = wt * e;
-                g[0] += sd[0] * we;
-                g[1] += sd[1] * we;
-                g[2] += sd[2] * we;
-                let (w0, w1) = (wt * sd[0], wt * sd[1]);
-                hh[0] += w0 * sd[0];
-                hh[1] += w0 * sd[1];
-                hh[2] += w0 * sd[2];
-                hh[3] += w1 * sd[1];
-                hh[4] += w1 * sd[2];
-                hh[5] += wt * sd[2] * sd[2];
+                g[0] += s0 * we;
+                g[1] += s1 * we;
+                g[2] += s2 * we;
+                let (w0, w1, w2) = (wt * s0, wt * s1, wt * s2);
+                hh[0] += w0 * s0;
+                hh[1] += w0 * s1;
+                hh[2] += w0 * s2;
+                hh[3] += w1 * s1;
+                hh[4] += w1 * s2;
+                hh[5] += w2 * s2;
             }
             ev.loss += loss as f64;
             ev.sq += sq as f64;
-            ev.n += n;
+            ev.n += n as u32;
             for a in 0..3 {
                 ev.g[a] += g[a] as f64;
             }
             for a in 0..6 {
                 ev.h[a] += hh[a] as f64;
             }
+            lo = hi;
         }
         ev
     }
@@ -559,8 +649,13 @@ fn is_static(votes: Option<(&[f32], usize, usize)>, u: usize, v: usize) -> bool 
     let Some((votes, w, level)) = votes else {
         return false;
     };
-    let (fu, fv) = ((u << level) + ((1 << level) >> 1), (v << level) + ((1 << level) >> 1));
-    votes.get(fv * w + fu).is_some_and(|&s| s > STATIC_THRESHOLD)
+    let (fu, fv) = (
+        (u << level) + ((1 << level) >> 1),
+        (v << level) + ((1 << level) >> 1),
+    );
+    votes
+        .get(fv * w + fu)
+        .is_some_and(|&s| s > STATIC_THRESHOLD)
 }
 
 /// Fills `tpl` from `img`: per block, the pixel of largest gradient.

@@ -96,10 +96,20 @@ impl ViewParams {
     /// Checks every field against its documented range.
     pub fn validate(&self) -> Result<(), AmcError> {
         check_range("rate_a", self.rate_a, 0.0, 1000.0, "0..=1000 per second")?;
-        check_range("rate_b", self.rate_b, 0.0, 10000.0, "0..=10000 per second per radian")?;
+        check_range(
+            "rate_b",
+            self.rate_b,
+            0.0,
+            10000.0,
+            "0..=10000 per second per radian",
+        )?;
         check_range("saccade_coverage", self.saccade_coverage, 0.0, 1.0, "0..=1")?;
         if self.lookahead > 600 {
-            return Err(AmcError::invalid("lookahead", self.lookahead, "0..=600 frames"));
+            return Err(AmcError::invalid(
+                "lookahead",
+                self.lookahead,
+                "0..=600 frames",
+            ));
         }
         Ok(())
     }
@@ -163,13 +173,21 @@ mod tests {
         let mut max_dev: f64 = 0.0;
         for j in 0..600 {
             let t = j as f64 / 60.0;
-            let target = so3::exp(&Tangent::new((2f64).to_radians() * (30.0 * std::f64::consts::PI * t).sin(), 0.0, 0.0));
+            let target = so3::exp(&Tangent::new(
+                (2f64).to_radians() * (30.0 * std::f64::consts::PI * t).sin(),
+                0.0,
+                0.0,
+            ));
             v = p.step(&v, &target, 1.0 / 60.0);
             if j > 60 {
                 max_dev = max_dev.max(so3::log(&v).norm());
             }
         }
-        assert!(max_dev < 0.5f64.to_radians(), "view moved {} deg", max_dev.to_degrees());
+        assert!(
+            max_dev < 0.5f64.to_radians(),
+            "view moved {} deg",
+            max_dev.to_degrees()
+        );
     }
 
     #[test]
@@ -190,6 +208,9 @@ mod tests {
         let lag_fwd = so3::angle_between(&fwd[j].1, &truth);
         let zero_phase = backward_pass(&p, &fwd[j..j + 60]);
         let lag_zp = so3::angle_between(&zero_phase, &truth);
-        assert!(lag_zp < 0.5 * lag_fwd, "forward {lag_fwd}, zero-phase {lag_zp}");
+        assert!(
+            lag_zp < 0.5 * lag_fwd,
+            "forward {lag_fwd}, zero-phase {lag_zp}"
+        );
     }
 }

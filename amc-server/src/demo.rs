@@ -32,7 +32,10 @@ fn procedural_panorama(path: &Path) -> Result<(), CliError> {
         *p = image::Rgb([base[0] + n + stripe, base[1] + n, base[2] + n / 2]);
     }
     for _ in 0..900 {
-        let (cx, cy) = (rng.gen_range(0..w) as i64, rng.gen_range(h / 8..7 * h / 8) as i64);
+        let (cx, cy) = (
+            rng.gen_range(0..w) as i64,
+            rng.gen_range(h / 8..7 * h / 8) as i64,
+        );
         let r = rng.gen_range(4..40i64);
         let c = image::Rgb([rng.gen(), rng.gen(), rng.gen()]);
         let square = rng.gen_bool(0.5);
@@ -53,7 +56,13 @@ fn procedural_panorama(path: &Path) -> Result<(), CliError> {
 }
 
 fn encode_dir(frames: &Path, out: &Path, fps: f64) -> Result<(), CliError> {
-    let mut src = video::open_input(frames, &InputOptions { fps_override: Some(fps), ..Default::default() })?;
+    let mut src = video::open_input(
+        frames,
+        &InputOptions {
+            fps_override: Some(fps),
+            ..Default::default()
+        },
+    )?;
     let info = src.info().clone();
     let mut sink = video::create_output(out, &OutputSpec::new(info.width, info.height, fps))?;
     let mut f = Frame::new(info.width, info.height, PixelFormat::Rgb8);
@@ -82,7 +91,12 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         std::fs::remove_dir_all(&frames).map_err(|e| CliError::io(&frames, e))?;
     }
     let fps = 60.0;
-    eprintln!("rendering a {:.0} s shaky clip ({} deg/s RMS, 12-20 Hz) from {}", args.seconds, args.shake_dps, pano.display());
+    eprintln!(
+        "rendering a {:.0} s shaky clip ({} deg/s RMS, 12-20 Hz) from {}",
+        args.seconds,
+        args.shake_dps,
+        pano.display()
+    );
     synth_cmd::run(&SynthArgs {
         panorama: pano,
         output: frames.clone(),
@@ -102,7 +116,8 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
     let shaky = out.join("shaky.mp4");
     encode_dir(&frames, &shaky, fps)?;
 
-    let lens_text = std::fs::read_to_string(frames.join("lens.json")).map_err(|e| CliError::io(frames.join("lens.json"), e))?;
+    let lens_text = std::fs::read_to_string(frames.join("lens.json"))
+        .map_err(|e| CliError::io(frames.join("lens.json"), e))?;
     let lens = amc_core::lens::parse_lens(&lens_text).map_err(amc_core::AmcError::from)?;
     let gt_rot = gt::read_orientations(&frames.join("gt.csv"))?;
     let mut lines = Vec::new();
@@ -124,7 +139,11 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
             keep_per_frame: true,
             label: name,
         })?;
-        let est: Vec<_> = run.per_frame.iter().map(|r| so3::exp(&Tangent::from(r.telemetry.r_est))).collect();
+        let est: Vec<_> = run
+            .per_frame
+            .iter()
+            .map(|r| so3::exp(&Tangent::from(r.telemetry.r_est)))
+            .collect();
         let g = gt::compare(&gt_rot, &est);
         lines.push(format!(
             "  {:<11} {}  ({} frames at {:.0} frames/s; normal flow {:.3} px, valid {:.1}%)",

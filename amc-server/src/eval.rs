@@ -33,7 +33,14 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport, CliError> {
     let timeout = Duration::from_secs(args.tuning.timeout);
     let base = args.tuning.params(Mode::Stabilize);
     base.validate()?;
-    let lens = pipeline::resolve_lens(&args.lens.choice()?, &args.input, &base, args.tuning.fps, timeout, args.quiet)?;
+    let lens = pipeline::resolve_lens(
+        &args.lens.choice()?,
+        &args.input,
+        &base,
+        args.tuning.fps,
+        timeout,
+        args.quiet,
+    )?;
     let gt_rot = match &args.gt {
         Some(p) => Some(gt::read_orientations(p)?),
         None => None,
@@ -55,15 +62,22 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport, CliError> {
             label: &label,
         };
         let run = pipeline::run(&cfg)?;
-        let ground_truth = gt_rot.as_ref().filter(|_| mode == Mode::Stabilize).map(|g| {
-            let est: Vec<_> = run
-                .per_frame
-                .iter()
-                .map(|r| so3::exp(&Tangent::from(r.telemetry.r_est)))
-                .collect();
-            gt::compare(g, &est)
+        let ground_truth = gt_rot
+            .as_ref()
+            .filter(|_| mode == Mode::Stabilize)
+            .map(|g| {
+                let est: Vec<_> = run
+                    .per_frame
+                    .iter()
+                    .map(|r| so3::exp(&Tangent::from(r.telemetry.r_est)))
+                    .collect();
+                gt::compare(g, &est)
+            });
+        modes.push(ModeResult {
+            mode: label,
+            run,
+            ground_truth,
         });
-        modes.push(ModeResult { mode: label, run, ground_truth });
     }
     if let Some(path) = &args.plot {
         let series: Vec<ModeSeries> = modes

@@ -33,7 +33,14 @@ pub fn read_orientations(path: &Path) -> Result<Vec<Rot>, CliError> {
             f.get(i)
                 .and_then(|s| s.trim().parse::<f64>().ok())
                 .filter(|v| v.is_finite())
-                .ok_or_else(|| CliError::Usage(format!("{}: line {}: bad number in column {}", path.display(), n + 2, i + 1)))
+                .ok_or_else(|| {
+                    CliError::Usage(format!(
+                        "{}: line {}: bad number in column {}",
+                        path.display(),
+                        n + 2,
+                        i + 1
+                    ))
+                })
         };
         out.push(so3::exp(&Tangent::new(get(ix)?, get(iy)?, get(iz)?)));
     }

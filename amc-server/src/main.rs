@@ -21,7 +21,14 @@ fn stabilize(args: &StabilizeArgs) -> Result<(), CliError> {
     let params = args.tuning.params(args.mode);
     params.validate()?;
     let timeout = Duration::from_secs(args.tuning.timeout);
-    let lens = pipeline::resolve_lens(&args.lens.choice()?, &args.input, &params, args.tuning.fps, timeout, args.quiet)?;
+    let lens = pipeline::resolve_lens(
+        &args.lens.choice()?,
+        &args.input,
+        &params,
+        args.tuning.fps,
+        timeout,
+        args.quiet,
+    )?;
     let run = pipeline::run(&RunConfig {
         input: &args.input,
         output: Some(&args.output),
@@ -36,7 +43,8 @@ fn stabilize(args: &StabilizeArgs) -> Result<(), CliError> {
         label: "stabilize",
     })?;
     if let Some(p) = &args.metrics {
-        let json = serde_json::to_string_pretty(&run).map_err(|e| CliError::Usage(e.to_string()))?;
+        let json =
+            serde_json::to_string_pretty(&run).map_err(|e| CliError::Usage(e.to_string()))?;
         pipeline::write_atomic(p, json.as_bytes())?;
     }
     if !args.quiet {
@@ -64,7 +72,8 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Eval(a) => {
             let report = eval::run(&a)?;
             if a.json {
-                let s = serde_json::to_string_pretty(&report).map_err(|e| CliError::Usage(e.to_string()))?;
+                let s = serde_json::to_string_pretty(&report)
+                    .map_err(|e| CliError::Usage(e.to_string()))?;
                 println!("{s}");
             } else {
                 print!("{}", eval::markdown(&report));

@@ -74,12 +74,14 @@ pub fn resolve_lens(
     match choice {
         LensChoice::File(p) => {
             let text = std::fs::read_to_string(p).map_err(|e| CliError::io(p, e))?;
-            amc_core::lens::parse_lens(&text).map_err(|e| CliError::Usage(format!("{}: {e}", p.display())))
+            amc_core::lens::parse_lens(&text)
+                .map_err(|e| CliError::Usage(format!("{}: {e}", p.display())))
         }
         LensChoice::Fov(deg) => {
             let src = video::open_input(input, &input_options(fps, timeout))?;
             let info = src.info();
-            Ok(CameraModel::pinhole_hfov(info.width, info.height, *deg).map_err(amc_core::AmcError::from)?)
+            Ok(CameraModel::pinhole_hfov(info.width, info.height, *deg)
+                .map_err(amc_core::AmcError::from)?)
         }
         LensChoice::Auto => {
             let mut src = video::open_input(input, &input_options(fps, timeout))?;
@@ -147,7 +149,9 @@ impl AtomicFile {
 
     fn persist(self) -> Result<(), CliError> {
         let path = self.path;
-        self.tmp.persist(&path).map_err(|e| CliError::io(&path, e.error))?;
+        self.tmp
+            .persist(&path)
+            .map_err(|e| CliError::io(&path, e.error))?;
         Ok(())
     }
 }
@@ -160,7 +164,11 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CliError> {
 }
 
 fn telemetry_row(t: &Telemetry) -> String {
-    let speed = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt().to_degrees();
+    let speed = |v: [f64; 3]| {
+        (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+            .sqrt()
+            .to_degrees()
+    };
     format!(
         "{},{:.6},{:e},{:e},{:e},{:e},{:e},{:e},{:.4},{:.4},{:.5},{},{},{},{:.6},{:.4},{},{}\n",
         t.frame,
@@ -186,7 +194,8 @@ fn telemetry_row(t: &Telemetry) -> String {
 
 /// Runs the stabilizer over the whole input.
 pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
-    let mut src: Box<dyn FrameSource> = video::open_input(cfg.input, &input_options(cfg.fps, cfg.timeout))?;
+    let mut src: Box<dyn FrameSource> =
+        video::open_input(cfg.input, &input_options(cfg.fps, cfg.timeout))?;
     let info = src.info().clone();
     let mut stab = Stabilizer::new(&cfg.lens, info.width, info.height, cfg.params.clone())?;
     let (ow, oh) = stab.output_size();
@@ -219,12 +228,21 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
         if let Some(s) = sink.as_mut() {
             s.write_frame(&stab.output())?;
         }
-        let m = metrics.push(&stab.output(), stab.output_coverage(), tel.valid_fraction, Some(&tel));
+        let m = metrics.push(
+            &stab.output(),
+            stab.output_coverage(),
+            tel.valid_fraction,
+            Some(&tel),
+        );
         if let Some((w, path)) = telemetry.as_mut() {
-            w.write_all(telemetry_row(&tel).as_bytes()).map_err(|e| CliError::io(&*path, e))?;
+            w.write_all(telemetry_row(&tel).as_bytes())
+                .map_err(|e| CliError::io(&*path, e))?;
         }
         if cfg.keep_per_frame {
-            per_frame.push(FrameRecord { telemetry: tel, metrics: m });
+            per_frame.push(FrameRecord {
+                telemetry: tel,
+                metrics: m,
+            });
         }
         frames += 1;
         pb.inc(1);
@@ -241,14 +259,19 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
     drop(emit);
     pb.finish_and_clear();
     if frames == 0 {
-        return Err(CliError::Usage(format!("{}: no frames could be read", cfg.input.display())));
+        return Err(CliError::Usage(format!(
+            "{}: no frames could be read",
+            cfg.input.display()
+        )));
     }
     let seconds = start.elapsed().as_secs_f64();
     if let Some(s) = sink {
         s.finish()?;
     }
     if let Some((w, path)) = telemetry {
-        let tmp = w.into_inner().map_err(|e| CliError::io(&path, e.into_error()))?;
+        let tmp = w
+            .into_inner()
+            .map_err(|e| CliError::io(&path, e.into_error()))?;
         AtomicFile { tmp, path }.persist()?;
     }
     Ok(RunSummary {
