@@ -12,8 +12,16 @@
 //! exp(w) = I + sin(theta)/theta [w]x + (1 - cos(theta))/theta^2 [w]x^2
 //! log(R) = theta / (2 sin theta) (R - R^T)^v,   cos(theta) = (tr R - 1) / 2
 //! ```
-//! Both are delegated to nalgebra's `Rotation3::new` / `scaled_axis`, which use
-//! Taylor expansions near `theta = 0` and handle `theta` near `pi` robustly.
+//! `exp` is nalgebra's `Rotation3::new`. `log` is ours: nalgebra's
+//! `scaled_axis` takes `theta = acos((tr R - 1) / 2)`, which loses all precision
+//! for small angles and returns NaN when rounding pushes the argument past 1
+//! (it did, on near-identity view updates). Here
+//! ```text
+//! v = (R - R^T)^v = 2 sin(theta) a,   theta = atan2(|v| / 2, (tr R - 1) / 2)
+//! log R = theta / (2 sin theta) v          (series 1/2 (1 + theta^2 / 6) v near 0)
+//! ```
+//! and near `theta = pi`, where `v` vanishes, the axis comes from the symmetric
+//! part `R + R^T - 2 cos(theta) I = 2 (1 - cos theta) a a^T`.
 //! Small-angle first order: `exp(w) x ~ x + w x x = x - [x]x w`, which gives the
 //! warp Jacobian the tracker uses.
 
@@ -30,10 +38,46 @@ pub fn exp(w: &Tangent) -> Rot {
     Rotation3::new(*w)
 }
 
-/// Logarithm SO(3) -> so(3); the returned angle is in `[0, pi]`.
-#[inline]
+/// Angle (radians) below which `log` uses the series `theta / sin(theta) ~ 1 + theta^2 / 6`.
+const LOG_SERIES_BELOW: f64 = 1e-4;
+/// Distance from `pi` (radians) under which the axis is taken from the symmetric part.
+const LOG_NEAR_PI: f64 = 1e-3;
+
+/// Logarithm SO(3) -> so(3); the returned angle is in `[0, pi]`. Never NaN for
+/// a finite rotation matrix.
 pub fn log(r: &Rot) -> Tangent {
-    r.scaled_axis()
+    let m = r.matrix();
+    let v = Tangent::new(
+        m[(2, 1)] - m[(1, 2)],
+        m[(0, 2)] - m[(2, 0)],
+        m[(1, 0)] - m[(0, 1)],
+    );
+    let sin = 0.5 * v.norm();
+    let cos = 0.5 * (m.trace() - 1.0);
+    let theta = sin.atan2(cos);
+    if theta < LOG_SERIES_BELOW {
+        return v * (0.5 * (1.0 + theta * theta / 6.0));
+    }
+    if std::f64::consts::PI - theta > LOG_NEAR_PI {
+        return v * (theta / (2.0 * sin));
+    }
+    // Near pi: a a^T = (R + R^T - 2 cos I) / (2 (1 - cos)); take the largest column.
+    let sym =
+        (m + m.transpose() - nalgebra::Matrix3::identity() * (2.0 * cos)) / (2.0 * (1.0 - cos));
+    let k = (0..3)
+        .max_by(|&i, &j| sym[(i, i)].total_cmp(&sym[(j, j)]))
+        .unwrap_or(0);
+    let mut axis = sym.column(k).into_owned();
+    let n = axis.norm();
+    if !(n > 0.0) {
+        return Tangent::zeros();
+    }
+    axis /= n;
+    // The sign of the axis follows v (which still carries 2 sin(theta) a).
+    if axis.dot(&v) < 0.0 {
+        axis = -axis;
+    }
+    axis * theta
 }
 
 /// Skew-symmetric ("hat") matrix with `hat(a) b = a x b`.
@@ -69,6 +113,35 @@ mod tests {
     #[test]
     fn identity_round_trip() {
         assert_relative_eq!(log(&exp(&Tangent::zeros())), Tangent::zeros());
+    }
+
+    #[test]
+    fn log_is_accurate_for_tiny_angles_and_never_nan() {
+        for &a in &[1e-12, 1e-9, 1e-7, 1e-5, 1e-3] {
+            let w = Tangent::new(0.6, -0.8, 0.0) * a;
+            let back = log(&exp(&w));
+            assert!(back.iter().all(|x| x.is_finite()));
+            assert!((back - w).norm() <= 1e-6 * a + 1e-15, "{a}: {back:?}");
+        }
+        // A matrix whose trace rounds above 3 (the case that broke acos).
+        let mut m = nalgebra::Matrix3::identity();
+        m[(0, 1)] = -1e-9;
+        m[(1, 0)] = 1e-9;
+        m[(0, 0)] = 1.0 + 1e-16;
+        let r = Rot::from_matrix_unchecked(m);
+        assert!(log(&r).iter().all(|x| x.is_finite()));
+    }
+
+    #[test]
+    fn log_near_pi() {
+        for &eps in &[0.0, 1e-9, 1e-6, 1e-4, 2e-3] {
+            let axis = Tangent::new(1.0, 2.0, -2.0).normalize();
+            let w = axis * (std::f64::consts::PI - eps);
+            let back = log(&exp(&w));
+            // At exactly pi, w and -w are the same rotation.
+            let d = (back - w).norm().min((back + w).norm());
+            assert!(d < 1e-6, "eps {eps}: {back:?} vs {w:?}");
+        }
     }
 
     #[test]

@@ -44,6 +44,12 @@
 //!   location (`|e_id| < |e_rot| / 2`), it is camera-fixed. Votes are averaged
 //!   per image location with an exponential moving average, and locations whose
 //!   average exceeds [`STATIC_THRESHOLD`] are left out of later templates.
+//! * Recovery: when a frame's final residual is far above the typical residual
+//!   (a wrong local minimum, e.g. a 6 deg jerk), a grid of pan/tilt offsets is
+//!   scored at the coarsest level, the best is refined coarse to fine, and the
+//!   result with the lower residual is kept. A frame that still tracks badly
+//!   never becomes the template (the reset waits for a good frame), so one bad
+//!   frame cannot bake its error into every later estimate.
 //! * Only pixels valid in both images count (`NaN` marks invalid pixels).
 //! * Per level, only the strongest-gradient pixel of each small block is used
 //!   (at most `max_points`): low-gradient pixels carry almost no information
@@ -155,6 +161,16 @@ const MIN_GRADIENT: f32 = 0.5 / 255.0;
 const MAX_BACKTRACK: usize = 8;
 /// Points per chunk of the evaluation loop (fits L1 with room to spare).
 const CHUNK: usize = 64;
+/// A frame is suspect when its RMS residual exceeds this multiple of the typical one.
+const SUSPECT_RATIO: f32 = 2.5;
+/// ...and this absolute floor (intensity units): noise-free clips have tiny residuals.
+const SUSPECT_FLOOR: f32 = 0.02;
+/// Recovery grid: offsets `-R..=R` steps on each of the pan and tilt axes.
+const RECOVERY_RADIUS: i32 = 3;
+/// Recovery grid step, in pixels of the coarsest level (inside its basin).
+const RECOVERY_STEP_PX: f64 = 1.5;
+/// Longest a template reset may be postponed while frames track badly.
+const MAX_RESET_DELAY: usize = 10;
 /// Convergence threshold of coarse levels relative to the finest level's.
 const COARSE_TOLERANCE_FACTOR: f64 = 20.0;
 /// Fewer valid template pixels than this share means the frame is lost at that level.
@@ -285,6 +301,8 @@ pub struct Tracker {
     grad: Vec<(f32, f32)>,
     /// Per finest-level pixel: moving average of "camera-fixed" votes in [-1, 1].
     static_votes: Vec<f32>,
+    /// Moving average of the RMS residual of well-tracked frames.
+    typical_residual: Option<f32>,
 }
 
 impl Tracker {
@@ -312,6 +330,7 @@ impl Tracker {
             frames_since_reset: 0,
             grad: Vec::new(),
             static_votes: vec![0.0; camera.width * camera.height],
+            typical_residual: None,
             params,
         })
     }
@@ -369,6 +388,49 @@ impl Tracker {
             }
         }
 
+        let (mut r, mut info) = self.coarse_to_fine(pyr, r);
+        let suspect = |info: &TrackInfo, typical: Option<f32>| {
+            let limit = typical.map_or(f32::INFINITY, |t| (SUSPECT_RATIO * t).max(SUSPECT_FLOOR));
+            !(info.rms_residual <= limit)
+        };
+        if suspect(&info, self.typical_residual) {
+            let (r2, info2) = self.recover(pyr, r);
+            if info2.rms_residual < info.rms_residual {
+                r = r2;
+                info = TrackInfo {
+                    iterations: info.iterations + info2.iterations,
+                    ..info2
+                };
+            }
+        }
+        let good = !suspect(&info, self.typical_residual) && !info.lost;
+        if good {
+            let t = self.typical_residual.get_or_insert(info.rms_residual);
+            *t += 0.1 * (info.rms_residual - *t);
+        }
+        self.r_kj = so3::renormalize(&r);
+        if self.params.reject_static && !info.lost {
+            self.vote_static(&pyr.levels[0], &self.r_kj.clone());
+        }
+        let r_0j = so3::renormalize(&(self.r_0k * self.r_kj));
+        if dt.is_finite() && dt > 0.0 {
+            self.rate = so3::body_rate(&r_prev, &r_0j, dt);
+        }
+        self.last = Some((t, r_0j));
+
+        self.frames_since_reset += 1;
+        let due = self.frames_since_reset >= self.params.n_track;
+        if due && (good || self.frames_since_reset >= self.params.n_track + MAX_RESET_DELAY) {
+            self.set_template(pyr);
+            self.r_0k = r_0j;
+            self.r_kj = Rot::identity();
+            info.template_reset = true;
+        }
+        (r_0j, info)
+    }
+
+    /// Runs all levels from `r`, returning the estimate and its quality.
+    fn coarse_to_fine(&self, pyr: &Pyramid, mut r: Rot) -> (Rot, TrackInfo) {
         let mut info = TrackInfo::default();
         for level in (0..self.n_levels).rev() {
             let (r_new, final_eval, iters) = self.refine(level, &pyr.levels[level], r);
@@ -385,24 +447,30 @@ impl Tracker {
                 info.lost = info.valid_fraction < MIN_VALID_SHARE;
             }
         }
-        self.r_kj = so3::renormalize(&r);
-        if self.params.reject_static && !info.lost {
-            self.vote_static(&pyr.levels[0], &self.r_kj.clone());
-        }
-        let r_0j = so3::renormalize(&(self.r_0k * self.r_kj));
-        if dt.is_finite() && dt > 0.0 {
-            self.rate = so3::body_rate(&r_prev, &r_0j, dt);
-        }
-        self.last = Some((t, r_0j));
+        (r, info)
+    }
 
-        self.frames_since_reset += 1;
-        if self.frames_since_reset >= self.params.n_track {
-            self.set_template(pyr);
-            self.r_0k = r_0j;
-            self.r_kj = Rot::identity();
-            info.template_reset = true;
+    /// Recovery from a wrong minimum: scores a pan/tilt grid around `center` at
+    /// the coarsest level and refines the best point at all levels.
+    fn recover(&self, pyr: &Pyramid, center: Rot) -> (Rot, TrackInfo) {
+        let coarsest = self.n_levels - 1;
+        let img = &pyr.levels[coarsest];
+        let f = self.template[coarsest].k.map_or(1.0, |k| k.fx.max(k.fy)) as f64;
+        let step = RECOVERY_STEP_PX / f;
+        let mut best = (f64::INFINITY, center);
+        for i in -RECOVERY_RADIUS..=RECOVERY_RADIUS {
+            for j in -RECOVERY_RADIUS..=RECOVERY_RADIUS {
+                // Offsets about the template camera's y (pan) and x (tilt) axes.
+                let cand = so3::exp(&Tangent::new(j as f64 * step, i as f64 * step, 0.0)) * center;
+                let e = self.evaluate(coarsest, img, &cand);
+                let min_valid =
+                    ((self.template[coarsest].xs.len() as f32) * MIN_VALID_SHARE) as u32;
+                if e.n > min_valid && e.mean_loss() < best.0 {
+                    best = (e.mean_loss(), cand);
+                }
+            }
         }
-        (r_0j, info)
+        self.coarse_to_fine(pyr, best.1)
     }
 
     /// Updates the camera-fixed votes from the finest level at the final estimate.
