@@ -36,7 +36,15 @@ pub struct FocalEstimate {
     pub camera: CameraModel,
     /// `(hfov_deg, score)` pairs evaluated, for diagnostics.
     pub curve: Vec<(f64, f64)>,
+    /// Whether the footage constrains the focal length: the score 20% off in
+    /// focal length is at least [`CONFIDENCE_RATIO`] times the minimum.
+    pub confident: bool,
 }
+
+/// Score ratio (20% away in focal length vs the minimum) above which the
+/// estimate is trusted. Rotation-only synthetic clips reach 2.5-4x; real
+/// footage dominated by translation (cc9, a car driving) stays under 1.05x.
+pub const CONFIDENCE_RATIO: f64 = 1.2;
 
 /// Estimates the focal length of a pinhole camera from `frames` (with their
 /// timestamps in seconds), e.g. the first 2-3 seconds of a clip.
@@ -129,11 +137,17 @@ pub fn estimate_hfov(
             fd = score(to_hfov(d.exp()))?;
         }
     }
-    let hfov_deg = to_hfov(((a + b) / 2.0).exp());
+    let lf_best = (a + b) / 2.0;
+    let hfov_deg = to_hfov(lf_best.exp());
+    let best_score = score(hfov_deg)?;
+    let wider = score(to_hfov(lf_best.exp() / 1.2))?;
+    let narrower = score(to_hfov(lf_best.exp() * 1.2))?;
+    let confident = best_score.is_finite() && wider.min(narrower) >= CONFIDENCE_RATIO * best_score;
     curve.sort_by(|x, y| x.0.total_cmp(&y.0));
     Ok(FocalEstimate {
         hfov_deg,
         camera: CameraModel::pinhole_hfov(w, h, hfov_deg)?,
         curve,
+        confident,
     })
 }

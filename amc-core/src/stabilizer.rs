@@ -121,6 +121,7 @@ pub struct Stabilizer {
     received: u64,
     last_t: Option<f64>,
     last_shown: Option<(f64, Rot, Rot)>,
+    last_saccade: Option<u64>,
 }
 
 impl Stabilizer {
@@ -183,6 +184,7 @@ impl Stabilizer {
             received: 0,
             last_t: None,
             last_shown: None,
+            last_saccade: None,
             params,
         })
     }
@@ -335,7 +337,15 @@ impl Stabilizer {
             self.saccade_update(first, pos, &r_view);
             let full = self.slots.len() as u8;
             let mut vf = self.acc.finish_into(&mut self.output.data, channels, full);
-            if vf < self.params.view.saccade_coverage && j > 0 {
+            // After a saccade the older frames of the window cannot cover the new
+            // view; coverage by every averaged frame recovers only once the
+            // window has refilled, so the next saccade waits `n_avg` frames
+            // (without this, strong motion re-centres on every frame).
+            let refractory = self
+                .last_saccade
+                .is_some_and(|s| j < s + self.params.render.n_avg as u64);
+            if vf < self.params.view.saccade_coverage && j > 0 && !refractory {
+                self.last_saccade = Some(j);
                 // Re-centre the view on the current estimate and rebuild the sums.
                 saccade = true;
                 self.saccade_view = Some(r_est);

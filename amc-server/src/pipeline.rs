@@ -13,6 +13,10 @@ use std::io::{BufWriter, IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+/// Horizontal field of view assumed when `--fov auto` cannot pin the focal
+/// length down: a typical phone / action-camera main lens.
+pub const FALLBACK_FOV_DEG: f64 = 70.0;
+
 /// Frames read for `--fov auto` (about 3 s at 30 fps).
 pub const AUTO_FOV_FRAMES: usize = 90;
 
@@ -95,6 +99,17 @@ pub fn resolve_lens(
             }
             let refs: Vec<_> = frames.iter().map(|(f, t)| (f.as_ref(), *t)).collect();
             let est = selfcal::estimate_hfov(&refs, params.track_width, &params.tracker)?;
+            if !est.confident {
+                if !quiet {
+                    eprintln!(
+                        "warning: the footage does not pin down the focal length (translation or little rotation); \
+                         assuming a {FALLBACK_FOV_DEG} deg horizontal field of view: pass --fov DEG or --lens FILE for best results"
+                    );
+                }
+                let (w, h) = (frames[0].0.width, frames[0].0.height);
+                return Ok(CameraModel::pinhole_hfov(w, h, FALLBACK_FOV_DEG)
+                    .map_err(amc_core::AmcError::from)?);
+            }
             if !quiet {
                 eprintln!(
                     "estimated horizontal field of view: {:.1} deg (from {} frames; pass --fov or --lens to set it)",
@@ -137,10 +152,18 @@ impl AtomicFile {
             Some(d) if !d.as_os_str().is_empty() => d,
             _ => Path::new("."),
         };
+        if !dir.is_dir() {
+            return Err(CliError::Usage(format!(
+                "{}: the directory {} does not exist",
+                path.display(),
+                dir.display()
+            )));
+        }
         let tmp = tempfile::Builder::new()
             .prefix(".amc-partial-")
             .tempfile_in(dir)
-            .map_err(|e| CliError::io(path, e))?;
+            // tempfile's error names the temporary file; report the real path.
+            .map_err(|e| CliError::io(path, std::io::Error::new(e.kind(), e.kind().to_string())))?;
         Ok(Self {
             tmp,
             path: path.to_path_buf(),
