@@ -113,9 +113,7 @@ struct RowMap {
     h: Matrix3<f32>,
     /// Exact source coordinates at the grid nodes (distorted sources).
     grid: Vec<[f32; 2]>,
-    /// Source coordinates of the current output row.
-    row: Vec<[f32; 2]>,
-    /// The same, split into x and y (for the vectorized kernel).
+    /// Source coordinates `(xs[u], ys[u])` of the current output row (NaN: none).
     xs: Vec<f32>,
     ys: Vec<f32>,
 }
@@ -139,6 +137,13 @@ pub struct Warper {
     acc_g: Vec<u32>,
     acc_b: Vec<u32>,
     acc_n: Vec<u32>,
+    /// Per-row 8-bit averages, R then G then B (vectorized finalize).
+    out8: Vec<u8>,
+    /// Output row being rendered (for the kernel's homography rows).
+    current_row: usize,
+    /// Scratch rows for the single-frame `warp` path.
+    acc_xs: Vec<f32>,
+    acc_ys: Vec<f32>,
 }
 
 /// Most frames one output may average (the range of `n_avg`).
@@ -250,6 +255,10 @@ impl Warper {
             acc_g: Vec::new(),
             acc_b: Vec::new(),
             acc_n: Vec::new(),
+            acc_xs: Vec::new(),
+            acc_ys: Vec::new(),
+            current_row: 0,
+            out8: Vec::new(),
         }
     }
 
@@ -260,7 +269,8 @@ impl Warper {
 
     /// Prepares `map` for rotation `m` (output ray -> source ray).
     fn prepare_map(&self, map: &mut RowMap, m: &Matrix3<f64>) {
-        map.row.resize(self.out.width, [0.0; 2]);
+        map.xs.resize(self.out.width, 0.0);
+        map.ys.resize(self.out.width, 0.0);
         if self.src.is_pinhole() {
             let k_out_inv = self
                 .out
@@ -289,14 +299,6 @@ impl Warper {
         geom: &Geometry,
         n8: usize,
     ) {
-        for buf in [
-            &mut self.acc_r,
-            &mut self.acc_g,
-            &mut self.acc_b,
-            &mut self.acc_n,
-        ] {
-            buf[..n8].fill(0);
-        }
         #[cfg(target_arch = "x86_64")]
         {
             let kg = crate::simd::KernelGeometry {
@@ -307,56 +309,70 @@ impl Warper {
                 max_x: geom.max_x,
                 max_y: geom.max_y,
             };
-            for (map, data) in maps.iter().zip(datas) {
-                // SAFETY: `self.avx2` is only true when the CPU has AVX2; the caller
-                // checked every frame's padding; all row buffers hold `ow >= n8` values.
-                unsafe {
-                    crate::simd::accumulate_row_avx2(
-                        data,
-                        kg,
-                        &map.xs,
-                        &map.ys,
-                        n8,
-                        &mut self.acc_r,
-                        &mut self.acc_g,
-                        &mut self.acc_b,
-                        &mut self.acc_n,
-                    );
-                }
+            use crate::simd::RowCoords;
+            let mut coords = [RowCoords::Table(&[], &[]); MAX_FRAMES];
+            let n = maps.len().min(datas.len());
+            let vf = self.current_row as f32;
+            for (f, map) in maps.iter().enumerate().take(n) {
+                coords[f] = if self.src.is_pinhole() {
+                    let h = &map.h;
+                    RowCoords::Homography {
+                        x0: h[(0, 1)] * vf + h[(0, 2)],
+                        y0: h[(1, 1)] * vf + h[(1, 2)],
+                        z0: h[(2, 1)] * vf + h[(2, 2)],
+                        dx: h[(0, 0)],
+                        dy: h[(1, 0)],
+                        dz: h[(2, 0)],
+                    }
+                } else {
+                    RowCoords::Table(&map.xs, &map.ys)
+                };
+            }
+            // SAFETY: `self.avx2` is only true when the CPU has AVX2; the caller
+            // checked every frame's padding; all row buffers hold `ow >= n8` values.
+            unsafe {
+                crate::simd::accumulate_row_avx2(
+                    &datas[..n],
+                    kg,
+                    &coords[..n],
+                    n8,
+                    &mut self.acc_r,
+                    &mut self.acc_g,
+                    &mut self.acc_b,
+                    &mut self.acc_n,
+                );
             }
         }
     }
 
-    /// Fills `map.row` with the source coordinates of output row `v`.
+    /// Fills `map.xs`/`map.ys` with the source coordinates of output row `v`.
     fn fill_row(&self, map: &mut RowMap, v: usize) {
         if self.src.is_pinhole() {
             let h = &map.h;
             let vf = v as f32;
-            let (mut x, mut y, mut z) = (
+            let (x0, y0, z0) = (
                 h[(0, 1)] * vf + h[(0, 2)],
                 h[(1, 1)] * vf + h[(1, 2)],
                 h[(2, 1)] * vf + h[(2, 2)],
             );
             let (dx, dy, dz) = (h[(0, 0)], h[(1, 0)], h[(2, 0)]);
-            for r in map.row.iter_mut() {
-                *r = if z > 1e-6 {
-                    let iz = 1.0 / z;
-                    [x * iz, y * iz]
-                } else {
-                    [f32::NAN; 2]
-                };
-                x += dx;
-                y += dy;
-                z += dz;
+            // Branch-free so it vectorizes; rays behind the camera become NaN.
+            for (u, (xo, yo)) in map.xs.iter_mut().zip(map.ys.iter_mut()).enumerate() {
+                let uf = u as f32;
+                let z = z0 + dz * uf;
+                let iz = if z > 1e-6 { 1.0 / z } else { f32::NAN };
+                *xo = (x0 + dx * uf) * iz;
+                *yo = (y0 + dy * uf) * iz;
             }
         } else {
-            interpolate_grid_row(&map.grid, self.grid_w, self.grid_h, v, &mut map.row);
-        }
-        if self.avx2 {
-            map.xs.clear();
-            map.ys.clear();
-            map.xs.extend(map.row.iter().map(|p| p[0]));
-            map.ys.extend(map.row.iter().map(|p| p[1]));
+            interpolate_grid_row(
+                &map.grid,
+                self.grid_w,
+                self.grid_h,
+                v,
+                &mut map.xs,
+                &mut map.ys,
+            );
         }
     }
 
@@ -414,33 +430,57 @@ impl Warper {
         ] {
             buf.resize(ow, 0);
         }
+        // The kernel evaluates pinhole homographies itself; tables are needed for
+        // distorted sources and for the scalar pixels past `n8`.
+        let need_tables = !self.src.is_pinhole() || n8 < ow;
+        self.out8.resize(3 * ow, 0);
         for v in 0..oh {
-            for map in maps.iter_mut() {
-                self.fill_row(map, v);
+            self.current_row = v;
+            if need_tables {
+                for map in maps.iter_mut() {
+                    self.fill_row(map, v);
+                }
             }
             if n8 > 0 {
                 self.accumulate_row_simd(&maps[..n_frames], &datas[..n_frames], &geom, n8);
             }
             let out_row = &mut out[v * ow * channels..(v + 1) * ow * channels];
             let cov_row = &mut coverage[v * ow..(v + 1) * ow];
+            // Averages in vectorizable passes (SoA), then interleave.
+            let (r8, rest) = self.out8.split_at_mut(ow);
+            let (g8, rest) = rest.split_at_mut(ow);
+            let (b8, _) = rest.split_at_mut(ow);
+            for u in 0..n8 {
+                // 1 / (256 n); n = 0 gives inf and 0 * inf = NaN, which `as u8` maps to 0.
+                let k = 1.0 / (256.0 * self.acc_n[u] as f32);
+                r8[u] = (self.acc_r[u] as f32 * k + 0.5) as u8;
+                g8[u] = (self.acc_g[u] as f32 * k + 0.5) as u8;
+                b8[u] = (self.acc_b[u] as f32 * k + 0.5) as u8;
+            }
             for u in 0..n8 {
                 let n = self.acc_n[u] as u8;
-                let k = inv[n as usize];
-                let px = &mut out_row[u * channels..u * channels + channels];
-                px[0] = (self.acc_r[u] as f32 * k + 0.5) as u8;
-                px[1] = (self.acc_g[u] as f32 * k + 0.5) as u8;
-                px[2] = (self.acc_b[u] as f32 * k + 0.5) as u8;
-                if channels == 4 {
-                    px[3] = 255;
-                }
                 cov_row[u] = n;
                 complete += (n == full) as usize;
+            }
+            if channels == 3 {
+                for (u, px) in out_row[..3 * n8].chunks_exact_mut(3).enumerate() {
+                    px[0] = r8[u];
+                    px[1] = g8[u];
+                    px[2] = b8[u];
+                }
+            } else {
+                for (u, px) in out_row[..4 * n8].chunks_exact_mut(4).enumerate() {
+                    px[0] = r8[u];
+                    px[1] = g8[u];
+                    px[2] = b8[u];
+                    px[3] = 255;
+                }
             }
             for u in n8..ow {
                 let mut acc = [0u32; 3];
                 let mut n = 0u8;
                 for (map, data) in maps.iter().zip(&datas[..n_frames]) {
-                    let [sx, sy] = map.row[u];
+                    let (sx, sy) = (map.xs[u], map.ys[u]);
                     if let Some(rgb) = geom.sample(data, sx, sy) {
                         acc[0] += rgb[0];
                         acc[1] += rgb[1];
@@ -503,22 +543,20 @@ impl Warper {
         let _ = hcol;
         for v in 0..oh {
             if pinhole {
-                let (mut x, mut y, mut z) = (
-                    hrow[(0, 1)] * v as f32 + hrow[(0, 2)],
-                    hrow[(1, 1)] * v as f32 + hrow[(1, 2)],
-                    hrow[(2, 1)] * v as f32 + hrow[(2, 2)],
+                // Same formula and operation order as `fill_row` and the AVX2
+                // kernel, so every path samples identical coordinates.
+                let vf = v as f32;
+                let (x0, y0, z0) = (
+                    hrow[(0, 1)] * vf + hrow[(0, 2)],
+                    hrow[(1, 1)] * vf + hrow[(1, 2)],
+                    hrow[(2, 1)] * vf + hrow[(2, 2)],
                 );
                 let (dx, dy, dz) = (hrow[(0, 0)], hrow[(1, 0)], hrow[(2, 0)]);
-                for r in self.row.iter_mut() {
-                    *r = if z > 1e-6 {
-                        let iz = 1.0 / z;
-                        [x * iz, y * iz]
-                    } else {
-                        [f32::NAN; 2]
-                    };
-                    x += dx;
-                    y += dy;
-                    z += dz;
+                for (u, r) in self.row.iter_mut().enumerate() {
+                    let uf = u as f32;
+                    let z = z0 + dz * uf;
+                    let iz = if z > 1e-6 { 1.0 / z } else { f32::NAN };
+                    *r = [(x0 + dx * uf) * iz, (y0 + dy * uf) * iz];
                 }
             } else {
                 self.interpolate_row(v);
@@ -562,7 +600,19 @@ impl Warper {
 
     /// Bilinear interpolation of the grid into `self.row` for output row `v`.
     fn interpolate_row(&mut self, v: usize) {
-        interpolate_grid_row(&self.grid, self.grid_w, self.grid_h, v, &mut self.row);
+        let n = self.row.len();
+        let (mut xs, mut ys) = (
+            std::mem::take(&mut self.acc_xs),
+            std::mem::take(&mut self.acc_ys),
+        );
+        xs.resize(n, 0.0);
+        ys.resize(n, 0.0);
+        interpolate_grid_row(&self.grid, self.grid_w, self.grid_h, v, &mut xs, &mut ys);
+        for ((r, x), y) in self.row.iter_mut().zip(&xs).zip(&ys) {
+            *r = [*x, *y];
+        }
+        self.acc_xs = xs;
+        self.acc_ys = ys;
     }
 }
 
@@ -573,7 +623,8 @@ fn interpolate_grid_row(
     grid_w: usize,
     grid_h: usize,
     v: usize,
-    row: &mut [[f32; 2]],
+    xs: &mut [f32],
+    ys: &mut [f32],
 ) {
     let gy = (v / GRID_STEP).min(grid_h.saturating_sub(2));
     let fy = (v - gy * GRID_STEP) as f32 / GRID_STEP as f32;
@@ -581,12 +632,14 @@ fn interpolate_grid_row(
     let r1 = &grid[(gy + 1) * grid_w..(gy + 2) * grid_w];
     let lerp2 =
         |a: [f32; 2], b: [f32; 2], t: f32| [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
-    for (u, out) in row.iter_mut().enumerate() {
+    for (u, (xo, yo)) in xs.iter_mut().zip(ys.iter_mut()).enumerate() {
         let gx = (u / GRID_STEP).min(grid_w - 2);
         let fx = (u - gx * GRID_STEP) as f32 / GRID_STEP as f32;
         let top = lerp2(r0[gx], r0[gx + 1], fx);
         let bot = lerp2(r1[gx], r1[gx + 1], fx);
-        *out = lerp2(top, bot, fy);
+        let p = lerp2(top, bot, fy);
+        *xo = p[0];
+        *yo = p[1];
     }
 }
 
@@ -634,6 +687,66 @@ impl Accumulator {
     }
 }
 
+impl Warper {
+    /// Warps one frame into a saccade slot: 8.8 fixed-point samples and a
+    /// coverage flag per pixel (0 where the frame does not cover it).
+    pub fn warp_into_slot(
+        &mut self,
+        frame: &FrameRef<'_>,
+        m: &Matrix3<f64>,
+        slot: &mut WarpedFrame,
+        index: u64,
+    ) {
+        let (ow, oh) = (self.out.width, self.out.height);
+        slot.index = index;
+        slot.value.clear();
+        slot.value.resize(3 * ow * oh, 0);
+        slot.covered.clear();
+        slot.covered.resize(ow * oh, 0);
+        let geom = Geometry::of(frame);
+        let padded = frame.data.len() >= geom.stride * frame.height + crate::simd::FRAME_PADDING;
+        let n8 = if self.avx2 && padded { ow / 8 * 8 } else { 0 };
+        let mut maps = std::mem::take(&mut self.maps);
+        maps.resize_with(1, RowMap::default);
+        self.prepare_map(&mut maps[0], m);
+        for buf in [
+            &mut self.acc_r,
+            &mut self.acc_g,
+            &mut self.acc_b,
+            &mut self.acc_n,
+        ] {
+            buf.resize(ow, 0);
+        }
+        let need_tables = !self.src.is_pinhole() || n8 < ow;
+        for v in 0..oh {
+            self.current_row = v;
+            if need_tables {
+                self.fill_row(&mut maps[0], v);
+            }
+            let vals = &mut slot.value[3 * v * ow..3 * (v + 1) * ow];
+            let cov = &mut slot.covered[v * ow..(v + 1) * ow];
+            if n8 > 0 {
+                self.accumulate_row_simd(&maps[..1], &[frame.data], &geom, n8);
+                for u in 0..n8 {
+                    vals[3 * u] = self.acc_r[u] as u16;
+                    vals[3 * u + 1] = self.acc_g[u] as u16;
+                    vals[3 * u + 2] = self.acc_b[u] as u16;
+                    cov[u] = self.acc_n[u] as u8;
+                }
+            }
+            for u in n8..ow {
+                if let Some(rgb) = geom.sample(frame.data, maps[0].xs[u], maps[0].ys[u]) {
+                    vals[3 * u] = rgb[0] as u16;
+                    vals[3 * u + 1] = rgb[1] as u16;
+                    vals[3 * u + 2] = rgb[2] as u16;
+                    cov[u] = 1;
+                }
+            }
+        }
+        self.maps = maps;
+    }
+}
+
 /// One frame warped into the (fixed) saccade view, kept to subtract it later.
 #[derive(Clone, Debug, Default)]
 pub struct WarpedFrame {
@@ -646,7 +759,8 @@ pub struct WarpedFrame {
 }
 
 impl WarpedFrame {
-    /// Warps `frame` into this slot (reusing its buffers).
+    /// Warps `frame` into this slot (reusing its buffers) with the scalar
+    /// sampler: the reference [`Warper::warp_into_slot`] is tested against.
     pub fn fill(
         &mut self,
         warper: &mut Warper,
@@ -669,24 +783,22 @@ impl WarpedFrame {
         });
     }
 
-    /// Adds (`sign = true`) or removes this slot from an accumulator.
+    /// Adds (`add = true`) or removes this slot from an accumulator.
+    /// Uncovered pixels hold zeros, so no per-pixel branch is needed.
     pub fn apply(&self, acc: &mut Accumulator, add: bool) {
-        for (i, &c) in self.covered.iter().enumerate() {
-            if c == 0 {
-                continue;
+        if add {
+            for (s, &v) in acc.sum.iter_mut().zip(&self.value) {
+                *s += v as u32;
             }
-            let s = &mut acc.sum[3 * i..3 * i + 3];
-            let v = &self.value[3 * i..3 * i + 3];
-            if add {
-                s[0] += v[0] as u32;
-                s[1] += v[1] as u32;
-                s[2] += v[2] as u32;
-                acc.count[i] += 1;
-            } else {
-                s[0] -= v[0] as u32;
-                s[1] -= v[1] as u32;
-                s[2] -= v[2] as u32;
-                acc.count[i] -= 1;
+            for (n, &c) in acc.count.iter_mut().zip(&self.covered) {
+                *n += c;
+            }
+        } else {
+            for (s, &v) in acc.sum.iter_mut().zip(&self.value) {
+                *s -= v as u32;
+            }
+            for (n, &c) in acc.count.iter_mut().zip(&self.covered) {
+                *n -= c;
             }
         }
     }
@@ -770,6 +882,26 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The vectorized saccade slot equals the scalar reference.
+    #[test]
+    fn slot_matches_scalar_reference() {
+        let cam = CameraModel::pinhole_hfov(211, 119, 75.0).unwrap();
+        let params = RenderParams {
+            output_width: Some(150),
+            ..Default::default()
+        };
+        let out = params.output_camera(&cam).unwrap();
+        let f = noise_frame(211, 119, PixelFormat::Rgb8, 3);
+        let m = *so3::exp(&Tangent::new(0.05, -0.08, 0.1)).matrix();
+        let mut warper = Warper::new(&cam, &out);
+        let (mut a, mut b) = (WarpedFrame::default(), WarpedFrame::default());
+        warper.warp_into_slot(&f.as_ref(), &m, &mut a, 7);
+        b.fill(&mut warper, &f.as_ref(), &m, 7);
+        assert_eq!(a.covered, b.covered);
+        assert_eq!(a.value, b.value);
+        assert!(a.covered.iter().any(|&c| c == 0) && a.covered.iter().any(|&c| c == 1));
     }
 
     /// Warping by R then by R^T gives the image back (inside the common area).

@@ -421,7 +421,8 @@ impl Stabilizer {
             }
             let m = b.r_est.matrix().transpose() * view.matrix();
             let mut slot = self.spare_slots.pop().unwrap_or_default();
-            slot.fill(&mut self.warper, &b.frame.as_ref(), &m, b.index);
+            self.warper
+                .warp_into_slot(&b.frame.as_ref(), &m, &mut slot, b.index);
             slot.apply(&mut self.acc, true);
             self.slots.push_back(slot);
         }

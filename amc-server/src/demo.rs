@@ -74,7 +74,15 @@ fn encode_dir(frames: &Path, out: &Path, fps: f64) -> Result<(), CliError> {
 }
 
 pub fn run(args: &DemoArgs) -> Result<(), CliError> {
-    video::ffmpeg_available()?;
+    // Without ffmpeg the demo still runs: frames are PNG (read natively) and
+    // results are written as .y4m by our own writer.
+    let ext = match video::ffmpeg_available() {
+        Ok(()) => "mp4",
+        Err(e) => {
+            eprintln!("note: {e}; writing .y4m files instead of .mp4");
+            "y4m"
+        }
+    };
     let out = &args.output;
     std::fs::create_dir_all(out).map_err(|e| CliError::io(out, e))?;
     let pano: PathBuf = match &args.panorama {
@@ -89,6 +97,14 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
     let frames = out.join("shaky-frames");
     if frames.exists() {
         std::fs::remove_dir_all(&frames).map_err(|e| CliError::io(&frames, e))?;
+    }
+    for name in ["shaky", "stabilized", "saccade"] {
+        for ext in ["mp4", "y4m"] {
+            let p = out.join(format!("{name}.{ext}"));
+            if p.exists() {
+                std::fs::remove_file(&p).map_err(|e| CliError::io(&p, e))?;
+            }
+        }
     }
     let fps = 60.0;
     eprintln!(
@@ -113,7 +129,7 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         rolling_shutter_ms: 0.0,
         supersample: 2,
     })?;
-    let shaky = out.join("shaky.mp4");
+    let shaky = out.join(format!("shaky.{ext}"));
     encode_dir(&frames, &shaky, fps)?;
 
     let lens_text = std::fs::read_to_string(frames.join("lens.json"))
@@ -124,7 +140,7 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
     for (mode, name) in [(Mode::Stabilize, "stabilized"), (Mode::Saccade, "saccade")] {
         let mut params = StabilizerParams::default();
         params.view.mode = mode;
-        let output = out.join(format!("{name}.mp4"));
+        let output = out.join(format!("{name}.{ext}"));
         let telemetry = out.join(format!("{name}-telemetry.csv"));
         let run = pipeline::run(&RunConfig {
             input: &frames,
