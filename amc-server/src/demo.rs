@@ -153,6 +153,7 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
             crf: None,
             progress: true,
             keep_per_frame: true,
+            measure: true,
             label: name,
         })?;
         let est: Vec<_> = run
@@ -167,8 +168,8 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
             output.display(),
             run.frames,
             run.frames_per_second,
-            run.metrics.rms_normal_flow,
-            100.0 * run.metrics.valid_fraction
+            run.metrics.as_ref().map_or(0.0, |m| m.rms_normal_flow),
+            100.0 * run.metrics.as_ref().map_or(0.0, |m| m.valid_fraction)
         ));
         if mode == Mode::Stabilize {
             lines.push(format!(

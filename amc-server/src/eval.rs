@@ -59,6 +59,7 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport, CliError> {
             crf: None,
             progress: !args.quiet,
             keep_per_frame: true,
+            measure: true,
             label: &label,
         };
         let run = pipeline::run(&cfg)?;
@@ -112,9 +113,11 @@ pub fn markdown(r: &EvalReport) -> String {
         "Clip: `{}`; lens hfov {:.1} deg\n\n| mode | RMS normal flow (px) | RMS frame change | sharpness | valid px (mean / min) | est. speed (deg/s) | view speed (deg/s) | saccades | frames/s |\n|---|---|---|---|---|---|---|---|---|\n",
         r.input, r.hfov_deg
     );
-    let none = r.modes.first().map(|m| m.run.metrics.clone());
+    let none = r.modes.first().and_then(|m| m.run.metrics.clone());
     for m in &r.modes {
-        let c = &m.run.metrics;
+        let Some(c) = m.run.metrics.as_ref() else {
+            continue;
+        };
         let ratio = |v: f64, base: Option<f64>| match base {
             Some(b) if b > 0.0 && m.mode != "none" => format!(" ({:.2}x)", v / b),
             _ => String::new(),

@@ -40,6 +40,7 @@ fn stabilize(args: &StabilizeArgs) -> Result<(), CliError> {
         crf: args.crf,
         progress: !args.quiet,
         keep_per_frame: false,
+        measure: args.metrics.is_some(),
         label: "stabilize",
     })?;
     if let Some(p) = &args.metrics {
@@ -48,20 +49,25 @@ fn stabilize(args: &StabilizeArgs) -> Result<(), CliError> {
         pipeline::write_atomic(p, json.as_bytes())?;
     }
     if !args.quiet {
-        let m = &run.metrics;
-        eprintln!(
-            "wrote {} ({} frames, {}x{}, {:.0} frames/s): normal flow {:.3} px, frame change {:.4}, valid {:.1}%, view {:.1} deg/s vs camera {:.1} deg/s",
+        let mut line = format!(
+            "wrote {} ({} frames, {}x{}, {:.0} frames/s)",
             args.output.display(),
             run.frames,
             run.output_size.0,
             run.output_size.1,
-            run.frames_per_second,
-            m.rms_normal_flow,
-            m.rms_change,
-            100.0 * m.valid_fraction,
-            m.rms_speed_view_dps,
-            m.rms_speed_est_dps
+            run.frames_per_second
         );
+        if let Some(m) = &run.metrics {
+            line += &format!(
+                ": normal flow {:.3} px, frame change {:.4}, valid {:.1}%, view {:.1} deg/s vs camera {:.1} deg/s",
+                m.rms_normal_flow,
+                m.rms_change,
+                100.0 * m.valid_fraction,
+                m.rms_speed_view_dps,
+                m.rms_speed_est_dps
+            );
+        }
+        eprintln!("{line}");
     }
     Ok(())
 }

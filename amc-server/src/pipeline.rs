@@ -36,6 +36,8 @@ pub struct RunConfig<'a> {
     pub progress: bool,
     /// Keep per-frame records (for plots); memory grows with clip length.
     pub keep_per_frame: bool,
+    /// Measure the quality metrics (costs about as much as stabilizing at 720p).
+    pub measure: bool,
     pub label: &'a str,
 }
 
@@ -54,7 +56,9 @@ pub struct RunSummary {
     pub output_size: (usize, usize),
     pub seconds: f64,
     pub frames_per_second: f64,
-    pub metrics: ClipMetrics,
+    /// Quality metrics (absent when not measured).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub metrics: Option<ClipMetrics>,
     #[serde(skip)]
     pub per_frame: Vec<FrameRecord>,
 }
@@ -251,12 +255,16 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
         if let Some(s) = sink.as_mut() {
             s.write_frame(&stab.output())?;
         }
-        let m = metrics.push(
-            &stab.output(),
-            stab.output_coverage(),
-            tel.valid_fraction,
-            Some(&tel),
-        );
+        let m = if cfg.measure {
+            metrics.push(
+                &stab.output(),
+                stab.output_coverage(),
+                tel.valid_fraction,
+                Some(&tel),
+            )
+        } else {
+            Default::default()
+        };
         if let Some((w, path)) = telemetry.as_mut() {
             w.write_all(telemetry_row(&tel).as_bytes())
                 .map_err(|e| CliError::io(&*path, e))?;
@@ -303,7 +311,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
         output_size: (ow, oh),
         seconds,
         frames_per_second: frames as f64 / seconds.max(1e-9),
-        metrics: metrics.summary(),
+        metrics: cfg.measure.then(|| metrics.summary()),
         per_frame,
     })
 }
