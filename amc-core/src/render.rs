@@ -290,6 +290,26 @@ impl Warper {
         }
     }
 
+    /// Sizes the row accumulators and decides the split of each row: the first
+    /// `n8` pixels (a multiple of 8) go to the AVX2 kernel when it is available
+    /// and every frame carries the gathers' padding; the rest are scalar.
+    /// Returns `(n8, need_tables)`: the kernel evaluates pinhole homographies
+    /// itself, so coordinate tables are needed only for distorted sources and
+    /// for scalar pixels.
+    fn begin_rows(&mut self, padded: bool) -> (usize, bool) {
+        let ow = self.out.width;
+        let n8 = if self.avx2 && padded { ow / 8 * 8 } else { 0 };
+        for buf in [
+            &mut self.acc_r,
+            &mut self.acc_g,
+            &mut self.acc_b,
+            &mut self.acc_n,
+        ] {
+            buf.resize(ow, 0);
+        }
+        (n8, !self.src.is_pinhole() || n8 < ow)
+    }
+
     /// Vectorized accumulation of the first `n8` pixels of the current row over all frames.
     #[allow(unused_variables)]
     fn accumulate_row_simd(
@@ -421,18 +441,7 @@ impl Warper {
         let padded = datas[..n_frames]
             .iter()
             .all(|d| d.len() >= geom.stride * (first.height) + crate::simd::FRAME_PADDING);
-        let n8 = if self.avx2 && padded { ow / 8 * 8 } else { 0 };
-        for buf in [
-            &mut self.acc_r,
-            &mut self.acc_g,
-            &mut self.acc_b,
-            &mut self.acc_n,
-        ] {
-            buf.resize(ow, 0);
-        }
-        // The kernel evaluates pinhole homographies itself; tables are needed for
-        // distorted sources and for the scalar pixels past `n8`.
-        let need_tables = !self.src.is_pinhole() || n8 < ow;
+        let (n8, need_tables) = self.begin_rows(padded);
         self.out8.resize(3 * ow, 0);
         for v in 0..oh {
             self.current_row = v;
@@ -705,19 +714,10 @@ impl Warper {
         slot.covered.resize(ow * oh, 0);
         let geom = Geometry::of(frame);
         let padded = frame.data.len() >= geom.stride * frame.height + crate::simd::FRAME_PADDING;
-        let n8 = if self.avx2 && padded { ow / 8 * 8 } else { 0 };
+        let (n8, need_tables) = self.begin_rows(padded);
         let mut maps = std::mem::take(&mut self.maps);
         maps.resize_with(1, RowMap::default);
         self.prepare_map(&mut maps[0], m);
-        for buf in [
-            &mut self.acc_r,
-            &mut self.acc_g,
-            &mut self.acc_b,
-            &mut self.acc_n,
-        ] {
-            buf.resize(ow, 0);
-        }
-        let need_tables = !self.src.is_pinhole() || n8 < ow;
         for v in 0..oh {
             self.current_row = v;
             if need_tables {
