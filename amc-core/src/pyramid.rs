@@ -42,22 +42,20 @@ pub fn luma_box_downscale_into(src: &FrameRef<'_>, s: usize, dst: &mut GrayImage
         }
         return;
     }
-    // Sum s rows of channel sums into a row accumulator, then box columns.
-    let mut acc = vec![[0u32; 3]; w];
+    // Sum each s x s block's channels per output pixel (no scratch buffer, so
+    // no allocation per frame).
     for v in 0..h {
-        acc.iter_mut().for_each(|a| *a = [0; 3]);
-        for dy in 0..s {
-            let row = &src.data[(v * s + dy) * stride..][..w * s * c];
-            for (u, a) in acc.iter_mut().enumerate() {
-                for px in row[u * s * c..(u + 1) * s * c].chunks_exact(c) {
+        let out = &mut dst.data[v * w..(v + 1) * w];
+        for (u, o) in out.iter_mut().enumerate() {
+            let mut a = [0u32; 3];
+            for dy in 0..s {
+                let start = (v * s + dy) * stride + u * s * c;
+                for px in src.data[start..start + s * c].chunks_exact(c) {
                     a[0] += px[0] as u32;
                     a[1] += px[1] as u32;
                     a[2] += px[2] as u32;
                 }
             }
-        }
-        let out = &mut dst.data[v * w..(v + 1) * w];
-        for (o, a) in out.iter_mut().zip(&acc) {
             *o = k[0] * a[0] as f32 + k[1] * a[1] as f32 + k[2] * a[2] as f32;
         }
     }

@@ -116,6 +116,8 @@ pub struct Stabilizer {
     spare_slots: Vec<WarpedFrame>,
     acc: Accumulator,
     rotations: Vec<nalgebra::Matrix3<f64>>,
+    /// Forward-filtered views of the lookahead window (reused).
+    window: Vec<(f64, Rot)>,
     output: Frame,
     next_out: u64,
     received: u64,
@@ -179,6 +181,7 @@ impl Stabilizer {
             spare_slots: Vec::new(),
             acc: Accumulator::default(),
             rotations: Vec::new(),
+            window: Vec::new(),
             output: Frame::new(0, 0, PixelFormat::Rgb8),
             next_out: 0,
             received: 0,
@@ -319,13 +322,10 @@ impl Stabilizer {
                 if self.params.view.lookahead == 0 {
                     cur.view_fwd
                 } else {
-                    let fwd: Vec<(f64, Rot)> = self
-                        .ring
-                        .iter()
-                        .skip(pos)
-                        .map(|b| (b.t, b.view_fwd))
-                        .collect();
-                    backward_pass(&self.params.view, &fwd)
+                    self.window.clear();
+                    self.window
+                        .extend(self.ring.iter().skip(pos).map(|b| (b.t, b.view_fwd)));
+                    backward_pass(&self.params.view, &self.window)
                 }
             }
             Mode::Saccade => *self.saccade_view.get_or_insert(r_est),

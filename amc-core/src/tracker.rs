@@ -369,22 +369,26 @@ impl Tracker {
         let dt = t - t_prev;
 
         // Warm-start candidates, as rotations relative to the template.
-        let mut candidates = vec![self.r_kj];
+        // At most three candidates; a fixed array keeps `track` allocation-free.
+        let mut candidates = [self.r_kj, Rot::identity(), Rot::identity()];
+        let mut n_cand = 1;
         if self.params.predict && dt.is_finite() && dt > 0.0 {
             let predicted = r_prev * so3::exp(&(self.rate * dt));
-            candidates.push(self.r_0k.transpose() * predicted);
+            candidates[n_cand] = self.r_0k.transpose() * predicted;
+            n_cand += 1;
         }
-        candidates.push(Rot::identity());
+        candidates[n_cand] = Rot::identity();
+        n_cand += 1;
         let coarsest = self.n_levels - 1;
         let mut r = candidates[0];
         let mut best = f64::INFINITY;
-        for c in candidates {
+        for c in &candidates[..n_cand] {
             let e = self
-                .evaluate(coarsest, &pyr.levels[coarsest], &c)
+                .evaluate(coarsest, &pyr.levels[coarsest], c)
                 .mean_loss();
             if e < best {
                 best = e;
-                r = c;
+                r = *c;
             }
         }
 
