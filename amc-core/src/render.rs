@@ -200,33 +200,6 @@ impl Geometry {
     }
 }
 
-/// Bilinear 8.8 fixed-point RGB sample at `(sx, sy)`; `None` outside the frame.
-#[inline(always)]
-#[allow(dead_code)]
-fn sample_rgb(frame: &FrameRef<'_>, sx: f32, sy: f32) -> Option<[u32; 3]> {
-    let (sw, sh) = (frame.width, frame.height);
-    if !(sx >= 0.0 && sy >= 0.0 && sx <= (sw - 1) as f32 && sy <= (sh - 1) as f32) {
-        return None;
-    }
-    let c = frame.format.channels();
-    let stride = frame.stride();
-    let x0 = (sx as usize).min(sw - 2);
-    let y0 = (sy as usize).min(sh - 2);
-    let ax = ((sx - x0 as f32) * 256.0 + 0.5) as u32;
-    let ay = ((sy - y0 as f32) * 256.0 + 0.5) as u32;
-    let (bx, by) = (256 - ax, 256 - ay);
-    let i = y0 * stride + x0 * c;
-    // One slice covering both rows: a single bounds check for all 12 taps.
-    let taps = frame.data.get(i..i + stride + c + 3)?;
-    let mut out = [0u32; 3];
-    for ch in 0..3 {
-        let top = taps[ch] as u32 * bx + taps[c + ch] as u32 * ax;
-        let bot = taps[stride + ch] as u32 * bx + taps[stride + c + ch] as u32 * ax;
-        out[ch] = (top * by + bot * ay + 128) >> 8;
-    }
-    Some(out)
-}
-
 impl Warper {
     /// A warper from frames of `src` into `out` (a pinhole).
     pub fn new(src: &CameraModel, out: &CameraModel) -> Self {
@@ -537,19 +510,18 @@ impl Warper {
         let (maxx, maxy) = ((sw - 1) as f32, (sh - 1) as f32);
         let (ow, oh) = (self.out.width, self.out.height);
         let pinhole = self.src.is_pinhole();
-        let (hrow, hcol) = if pinhole {
+        let hrow = if pinhole {
             let k_out_inv = self
                 .out
                 .k_matrix()
                 .try_inverse()
                 .unwrap_or_else(Matrix3::identity);
             let h = self.src.k_matrix() * m * k_out_inv;
-            (h.map(|v| v as f32), true)
+            h.map(|v| v as f32)
         } else {
             self.fill_grid(m);
-            (Matrix3::zeros(), false)
+            Matrix3::zeros()
         };
-        let _ = hcol;
         for v in 0..oh {
             if pinhole {
                 // Same formula and operation order as `fill_row` and the AVX2

@@ -414,7 +414,8 @@ impl Tracker {
         }
         self.r_kj = so3::renormalize(&r);
         if self.params.reject_static && !info.lost {
-            self.vote_static(&pyr.levels[0], &self.r_kj.clone());
+            let r_kj = self.r_kj;
+            self.vote_static(&pyr.levels[0], &r_kj);
         }
         let r_0j = so3::renormalize(&(self.r_0k * self.r_kj));
         if dt.is_finite() && dt > 0.0 {
