@@ -127,8 +127,6 @@ pub struct Warper {
     grid_rays: Vec<Vector3<f64>>,
     grid_w: usize,
     grid_h: usize,
-    grid: Vec<[f32; 2]>,
-    row: Vec<[f32; 2]>,
     maps: Vec<RowMap>,
     /// Whether the AVX2 kernel is usable on this CPU.
     avx2: bool,
@@ -141,9 +139,6 @@ pub struct Warper {
     out8: Vec<u8>,
     /// Output row being rendered (for the kernel's homography rows).
     current_row: usize,
-    /// Scratch rows for the single-frame `warp` path.
-    acc_xs: Vec<f32>,
-    acc_ys: Vec<f32>,
 }
 
 /// Most frames one output may average (the range of `n_avg`).
@@ -220,16 +215,12 @@ impl Warper {
             grid_rays,
             grid_w,
             grid_h,
-            grid: Vec::new(),
-            row: vec![[0.0; 2]; out.width],
             maps: Vec::new(),
             avx2: crate::simd::avx2_available(),
             acc_r: Vec::new(),
             acc_g: Vec::new(),
             acc_b: Vec::new(),
             acc_n: Vec::new(),
-            acc_xs: Vec::new(),
-            acc_ys: Vec::new(),
             current_row: 0,
             out8: Vec::new(),
         }
@@ -493,107 +484,29 @@ impl Warper {
 
     /// Warps `frame` by `m` (output ray -> source ray) and calls
     /// `f(pixel_index, [r, g, b])` with 8.8 fixed-point samples for every output
-    /// pixel whose ray lands inside the source frame.
+    /// pixel whose ray lands inside the source frame. Scalar: the reference the
+    /// vectorized paths are tested against.
     pub fn warp<F: FnMut(usize, [u32; 3])>(
         &mut self,
         frame: &FrameRef<'_>,
         m: &Matrix3<f64>,
         mut f: F,
     ) {
-        let (sw, sh) = (frame.width, frame.height);
-        if sw < 2 || sh < 2 {
+        if frame.width < 2 || frame.height < 2 {
             return;
         }
-        let c = frame.format.channels();
-        let stride = frame.stride();
-        let data = frame.data;
-        let (maxx, maxy) = ((sw - 1) as f32, (sh - 1) as f32);
-        let (ow, oh) = (self.out.width, self.out.height);
-        let pinhole = self.src.is_pinhole();
-        let hrow = if pinhole {
-            let k_out_inv = self
-                .out
-                .k_matrix()
-                .try_inverse()
-                .unwrap_or_else(Matrix3::identity);
-            let h = self.src.k_matrix() * m * k_out_inv;
-            h.map(|v| v as f32)
-        } else {
-            self.fill_grid(m);
-            Matrix3::zeros()
-        };
-        for v in 0..oh {
-            if pinhole {
-                // Same formula and operation order as `fill_row` and the AVX2
-                // kernel, so every path samples identical coordinates.
-                let vf = v as f32;
-                let (x0, y0, z0) = (
-                    hrow[(0, 1)] * vf + hrow[(0, 2)],
-                    hrow[(1, 1)] * vf + hrow[(1, 2)],
-                    hrow[(2, 1)] * vf + hrow[(2, 2)],
-                );
-                let (dx, dy, dz) = (hrow[(0, 0)], hrow[(1, 0)], hrow[(2, 0)]);
-                for (u, r) in self.row.iter_mut().enumerate() {
-                    let uf = u as f32;
-                    let z = z0 + dz * uf;
-                    let iz = if z > 1e-6 { 1.0 / z } else { f32::NAN };
-                    *r = [(x0 + dx * uf) * iz, (y0 + dy * uf) * iz];
+        let geom = Geometry::of(frame);
+        let ow = self.out.width;
+        let mut map = RowMap::default();
+        self.prepare_map(&mut map, m);
+        for v in 0..self.out.height {
+            self.fill_row(&mut map, v);
+            for (u, (&sx, &sy)) in map.xs.iter().zip(&map.ys).enumerate() {
+                if let Some(rgb) = geom.sample(frame.data, sx, sy) {
+                    f(v * ow + u, rgb);
                 }
-            } else {
-                self.interpolate_row(v);
-            }
-            let base = v * ow;
-            for (u, &[sx, sy]) in self.row.iter().enumerate() {
-                if !(sx >= 0.0 && sy >= 0.0 && sx <= maxx && sy <= maxy) {
-                    continue;
-                }
-                let x0 = (sx as usize).min(sw - 2);
-                let y0 = (sy as usize).min(sh - 2);
-                let ax = ((sx - x0 as f32) * 256.0 + 0.5) as u32;
-                let ay = ((sy - y0 as f32) * 256.0 + 0.5) as u32;
-                let (bx, by) = (256 - ax, 256 - ay);
-                let i = y0 * stride + x0 * c;
-                let j = i + stride;
-                let p = &data[i..i + c + 3];
-                let q = &data[j..j + c + 3];
-                let mut out = [0u32; 3];
-                for ch in 0..3 {
-                    let top = p[ch] as u32 * bx + p[c + ch] as u32 * ax;
-                    let bot = q[ch] as u32 * bx + q[c + ch] as u32 * ax;
-                    out[ch] = (top * by + bot * ay + 128) >> 8;
-                }
-                f(base + u, out);
             }
         }
-    }
-
-    /// Exact source coordinates at the grid nodes for rotation `m`.
-    fn fill_grid(&mut self, m: &Matrix3<f64>) {
-        self.grid.clear();
-        for ray in &self.grid_rays {
-            let c = self
-                .src
-                .project(&(m * ray))
-                .map_or([f32::NAN; 2], |p| [p.x as f32, p.y as f32]);
-            self.grid.push(c);
-        }
-    }
-
-    /// Bilinear interpolation of the grid into `self.row` for output row `v`.
-    fn interpolate_row(&mut self, v: usize) {
-        let n = self.row.len();
-        let (mut xs, mut ys) = (
-            std::mem::take(&mut self.acc_xs),
-            std::mem::take(&mut self.acc_ys),
-        );
-        xs.resize(n, 0.0);
-        ys.resize(n, 0.0);
-        interpolate_grid_row(&self.grid, self.grid_w, self.grid_h, v, &mut xs, &mut ys);
-        for ((r, x), y) in self.row.iter_mut().zip(&xs).zip(&ys) {
-            *r = [*x, *y];
-        }
-        self.acc_xs = xs;
-        self.acc_ys = ys;
     }
 }
 

@@ -462,14 +462,13 @@ impl Tracker {
         let img = &pyr.levels[coarsest];
         let f = self.template[coarsest].k.map_or(1.0, |k| k.fx.max(k.fy)) as f64;
         let step = RECOVERY_STEP_PX / f;
+        let min_valid = ((self.template[coarsest].xs.len() as f32) * MIN_VALID_SHARE) as u32;
         let mut best = (f64::INFINITY, center);
         for i in -RECOVERY_RADIUS..=RECOVERY_RADIUS {
             for j in -RECOVERY_RADIUS..=RECOVERY_RADIUS {
                 // Offsets about the template camera's y (pan) and x (tilt) axes.
                 let cand = so3::exp(&Tangent::new(j as f64 * step, i as f64 * step, 0.0)) * center;
                 let e = self.evaluate(coarsest, img, &cand);
-                let min_valid =
-                    ((self.template[coarsest].xs.len() as f32) * MIN_VALID_SHARE) as u32;
                 if e.n > min_valid && e.mean_loss() < best.0 {
                     best = (e.mean_loss(), cand);
                 }

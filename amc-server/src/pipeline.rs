@@ -287,7 +287,6 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
     while let Some(tel) = stab.finish() {
         emit(&stab, tel)?;
     }
-    drop(emit);
     pb.finish_and_clear();
     if frames == 0 {
         return Err(CliError::Usage(format!(
