@@ -24,6 +24,8 @@ mod options;
 mod problem;
 mod stabilize;
 mod storage;
+#[cfg(test)]
+mod tests;
 mod upload;
 mod work;
 
