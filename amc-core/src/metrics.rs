@@ -62,6 +62,8 @@ pub struct ClipMetrics {
 pub struct MetricsAccumulator {
     prev: GrayImage,
     cur: GrayImage,
+    /// One row of squared gradients (reused).
+    row: Vec<f32>,
     has_prev: bool,
     frames: u64,
     nf_sq: f64,
@@ -76,17 +78,6 @@ pub struct MetricsAccumulator {
     view_sq: f64,
     speed_n: u64,
     saccades: u64,
-}
-
-/// Sobel x and y of `img` at interior index `i`, divided by 8.
-#[inline]
-fn sobel(d: &[f32], i: usize, w: usize) -> (f32, f32) {
-    let (a, b, c) = (d[i - w - 1], d[i - w], d[i - w + 1]);
-    let (l, r) = (d[i - 1], d[i + 1]);
-    let (e, f, g) = (d[i + w - 1], d[i + w], d[i + w + 1]);
-    let gx = ((c + 2.0 * r + g) - (a + 2.0 * l + e)) * 0.125;
-    let gy = ((e + 2.0 * f + g) - (a + 2.0 * b + c)) * 0.125;
-    (gx, gy)
 }
 
 /// Luma of `frame` into `dst`, `NaN` where `coverage` is 0.
@@ -108,11 +99,48 @@ pub fn masked_luma_into(frame: &FrameRef<'_>, coverage: &[u8], dst: &mut GrayIma
     }
 }
 
+/// `|Sobel / 8|^2` of the interior pixels of one row, from the rows above,
+/// at and below it (all of width `w`), into `out` (`w - 2` values; `NaN`
+/// where any neighbour is invalid). Written over equal-length slices so the
+/// compiler vectorizes it.
+fn sobel_sq_row(above: &[f32], row: &[f32], below: &[f32], out: &mut [f32]) {
+    let n = out.len();
+    let (a0, a1, a2) = (&above[..n], &above[1..n + 1], &above[2..n + 2]);
+    let (l, r) = (&row[..n], &row[2..n + 2]);
+    let (b0, b1, b2) = (&below[..n], &below[1..n + 1], &below[2..n + 2]);
+    for i in 0..n {
+        let gx = ((a2[i] + 2.0 * r[i] + b2[i]) - (a0[i] + 2.0 * l[i] + b0[i])) * 0.125;
+        let gy = ((b0[i] + 2.0 * b1[i] + b2[i]) - (a0[i] + 2.0 * a1[i] + a2[i])) * 0.125;
+        out[i] = gx * gx + gy * gy;
+    }
+}
+
+/// Sum and count of the finite values of `v` (per row in `f32`, which holds
+/// a row's sum to ~1e-7; rows are added in `f64`).
+fn finite_sum(v: &[f32]) -> (f64, u64) {
+    let (mut s, mut n) = (0f32, 0u32);
+    for &x in v {
+        let ok = x.is_finite();
+        s += if ok { x } else { 0.0 };
+        n += ok as u32;
+    }
+    (s as f64, n as u64)
+}
+
 /// Sum of squared Sobel magnitudes over R, G, B and the number of terms.
-fn sharpness_sums(frame: &FrameRef<'_>, coverage: &[u8], chan: &mut GrayImage) -> (f64, u64) {
+fn sharpness_sums(
+    frame: &FrameRef<'_>,
+    coverage: &[u8],
+    chan: &mut GrayImage,
+    row: &mut Vec<f32>,
+) -> (f64, u64) {
     let (w, h) = (frame.width, frame.height);
     let c = frame.format.channels();
     let (mut sum, mut n) = (0f64, 0u64);
+    if w < 3 || h < 3 {
+        return (sum, n);
+    }
+    row.resize(w - 2, 0.0);
     for ch in 0..3 {
         chan.resize(w, h);
         for ((o, px), &cv) in chan
@@ -127,15 +155,17 @@ fn sharpness_sums(frame: &FrameRef<'_>, coverage: &[u8], chan: &mut GrayImage) -
                 px[ch] as f32 / 255.0
             };
         }
-        for v in 1..h.saturating_sub(1) {
-            for u in 1..w - 1 {
-                let (gx, gy) = sobel(&chan.data, v * w + u, w);
-                let g2 = gx * gx + gy * gy;
-                if g2.is_finite() {
-                    sum += g2 as f64;
-                    n += 1;
-                }
-            }
+        for v in 1..h - 1 {
+            let d = &chan.data;
+            sobel_sq_row(
+                &d[(v - 1) * w..v * w],
+                &d[v * w..(v + 1) * w],
+                &d[(v + 1) * w..(v + 2) * w],
+                row,
+            );
+            let (s, k) = finite_sum(row);
+            sum += s;
+            n += k;
         }
     }
     (sum, n)
@@ -169,25 +199,42 @@ impl MetricsAccumulator {
         if same_size {
             let (mut nf, mut nf_n, mut ch, mut ch_n) = (0f64, 0u64, 0f64, 0u64);
             let (cur, prev) = (&self.cur.data, &self.prev.data);
+            let min_g2 = NORMAL_FLOW_MIN_GRADIENT * NORMAL_FLOW_MIN_GRADIENT;
+            self.row.resize(w.saturating_sub(2), 0.0);
             for v in 0..h {
-                for u in 0..w {
-                    let i = v * w + u;
-                    let it = cur[i] - prev[i];
-                    if !it.is_finite() {
-                        continue;
-                    }
-                    ch += (it * it) as f64;
-                    ch_n += 1;
-                    if u == 0 || v == 0 || u == w - 1 || v == h - 1 {
-                        continue;
-                    }
-                    let (gx, gy) = sobel(cur, i, w);
-                    let g2 = gx * gx + gy * gy;
-                    if g2.is_finite() && g2 >= NORMAL_FLOW_MIN_GRADIENT * NORMAL_FLOW_MIN_GRADIENT {
-                        nf += (it * it / g2) as f64;
-                        nf_n += 1;
-                    }
+                let (c_row, p_row) = (&cur[v * w..(v + 1) * w], &prev[v * w..(v + 1) * w]);
+                // Frame change over every pixel valid in both frames.
+                let (mut s, mut k) = (0f32, 0u32);
+                for (a, b) in c_row.iter().zip(p_row) {
+                    let it = a - b;
+                    let ok = it.is_finite();
+                    s += if ok { it * it } else { 0.0 };
+                    k += ok as u32;
                 }
+                ch += s as f64;
+                ch_n += k as u64;
+                // Normal flow where the gradient (interior pixels, all nine
+                // neighbours valid) is strong enough.
+                if v == 0 || v + 1 == h || w < 3 {
+                    continue;
+                }
+                sobel_sq_row(
+                    &cur[(v - 1) * w..v * w],
+                    c_row,
+                    &cur[(v + 1) * w..(v + 2) * w],
+                    &mut self.row,
+                );
+                let (c_in, p_in) = (&c_row[1..w - 1], &p_row[1..w - 1]);
+                let (mut s, mut k) = (0f32, 0u32);
+                for ((g2, a), b) in self.row.iter().zip(c_in).zip(p_in) {
+                    let it = a - b;
+                    // NaN compares false: invalid pixels drop out here.
+                    let ok = *g2 >= min_g2 && it.is_finite() && g2.is_finite();
+                    s += if ok { it * it / g2 } else { 0.0 };
+                    k += ok as u32;
+                }
+                nf += s as f64;
+                nf_n += k as u64;
             }
             if nf_n > 0 {
                 m.rms_normal_flow = Some((nf / nf_n as f64).sqrt());
@@ -201,7 +248,7 @@ impl MetricsAccumulator {
             }
         }
         let mut chan = std::mem::take(&mut self.prev);
-        let (s, n) = sharpness_sums(frame, coverage, &mut chan);
+        let (s, n) = sharpness_sums(frame, coverage, &mut chan, &mut self.row);
         self.prev = chan;
         if n > 0 {
             m.sharpness = (s / n as f64).sqrt();
