@@ -405,25 +405,33 @@ pub fn has_audio(path: &Path) -> bool {
     ffprobe_stream_types(path).iter().any(|t| t == "audio")
 }
 
-/// Width and height of a file's first video stream.
-pub fn ffprobe_size(path: &Path) -> (u32, u32) {
+/// ffprobe's values of `entries` (comma-separated stream fields) for a file's first video stream.
+pub fn ffprobe_video_entries(path: &Path, entries: &str) -> String {
     let out = Command::new("ffprobe")
-        .args([
-            "-v",
-            "error",
-            "-select_streams",
-            "v:0",
-            "-show_entries",
-            "stream=width,height",
-            "-of",
-            "csv=p=0",
-        ])
+        .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
+        .arg(format!("stream={entries}"))
+        .args(["-of", "csv=p=0"])
         .arg(path)
         .output()
         .expect("could not run ffprobe");
-    let s = String::from_utf8_lossy(&out.stdout);
-    let mut it = s.trim().split(',').map(|x| x.parse::<u32>().unwrap_or(0));
+    String::from_utf8_lossy(&out.stdout)
+        .trim()
+        .trim_end_matches(',')
+        .to_string()
+}
+
+/// Width and height of a file's first video stream.
+pub fn ffprobe_size(path: &Path) -> (u32, u32) {
+    let s = ffprobe_video_entries(path, "width,height");
+    let mut it = s.split(',').map(|x| x.parse::<u32>().unwrap_or(0));
     (it.next().unwrap_or(0), it.next().unwrap_or(0))
+}
+
+/// Duration of a file's first video stream, seconds (NaN if unknown).
+pub fn ffprobe_video_duration(path: &Path) -> f64 {
+    ffprobe_video_entries(path, "duration")
+        .parse()
+        .unwrap_or(f64::NAN)
 }
 
 // ---------------------------------------------------------------- synth clips

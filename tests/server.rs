@@ -33,8 +33,8 @@ fn assert_like_karma(bytes: &[u8], what: &str) {
         "{what}: frame count differs from the input's"
     );
     let (d_out, d_in) = (
-        amc_e2e::server::ffprobe_video_duration(&out),
-        amc_e2e::server::ffprobe_video_duration(&input),
+        amc_e2e::ffprobe_video_duration(&out),
+        amc_e2e::ffprobe_video_duration(&input),
     );
     assert!(
         (d_out - d_in).abs() < 0.05,

@@ -377,26 +377,3 @@ pub fn make_clip(path: &Path, width: u32, height: u32, fps: u32, seconds: f64) {
         .expect("could not run ffmpeg");
     assert!(status.success(), "ffmpeg could not make {}", path.display());
 }
-
-/// Duration of a file's first video stream, seconds.
-pub fn ffprobe_video_duration(path: &Path) -> f64 {
-    let out = Command::new("ffprobe")
-        .args([
-            "-v",
-            "error",
-            "-select_streams",
-            "v:0",
-            "-show_entries",
-            "stream=duration",
-            "-of",
-            "csv=p=0",
-        ])
-        .arg(path)
-        .output()
-        .expect("could not run ffprobe");
-    String::from_utf8_lossy(&out.stdout)
-        .trim()
-        .trim_end_matches(',')
-        .parse()
-        .unwrap_or(f64::NAN)
-}

@@ -244,10 +244,7 @@ pub async fn create(State(state): State<Arc<AppState>>, request: Request) -> Res
             }
             res
         }
-        Err(e) => {
-            state.metrics.reject(e.status().as_u16());
-            e.into_response()
-        }
+        Err(e) => state.refuse(e),
     }
 }
 
@@ -261,17 +258,9 @@ async fn create_job(state: &Arc<AppState>, request: Request) -> Result<JobView, 
     } = intake::accept(state, request).await?;
     let id = new_id();
     let format = options.format;
-    let spec = WorkSpec {
-        input: upload.video.clone(),
-        output: scratch.file(&format!("output.{}", format.extension())),
-        telemetry: Some(scratch.file("telemetry.csv")),
-        lens_text: upload.lens,
-        options,
-    };
-    let control = Arc::new(
-        RunControl::new(Some(state.limits.job_time_limit))
-            .counting_into(state.metrics.frames_processed.clone()),
-    );
+    let bytes = upload.bytes;
+    let spec = WorkSpec::for_upload(&scratch, upload, options, true);
+    let control = work::control(state);
     let job = Arc::new(Job {
         id: id.clone(),
         format,
@@ -288,7 +277,7 @@ async fn create_job(state: &Arc<AppState>, request: Request) -> Result<JobView, 
         }),
     });
     state.jobs.insert(job.clone());
-    tracing::info!(job = %id, bytes = upload.bytes, frames = ?job.frames_total, "job queued");
+    tracing::info!(job = %id, bytes, frames = ?job.frames_total, "job queued");
     let view = job.view();
     let task_state = state.clone();
     state.tasks.spawn(async move {

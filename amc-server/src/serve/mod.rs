@@ -300,6 +300,14 @@ impl AppState {
     }
 }
 
+impl AppState {
+    /// Answers a refused request, counting it for `/metrics`.
+    pub fn refuse(&self, e: ApiError) -> Response {
+        self.metrics.reject(e.status().as_u16());
+        e.into_response()
+    }
+}
+
 /// The router, separate from `main` so tests can drive it without a socket.
 pub fn app(state: Arc<AppState>) -> Router {
     let api = Router::new()

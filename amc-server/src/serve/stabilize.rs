@@ -52,13 +52,9 @@ impl Drop for InFlight<'_> {
 
 pub async fn handler(State(state): State<Arc<AppState>>, request: Request) -> Response {
     let _in_flight = InFlight::new(&state);
-    match stabilize(&state, request).await {
-        Ok(res) => res,
-        Err(e) => {
-            state.metrics.reject(e.status().as_u16());
-            e.into_response()
-        }
-    }
+    stabilize(&state, request)
+        .await
+        .unwrap_or_else(|e| state.refuse(e))
 }
 
 async fn stabilize(state: &Arc<AppState>, request: Request) -> Result<Response, ApiError> {
@@ -70,17 +66,8 @@ async fn stabilize(state: &Arc<AppState>, request: Request) -> Result<Response, 
         inspection: _,
     } = intake::accept(state, request).await?;
     let format = options.format;
-    let spec = WorkSpec {
-        input: upload.video.clone(),
-        output: scratch.file(&format!("output.{}", format.extension())),
-        telemetry: None,
-        lens_text: upload.lens,
-        options,
-    };
-    let control = Arc::new(
-        RunControl::new(Some(state.limits.job_time_limit))
-            .counting_into(state.metrics.frames_processed.clone()),
-    );
+    let spec = WorkSpec::for_upload(&scratch, upload, options, false);
+    let control = work::control(state);
     let guard = CancelOnDrop(Some(control.clone()));
     let permit = state
         .cpu

@@ -22,6 +22,32 @@ pub struct WorkSpec {
     pub options: JobOptions,
 }
 
+impl WorkSpec {
+    /// The work for an accepted upload: output (and telemetry, for jobs) in its scratch folder.
+    pub fn for_upload(
+        scratch: &super::storage::Scratch,
+        upload: super::upload::Upload,
+        options: JobOptions,
+        with_telemetry: bool,
+    ) -> Self {
+        Self {
+            input: upload.video,
+            output: scratch.file(&format!("output.{}", options.format.extension())),
+            telemetry: with_telemetry.then(|| scratch.file("telemetry.csv")),
+            lens_text: upload.lens,
+            options,
+        }
+    }
+}
+
+/// A control for one run: the per-job time limit, counted in the service's frames.
+pub fn control(state: &super::AppState) -> std::sync::Arc<RunControl> {
+    std::sync::Arc::new(
+        RunControl::new(Some(state.limits.job_time_limit))
+            .counting_into(state.metrics.frames_processed.clone()),
+    )
+}
+
 /// Probes an upload and checks it against the limits: 415 if it is not a
 /// video, 422 if it is too big or too long.
 pub fn inspect(path: &Path, limits: &Limits) -> Result<Inspection, ApiError> {

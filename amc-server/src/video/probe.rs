@@ -55,14 +55,7 @@ pub(crate) fn probe_with(
         .map(OsString::from),
     );
     args.push(path.as_os_str().to_owned());
-    let (_, out, err) = run_capture("ffprobe", &args, path, timeout)?;
-    if let Some(detail) = err {
-        return Err(VideoError::NotAVideo {
-            path: path.to_path_buf(),
-            detail,
-        });
-    }
-    parse(path, &out)
+    run_probe(path, &args, timeout)
 }
 
 /// Probes a capture device opened with ffmpeg format `format` (`v4l2`, ...).
@@ -86,7 +79,12 @@ pub(crate) fn probe_device(
     .map(OsString::from)
     .chain([path.as_os_str().to_owned()])
     .collect();
-    let (_, out, err) = run_capture("ffprobe", &args, path, timeout)?;
+    run_probe(path, &args, timeout)
+}
+
+/// Runs ffprobe with `args`; anything it reports as an error means "not a video".
+fn run_probe(path: &Path, args: &[OsString], timeout: Duration) -> Result<Probe, VideoError> {
+    let (_, out, err) = run_capture("ffprobe", args, path, timeout)?;
     if let Some(detail) = err {
         return Err(VideoError::NotAVideo {
             path: path.to_path_buf(),
