@@ -13,7 +13,7 @@ use crate::pipeline::{RunControl, RunSummary};
 use axum::body::Body;
 use axum::extract::{Request, State};
 use axum::http::{header, HeaderMap, HeaderName, HeaderValue};
-use axum::response::{IntoResponse, Response};
+use axum::response::Response;
 use futures_util::StreamExt;
 use std::sync::Arc;
 
