@@ -128,7 +128,7 @@ pub struct Warper {
     grid_w: usize,
     grid_h: usize,
     maps: Vec<RowMap>,
-    /// Whether the AVX2 kernel is usable on this CPU.
+    /// Whether a vectorized kernel (AVX2 on this CPU, or wasm `simd128`) is usable.
     avx2: bool,
     /// Per-row accumulators of the vectorized path.
     acc_r: Vec<u32>,
@@ -216,7 +216,7 @@ impl Warper {
             grid_w,
             grid_h,
             maps: Vec::new(),
-            avx2: crate::simd::avx2_available(),
+            avx2: crate::simd::vector_kernel_available(),
             acc_r: Vec::new(),
             acc_g: Vec::new(),
             acc_b: Vec::new(),
@@ -228,7 +228,7 @@ impl Warper {
 
     /// Disables the vectorized path (for testing the scalar one against it).
     pub fn set_vectorized(&mut self, on: bool) {
-        self.avx2 = on && crate::simd::avx2_available();
+        self.avx2 = on && crate::simd::vector_kernel_available();
     }
 
     /// Prepares `map` for rotation `m` (output ray -> source ray).
@@ -283,7 +283,10 @@ impl Warper {
         geom: &Geometry,
         n8: usize,
     ) {
-        #[cfg(target_arch = "x86_64")]
+        #[cfg(any(
+            target_arch = "x86_64",
+            all(target_arch = "wasm32", target_feature = "simd128")
+        ))]
         {
             let kg = crate::simd::KernelGeometry {
                 channels: geom.channels as i32,
@@ -314,8 +317,24 @@ impl Warper {
             }
             // SAFETY: `self.avx2` is only true when the CPU has AVX2; the caller
             // checked every frame's padding; all row buffers hold `ow >= n8` values.
+            #[cfg(target_arch = "x86_64")]
             unsafe {
                 crate::simd::accumulate_row_avx2(
+                    &datas[..n],
+                    kg,
+                    &coords[..n],
+                    n8,
+                    &mut self.acc_r,
+                    &mut self.acc_g,
+                    &mut self.acc_b,
+                    &mut self.acc_n,
+                );
+            }
+            // SAFETY: as above (frames are non-empty: the caller checked the
+            // padding, so each holds at least `FRAME_PADDING` bytes).
+            #[cfg(target_arch = "wasm32")]
+            unsafe {
+                crate::simd::accumulate_row_simd128(
                     &datas[..n],
                     kg,
                     &coords[..n],

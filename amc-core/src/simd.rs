@@ -1,4 +1,5 @@
-//! Vectorized bilinear sampling (x86-64 AVX2), used when the CPU has it.
+//! Vectorized bilinear sampling: x86-64 AVX2 (used when the CPU has it) and
+//! WebAssembly `simd128` (used when the module is built with `+simd128`).
 //!
 //! Eight output pixels at a time: coordinates, weights and byte offsets are
 //! computed in 32-bit lanes, the four bilinear taps are fetched with masked
@@ -24,6 +25,12 @@ pub fn avx2_available() -> bool {
     {
         false
     }
+}
+
+/// Whether a vectorized kernel can run here: AVX2 on this x86-64 CPU, or a
+/// wasm32 build with the `simd128` target feature.
+pub fn vector_kernel_available() -> bool {
+    avx2_available() || cfg!(all(target_arch = "wasm32", target_feature = "simd128"))
 }
 
 /// Where a frame's source coordinates along the row come from.
@@ -206,5 +213,149 @@ pub unsafe fn accumulate_row_avx2(
         _mm256_storeu_si256(acc_b.as_mut_ptr().add(u) as *mut __m256i, sum_b);
         _mm256_storeu_si256(count.as_mut_ptr().add(u) as *mut __m256i, sum_n);
         u += 8;
+    }
+}
+
+/// The WebAssembly `simd128` twin of [`accumulate_row_avx2`]: four output
+/// pixels at a time. WebAssembly has no gathers, so the four taps of each lane
+/// are read as unaligned dwords (lanes outside the frame read offset 0 and are
+/// masked off); the interpolation is the same 8.8 fixed-point integer
+/// arithmetic (`i32x4.dot_i16x8_s` plays `vpmaddwd`), bit-exact with the scalar
+/// path in `render.rs`.
+///
+/// # Safety
+/// Every `datas[f]` must be non-empty and hold the whole frame plus
+/// [`FRAME_PADDING`] bytes; coordinate tables and the outputs must have at
+/// least `n8` elements (`n8` a multiple of 4).
+#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+#[allow(clippy::too_many_arguments)]
+pub unsafe fn accumulate_row_simd128(
+    datas: &[&[u8]],
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    n8: usize,
+    acc_r: &mut [u32],
+    acc_g: &mut [u32],
+    acc_b: &mut [u32],
+    count: &mut [u32],
+) {
+    use core::arch::wasm32::*;
+    debug_assert!(n8 % 4 == 0 && datas.len() == coords.len());
+    debug_assert!(acc_r.len() >= n8 && acc_g.len() >= n8 && acc_b.len() >= n8 && count.len() >= n8);
+    let zero_ps = f32x4_splat(0.0);
+    let max_x = f32x4_splat(g.max_x);
+    let max_y = f32x4_splat(g.max_y);
+    let max_x0 = i32x4_splat(g.max_x0);
+    let max_y0 = i32x4_splat(g.max_y0);
+    let stride = i32x4_splat(g.stride);
+    let chans = i32x4_splat(g.channels);
+    let c256 = f32x4_splat(256.0);
+    let half = f32x4_splat(0.5);
+    let i256 = i32x4_splat(256);
+    let i128 = i32x4_splat(128);
+    let byte = i32x4_splat(0xFF);
+    let hi_byte = i32x4_splat(0xFF_0000);
+    let one = i32x4_splat(1);
+    let lane = f32x4(0.0, 1.0, 2.0, 3.0);
+    let eps = f32x4_splat(1e-6);
+    let one_ps = f32x4_splat(1.0);
+    let nan = f32x4_splat(f32::NAN);
+    let mut u = 0;
+    while u < n8 {
+        let (mut sum_r, mut sum_g, mut sum_b, mut sum_n) = (
+            i32x4_splat(0),
+            i32x4_splat(0),
+            i32x4_splat(0),
+            i32x4_splat(0),
+        );
+        for f in 0..datas.len() {
+            let base = datas[f].as_ptr();
+            let (sx, sy) = match coords[f] {
+                RowCoords::Table(xs, ys) => (
+                    v128_load(xs.as_ptr().add(u) as *const v128),
+                    v128_load(ys.as_ptr().add(u) as *const v128),
+                ),
+                RowCoords::Homography {
+                    x0,
+                    y0,
+                    z0,
+                    dx,
+                    dy,
+                    dz,
+                } => {
+                    let uf = f32x4_add(f32x4_splat(u as f32), lane);
+                    // Same operation order as the scalar path (no FMA): bit-exact.
+                    let z = f32x4_add(f32x4_splat(z0), f32x4_mul(f32x4_splat(dz), uf));
+                    let iz = v128_bitselect(f32x4_div(one_ps, z), nan, f32x4_gt(z, eps));
+                    let x = f32x4_add(f32x4_splat(x0), f32x4_mul(f32x4_splat(dx), uf));
+                    let y = f32x4_add(f32x4_splat(y0), f32x4_mul(f32x4_splat(dy), uf));
+                    (f32x4_mul(x, iz), f32x4_mul(y, iz))
+                }
+            };
+            // NaN compares false: NaN coordinates are invalid.
+            let valid = v128_and(
+                v128_and(f32x4_ge(sx, zero_ps), f32x4_ge(sy, zero_ps)),
+                v128_and(f32x4_le(sx, max_x), f32x4_le(sy, max_y)),
+            );
+            if !v128_any_true(valid) {
+                continue;
+            }
+            // Invalid lanes get coordinate 0 (offset 0 below, always readable).
+            let sxv = v128_and(sx, valid);
+            let syv = v128_and(sy, valid);
+            let x0 = i32x4_min(i32x4_trunc_sat_f32x4(sxv), max_x0);
+            let y0 = i32x4_min(i32x4_trunc_sat_f32x4(syv), max_y0);
+            let fx = f32x4_sub(sxv, f32x4_convert_i32x4(x0));
+            let fy = f32x4_sub(syv, f32x4_convert_i32x4(y0));
+            let ax = i32x4_trunc_sat_f32x4(f32x4_add(f32x4_mul(fx, c256), half));
+            let ay = i32x4_trunc_sat_f32x4(f32x4_add(f32x4_mul(fy, c256), half));
+            let bx = i32x4_sub(i256, ax);
+            let by = i32x4_sub(i256, ay);
+            let i00 = i32x4_add(i32x4_mul(y0, stride), i32x4_mul(x0, chans));
+            let (s, c) = (g.stride as usize, g.channels as usize);
+            let load = |i: usize| (base.add(i) as *const u32).read_unaligned();
+            macro_rules! taps {
+                ($l:literal) => {{
+                    let i = i32x4_extract_lane::<$l>(i00) as usize;
+                    (load(i), load(i + c), load(i + s), load(i + s + c))
+                }};
+            }
+            let (a00, a01, a10, a11) = taps!(0);
+            let (b00, b01, b10, b11) = taps!(1);
+            let (c00, c01, c10, c11) = taps!(2);
+            let (d00, d01, d10, d11) = taps!(3);
+            let p00 = u32x4(a00, b00, c00, d00);
+            let p01 = u32x4(a01, b01, c01, d01);
+            let p10 = u32x4(a10, b10, c10, d10);
+            let p11 = u32x4(a11, b11, c11, d11);
+            // Lanes hold the 16-bit pairs (left, right) and (bx, ax), so the
+            // signed 16-bit dot product gives left*bx + right*ax.
+            let wx = v128_or(bx, i32x4_shl(ax, 16));
+            macro_rules! channel {
+                ($shift:expr, $up:expr) => {{
+                    let top = v128_or(
+                        v128_and(u32x4_shr(p00, $shift), byte),
+                        v128_and(i32x4_shl(p01, $up), hi_byte),
+                    );
+                    let bot = v128_or(
+                        v128_and(u32x4_shr(p10, $shift), byte),
+                        v128_and(i32x4_shl(p11, $up), hi_byte),
+                    );
+                    let top = i32x4_dot_i16x8(top, wx);
+                    let bot = i32x4_dot_i16x8(bot, wx);
+                    let v = i32x4_add(i32x4_add(i32x4_mul(top, by), i32x4_mul(bot, ay)), i128);
+                    v128_and(u32x4_shr(v, 8), valid)
+                }};
+            }
+            sum_r = i32x4_add(sum_r, channel!(0, 16));
+            sum_g = i32x4_add(sum_g, channel!(8, 8));
+            sum_b = i32x4_add(sum_b, channel!(16, 0));
+            sum_n = i32x4_add(sum_n, v128_and(valid, one));
+        }
+        v128_store(acc_r.as_mut_ptr().add(u) as *mut v128, sum_r);
+        v128_store(acc_g.as_mut_ptr().add(u) as *mut v128, sum_g);
+        v128_store(acc_b.as_mut_ptr().add(u) as *mut v128, sum_b);
+        v128_store(count.as_mut_ptr().add(u) as *mut v128, sum_n);
+        u += 4;
     }
 }
