@@ -313,21 +313,46 @@ pub unsafe fn accumulate_row_simd128(
             let by = i32x4_sub(i256, ay);
             let i00 = i32x4_add(i32x4_mul(y0, stride), i32x4_mul(x0, chans));
             let (s, c) = (g.stride as usize, g.channels as usize);
-            let load = |i: usize| (base.add(i) as *const u32).read_unaligned();
-            macro_rules! taps {
-                ($l:literal) => {{
-                    let i = i32x4_extract_lane::<$l>(i00) as usize;
-                    (load(i), load(i + c), load(i + s), load(i + s + c))
-                }};
+            let (p00, p01, p10, p11);
+            if c == 4 {
+                // RGBA: a pixel and its right neighbour are one 8-byte load.
+                let load2 = |i: usize| (base.add(i) as *const u64).read_unaligned();
+                macro_rules! taps {
+                    ($l:literal) => {{
+                        let i = i32x4_extract_lane::<$l>(i00) as usize;
+                        (load2(i), load2(i + s))
+                    }};
+                }
+                let (a0, a1) = taps!(0);
+                let (b0, b1) = taps!(1);
+                let (c0, c1) = taps!(2);
+                let (d0, d1) = taps!(3);
+                // Low dwords are the left taps, high dwords the right taps.
+                let ab0 = u64x2(a0, b0);
+                let cd0 = u64x2(c0, d0);
+                let ab1 = u64x2(a1, b1);
+                let cd1 = u64x2(c1, d1);
+                p00 = u32x4_shuffle::<0, 2, 4, 6>(ab0, cd0);
+                p01 = u32x4_shuffle::<1, 3, 5, 7>(ab0, cd0);
+                p10 = u32x4_shuffle::<0, 2, 4, 6>(ab1, cd1);
+                p11 = u32x4_shuffle::<1, 3, 5, 7>(ab1, cd1);
+            } else {
+                let load = |i: usize| (base.add(i) as *const u32).read_unaligned();
+                macro_rules! taps {
+                    ($l:literal) => {{
+                        let i = i32x4_extract_lane::<$l>(i00) as usize;
+                        (load(i), load(i + c), load(i + s), load(i + s + c))
+                    }};
+                }
+                let (a00, a01, a10, a11) = taps!(0);
+                let (b00, b01, b10, b11) = taps!(1);
+                let (c00, c01, c10, c11) = taps!(2);
+                let (d00, d01, d10, d11) = taps!(3);
+                p00 = u32x4(a00, b00, c00, d00);
+                p01 = u32x4(a01, b01, c01, d01);
+                p10 = u32x4(a10, b10, c10, d10);
+                p11 = u32x4(a11, b11, c11, d11);
             }
-            let (a00, a01, a10, a11) = taps!(0);
-            let (b00, b01, b10, b11) = taps!(1);
-            let (c00, c01, c10, c11) = taps!(2);
-            let (d00, d01, d10, d11) = taps!(3);
-            let p00 = u32x4(a00, b00, c00, d00);
-            let p01 = u32x4(a01, b01, c01, d01);
-            let p10 = u32x4(a10, b10, c10, d10);
-            let p11 = u32x4(a11, b11, c11, d11);
             // Lanes hold the 16-bit pairs (left, right) and (bx, ax), so the
             // signed 16-bit dot product gives left*bx + right*ax.
             let wx = v128_or(bx, i32x4_shl(ax, 16));
