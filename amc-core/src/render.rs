@@ -438,11 +438,29 @@ impl Warper {
             }
             let out_row = &mut out[v * ow * channels..(v + 1) * ow * channels];
             let cov_row = &mut coverage[v * ow..(v + 1) * ow];
+            // wasm simd128: RGBA rows are finished in one vectorized pass.
+            #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+            let finished = channels == 4 && n8 > 0 && {
+                // SAFETY: the row sums hold `ow >= n8` values, `out_row` `4 ow` bytes.
+                unsafe {
+                    crate::simd::finish_row_rgba_simd128(
+                        &self.acc_r,
+                        &self.acc_g,
+                        &self.acc_b,
+                        &self.acc_n,
+                        out_row,
+                        n8,
+                    )
+                };
+                true
+            };
+            #[cfg(not(all(target_arch = "wasm32", target_feature = "simd128")))]
+            let finished = false;
             // Averages in vectorizable passes (SoA), then interleave.
             let (r8, rest) = self.out8.split_at_mut(ow);
             let (g8, rest) = rest.split_at_mut(ow);
             let (b8, _) = rest.split_at_mut(ow);
-            for u in 0..n8 {
+            for u in 0..if finished { 0 } else { n8 } {
                 // 1 / (256 n); n = 0 gives inf and 0 * inf = NaN, which `as u8` maps to 0.
                 let k = 1.0 / (256.0 * self.acc_n[u] as f32);
                 r8[u] = (self.acc_r[u] as f32 * k + 0.5) as u8;
@@ -454,7 +472,8 @@ impl Warper {
                 cov_row[u] = n;
                 complete += (n == full) as usize;
             }
-            if channels == 3 {
+            if finished {
+            } else if channels == 3 {
                 for (u, px) in out_row[..3 * n8].chunks_exact_mut(3).enumerate() {
                     px[0] = r8[u];
                     px[1] = g8[u];

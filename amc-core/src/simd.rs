@@ -217,11 +217,13 @@ pub unsafe fn accumulate_row_avx2(
 }
 
 /// The WebAssembly `simd128` twin of [`accumulate_row_avx2`]: four output
-/// pixels at a time. WebAssembly has no gathers, so the four taps of each lane
-/// are read as unaligned dwords (lanes outside the frame read offset 0 and are
-/// masked off); the interpolation is the same 8.8 fixed-point integer
-/// arithmetic (`i32x4.dot_i16x8_s` plays `vpmaddwd`), bit-exact with the scalar
-/// path in `render.rs`.
+/// pixels at a time. WebAssembly has no gathers, so each lane's taps are read
+/// with scalar loads (an RGBA pixel and its right neighbour in one 8-byte load;
+/// lanes outside the frame read offset 0 and are masked off). Float-to-int
+/// conversions of the (non-negative, integral) coordinates use the `2^23`
+/// trick instead of the slow saturating conversion; the interpolation is the
+/// same 8.8 fixed-point integer arithmetic (`i32x4.dot_i16x8_s` plays
+/// `vpmaddwd`), bit-exact with the scalar path in `render.rs`.
 ///
 /// # Safety
 /// Every `datas[f]` must be non-empty and hold the whole frame plus
@@ -245,8 +247,8 @@ pub unsafe fn accumulate_row_simd128(
     let zero_ps = f32x4_splat(0.0);
     let max_x = f32x4_splat(g.max_x);
     let max_y = f32x4_splat(g.max_y);
-    let max_x0 = i32x4_splat(g.max_x0);
-    let max_y0 = i32x4_splat(g.max_y0);
+    let max_x0 = f32x4_splat(g.max_x0 as f32);
+    let max_y0 = f32x4_splat(g.max_y0 as f32);
     let stride = i32x4_splat(g.stride);
     let chans = i32x4_splat(g.channels);
     let c256 = f32x4_splat(256.0);
@@ -255,11 +257,18 @@ pub unsafe fn accumulate_row_simd128(
     let i128 = i32x4_splat(128);
     let byte = i32x4_splat(0xFF);
     let hi_byte = i32x4_splat(0xFF_0000);
+    let pair_mask = i32x4_splat(0x00FF_00FF);
     let one = i32x4_splat(1);
     let lane = f32x4(0.0, 1.0, 2.0, 3.0);
     let eps = f32x4_splat(1e-6);
     let one_ps = f32x4_splat(1.0);
     let nan = f32x4_splat(f32::NAN);
+    // An integral float t in [0, 2^23): the bits of t + 2^23 are 0x4B00_0000 + t.
+    let magic = f32x4_splat(8_388_608.0);
+    let magic_bits = i32x4_splat(0x4B00_0000);
+    let to_int = |t: v128| i32x4_sub(f32x4_add(t, magic), magic_bits);
+    let (s, c) = (g.stride as usize, g.channels as usize);
+    let rgba = c == 4;
     let mut u = 0;
     while u < n8 {
         let (mut sum_r, mut sum_g, mut sum_b, mut sum_n) = (
@@ -303,39 +312,71 @@ pub unsafe fn accumulate_row_simd128(
             // Invalid lanes get coordinate 0 (offset 0 below, always readable).
             let sxv = v128_and(sx, valid);
             let syv = v128_and(sy, valid);
-            let x0 = i32x4_min(i32x4_trunc_sat_f32x4(sxv), max_x0);
-            let y0 = i32x4_min(i32x4_trunc_sat_f32x4(syv), max_y0);
-            let fx = f32x4_sub(sxv, f32x4_convert_i32x4(x0));
-            let fy = f32x4_sub(syv, f32x4_convert_i32x4(y0));
-            let ax = i32x4_trunc_sat_f32x4(f32x4_add(f32x4_mul(fx, c256), half));
-            let ay = i32x4_trunc_sat_f32x4(f32x4_add(f32x4_mul(fy, c256), half));
+            // x0 = min(trunc(sx), max_x0) as in the scalar `(sx as usize).min(max_x0)`.
+            let x0f = f32x4_pmin(f32x4_trunc(sxv), max_x0);
+            let y0f = f32x4_pmin(f32x4_trunc(syv), max_y0);
+            let fx = f32x4_sub(sxv, x0f);
+            let fy = f32x4_sub(syv, y0f);
+            let ax = to_int(f32x4_trunc(f32x4_add(f32x4_mul(fx, c256), half)));
+            let ay = to_int(f32x4_trunc(f32x4_add(f32x4_mul(fy, c256), half)));
             let bx = i32x4_sub(i256, ax);
             let by = i32x4_sub(i256, ay);
-            let i00 = i32x4_add(i32x4_mul(y0, stride), i32x4_mul(x0, chans));
-            let (s, c) = (g.stride as usize, g.channels as usize);
-            let (p00, p01, p10, p11);
-            if c == 4 {
-                // RGBA: a pixel and its right neighbour are one 8-byte load.
+            let i00 = i32x4_add(
+                i32x4_mul(to_int(y0f), stride),
+                i32x4_mul(to_int(x0f), chans),
+            );
+            // Lanes hold 16-bit pairs (left, right) and (bx, ax): the signed
+            // 16-bit dot product gives left*bx + right*ax.
+            let wx = v128_or(bx, i32x4_shl(ax, 16));
+            let vertical = |top: v128, bot: v128| {
+                let top = i32x4_dot_i16x8(top, wx);
+                let bot = i32x4_dot_i16x8(bot, wx);
+                let v = i32x4_add(i32x4_add(i32x4_mul(top, by), i32x4_mul(bot, ay)), i128);
+                v128_and(u32x4_shr(v, 8), valid)
+            };
+            let (r, gg, b);
+            if rgba {
+                // A pixel and its right neighbour are one 8-byte load:
+                // bytes r0 g0 b0 a0 r1 g1 b1 a1.
                 let load2 = |i: usize| (base.add(i) as *const u64).read_unaligned();
-                macro_rules! taps {
-                    ($l:literal) => {{
-                        let i = i32x4_extract_lane::<$l>(i00) as usize;
-                        (load2(i), load2(i + s))
-                    }};
+                let i0 = i32x4_extract_lane::<0>(i00) as usize;
+                let i1 = i32x4_extract_lane::<1>(i00) as usize;
+                let i2 = i32x4_extract_lane::<2>(i00) as usize;
+                let i3 = i32x4_extract_lane::<3>(i00) as usize;
+                let top01 = u64x2(load2(i0), load2(i1));
+                let top23 = u64x2(load2(i2), load2(i3));
+                let bot01 = u64x2(load2(i0 + s), load2(i1 + s));
+                let bot23 = u64x2(load2(i2 + s), load2(i3 + s));
+                // Channel k of lanes 0..4 as 16-bit (left, right) pairs; the
+                // odd bytes picked are masked off.
+                macro_rules! pairs {
+                    ($lo:expr, $hi:expr, $k:literal) => {
+                        v128_and(
+                            i8x16_shuffle::<
+                                $k,
+                                0,
+                                { $k + 4 },
+                                0,
+                                { $k + 8 },
+                                0,
+                                { $k + 12 },
+                                0,
+                                { $k + 16 },
+                                0,
+                                { $k + 20 },
+                                0,
+                                { $k + 24 },
+                                0,
+                                { $k + 28 },
+                                0,
+                            >($lo, $hi),
+                            pair_mask,
+                        )
+                    };
                 }
-                let (a0, a1) = taps!(0);
-                let (b0, b1) = taps!(1);
-                let (c0, c1) = taps!(2);
-                let (d0, d1) = taps!(3);
-                // Low dwords are the left taps, high dwords the right taps.
-                let ab0 = u64x2(a0, b0);
-                let cd0 = u64x2(c0, d0);
-                let ab1 = u64x2(a1, b1);
-                let cd1 = u64x2(c1, d1);
-                p00 = u32x4_shuffle::<0, 2, 4, 6>(ab0, cd0);
-                p01 = u32x4_shuffle::<1, 3, 5, 7>(ab0, cd0);
-                p10 = u32x4_shuffle::<0, 2, 4, 6>(ab1, cd1);
-                p11 = u32x4_shuffle::<1, 3, 5, 7>(ab1, cd1);
+                r = vertical(pairs!(top01, top23, 0), pairs!(bot01, bot23, 0));
+                gg = vertical(pairs!(top01, top23, 1), pairs!(bot01, bot23, 1));
+                b = vertical(pairs!(top01, top23, 2), pairs!(bot01, bot23, 2));
             } else {
                 let load = |i: usize| (base.add(i) as *const u32).read_unaligned();
                 macro_rules! taps {
@@ -348,39 +389,86 @@ pub unsafe fn accumulate_row_simd128(
                 let (b00, b01, b10, b11) = taps!(1);
                 let (c00, c01, c10, c11) = taps!(2);
                 let (d00, d01, d10, d11) = taps!(3);
-                p00 = u32x4(a00, b00, c00, d00);
-                p01 = u32x4(a01, b01, c01, d01);
-                p10 = u32x4(a10, b10, c10, d10);
-                p11 = u32x4(a11, b11, c11, d11);
+                let p00 = u32x4(a00, b00, c00, d00);
+                let p01 = u32x4(a01, b01, c01, d01);
+                let p10 = u32x4(a10, b10, c10, d10);
+                let p11 = u32x4(a11, b11, c11, d11);
+                macro_rules! channel {
+                    ($shift:expr, $up:expr) => {{
+                        let top = v128_or(
+                            v128_and(u32x4_shr(p00, $shift), byte),
+                            v128_and(i32x4_shl(p01, $up), hi_byte),
+                        );
+                        let bot = v128_or(
+                            v128_and(u32x4_shr(p10, $shift), byte),
+                            v128_and(i32x4_shl(p11, $up), hi_byte),
+                        );
+                        vertical(top, bot)
+                    }};
+                }
+                r = channel!(0, 16);
+                gg = channel!(8, 8);
+                b = channel!(16, 0);
             }
-            // Lanes hold the 16-bit pairs (left, right) and (bx, ax), so the
-            // signed 16-bit dot product gives left*bx + right*ax.
-            let wx = v128_or(bx, i32x4_shl(ax, 16));
-            macro_rules! channel {
-                ($shift:expr, $up:expr) => {{
-                    let top = v128_or(
-                        v128_and(u32x4_shr(p00, $shift), byte),
-                        v128_and(i32x4_shl(p01, $up), hi_byte),
-                    );
-                    let bot = v128_or(
-                        v128_and(u32x4_shr(p10, $shift), byte),
-                        v128_and(i32x4_shl(p11, $up), hi_byte),
-                    );
-                    let top = i32x4_dot_i16x8(top, wx);
-                    let bot = i32x4_dot_i16x8(bot, wx);
-                    let v = i32x4_add(i32x4_add(i32x4_mul(top, by), i32x4_mul(bot, ay)), i128);
-                    v128_and(u32x4_shr(v, 8), valid)
-                }};
-            }
-            sum_r = i32x4_add(sum_r, channel!(0, 16));
-            sum_g = i32x4_add(sum_g, channel!(8, 8));
-            sum_b = i32x4_add(sum_b, channel!(16, 0));
+            sum_r = i32x4_add(sum_r, r);
+            sum_g = i32x4_add(sum_g, gg);
+            sum_b = i32x4_add(sum_b, b);
             sum_n = i32x4_add(sum_n, v128_and(valid, one));
         }
         v128_store(acc_r.as_mut_ptr().add(u) as *mut v128, sum_r);
         v128_store(acc_g.as_mut_ptr().add(u) as *mut v128, sum_g);
         v128_store(acc_b.as_mut_ptr().add(u) as *mut v128, sum_b);
         v128_store(count.as_mut_ptr().add(u) as *mut v128, sum_n);
+        u += 4;
+    }
+}
+
+/// Finishes `n8` pixels (a multiple of 4) of an RGBA output row from the
+/// kernel's sums: `round(sum / (256 n))` per channel, alpha 255, exactly the
+/// scalar `(sum as f32 * (1 / (256 n)) + 0.5) as u8` (0 where `n = 0`).
+///
+/// # Safety
+/// The sums must hold at least `n8` values and `out` at least `4 * n8` bytes.
+#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+pub unsafe fn finish_row_rgba_simd128(
+    acc_r: &[u32],
+    acc_g: &[u32],
+    acc_b: &[u32],
+    count: &[u32],
+    out: &mut [u8],
+    n8: usize,
+) {
+    use core::arch::wasm32::*;
+    debug_assert!(n8 % 4 == 0 && out.len() >= 4 * n8);
+    let one = f32x4_splat(1.0);
+    let c256 = f32x4_splat(256.0);
+    let half = f32x4_splat(0.5);
+    let magic = f32x4_splat(8_388_608.0);
+    let magic_bits = i32x4_splat(0x4B00_0000);
+    let max = i32x4_splat(255);
+    let alpha = i32x4_splat(0xFF00_0000_u32 as i32);
+    let zero = i32x4_splat(0);
+    let mut u = 0;
+    while u < n8 {
+        let n = v128_load(count.as_ptr().add(u) as *const v128);
+        let k = f32x4_div(one, f32x4_mul(c256, f32x4_convert_i32x4(n)));
+        let covered = i32x4_ne(n, zero);
+        // Sums are below 2^24 (64 frames of 255 * 256): exact as f32; the
+        // rounded values are integral and in 0..=255 (NaN where n = 0, masked).
+        let ch = |p: *const u32| {
+            let x = f32x4_convert_i32x4(v128_load(p.add(u) as *const v128));
+            let t = f32x4_trunc(f32x4_add(f32x4_mul(x, k), half));
+            let v = i32x4_sub(f32x4_add(t, magic), magic_bits);
+            v128_and(i32x4_min(v, max), covered)
+        };
+        let r = ch(acc_r.as_ptr());
+        let g = ch(acc_g.as_ptr());
+        let b = ch(acc_b.as_ptr());
+        let px = v128_or(
+            v128_or(r, i32x4_shl(g, 8)),
+            v128_or(i32x4_shl(b, 16), alpha),
+        );
+        v128_store(out.as_mut_ptr().add(4 * u) as *mut v128, px);
         u += 4;
     }
 }

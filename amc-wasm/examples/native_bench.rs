@@ -26,7 +26,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut outs = 0usize;
     for i in 0..n {
         // Played forwards then backwards, so the motion stays continuous.
-        let k = if (i / n_src) % 2 == 0 { i % n_src } else { n_src - 1 - i % n_src };
+        let k = if (i / n_src) % 2 == 0 {
+            i % n_src
+        } else {
+            n_src - 1 - i % n_src
+        };
         let frame = FrameRef::new(w, h, PixelFormat::Rgba8, &data[k * size..(k + 1) * size])?;
         if stab.push(frame, i as f64 / 30.0)?.is_some() {
             outs += 1;
