@@ -25,7 +25,7 @@ mkdir -p "$dist/pkg" "$dist/vendor"
 wasm-bindgen --target web --no-typescript --out-dir "$dist/pkg" \
   "$root/target/wasm32-unknown-unknown/release/amc_wasm.wasm"
 
-[ -d node_modules/mediabunny ] || npm ci --no-audit --no-fund
+[ -d node_modules/mediabunny ] && [ -d node_modules/playwright-core ] || npm ci --no-audit --no-fund
 cp node_modules/mediabunny/dist/bundles/mediabunny.min.mjs "$dist/vendor/mediabunny.mjs"
 cp src/*.html src/*.js src/*.css "$dist/"
 echo "built $dist ($(du -sh "$dist" | cut -f1))" >&2

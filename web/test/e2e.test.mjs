@@ -8,7 +8,7 @@ import { execFileSync } from 'node:child_process';
 import { mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
-import { startServer, launch, shot, ffprobeFrames, rmsFrameChange, dataDir, artifacts } from './helpers.mjs';
+import { startServer, launch, shot, ffprobeFrames, rmsFrameChange, streamTypes, dataDir, artifacts } from './helpers.mjs';
 
 const cup = join(dataDir, 'cup', 'cup.mp4');
 let server, browser, tmp;
@@ -69,6 +69,7 @@ test('drop cup.mp4: every frame stabilized in the browser; the MP4 download has 
   assert.equal(out.codec, 'h264');
   assert.equal(out.frames, input.frames, 'the download has every input frame');
   assert.deepEqual([out.width, out.height], [480, 360]);
+  assert.deepEqual(streamTypes(file).sort(), ['audio', 'video'], "the original's AAC audio is copied");
   // The same central 75% of the input (margin 0.125) vs the stabilized output.
   const rin = rmsFrameChange(cup, 0.125), rout = rmsFrameChange(file);
   writeFileSync(join(artifacts, 'clip-rms.json'), JSON.stringify({ input: rin, output: rout }, null, 1));

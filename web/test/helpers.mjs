@@ -80,3 +80,9 @@ export function rmsFrameChange(file, crop = 0) {
   }
   return { rms: Math.sqrt(sum / count), frames: n, width: w, height: h };
 }
+
+/** Codec types of a file's streams, e.g. ['video', 'audio']. */
+export function streamTypes(file) {
+  const out = execFileSync('ffprobe', ['-v', 'error', '-show_entries', 'stream=codec_type', '-of', 'csv=p=0', file], { encoding: 'utf8' });
+  return out.split('\n').map((l) => l.trim()).filter(Boolean);
+}
