@@ -3,6 +3,9 @@
 //! Every test drives the RELEASE binary (`target/release/amc`), which [`amc`] builds once per
 //! test process. Shared real data lives outside the repository in `../shared/data`.
 
+#[path = "server_harness.rs"]
+pub mod server;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};

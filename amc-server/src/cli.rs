@@ -24,6 +24,8 @@ pub enum Command {
     Synth(crate::synth_cmd::SynthArgs),
     /// Render a built-in shaky clip, stabilize it and say where the results are.
     Demo(DemoArgs),
+    /// Run the HTTP service: REST stabilization, batch jobs, a live WebSocket feed, the web page.
+    Serve(crate::serve::ServeArgs),
 }
 
 /// How the lens is known.
@@ -179,6 +181,6 @@ pub struct DemoArgs {
     pub seconds: f64,
 }
 
-fn parse_mode(s: &str) -> Result<Mode, String> {
+pub fn parse_mode(s: &str) -> Result<Mode, String> {
     s.parse::<Mode>().map_err(|e| e.to_string())
 }

@@ -155,6 +155,7 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
             keep_per_frame: true,
             measure: true,
             label: name,
+            control: None,
         })?;
         let est: Vec<_> = run
             .per_frame

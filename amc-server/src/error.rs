@@ -19,6 +19,12 @@ pub enum CliError {
     /// Bad command-line usage that clap cannot catch (a message a person can act on).
     #[error("{0}")]
     Usage(String),
+    /// The run was cancelled (by its owner, or because its client went away).
+    #[error("cancelled")]
+    Cancelled,
+    /// The run took longer than its time limit.
+    #[error("stopped after the time limit of {secs:.0} s")]
+    TimeLimit { secs: f64 },
 }
 
 impl CliError {

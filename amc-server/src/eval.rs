@@ -61,6 +61,7 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport, CliError> {
             keep_per_frame: true,
             measure: true,
             label: &label,
+            control: None,
         };
         let run = pipeline::run(&cfg)?;
         let ground_truth = gt_rot

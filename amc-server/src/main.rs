@@ -7,6 +7,7 @@ mod eval;
 mod gt;
 mod pipeline;
 mod plot;
+mod serve;
 mod synth_cmd;
 mod video;
 
@@ -42,7 +43,16 @@ fn stabilize(args: &StabilizeArgs) -> Result<(), CliError> {
         keep_per_frame: false,
         measure: args.metrics.is_some(),
         label: "stabilize",
+        control: None,
     })?;
+    if run.looks_truncated() {
+        eprintln!(
+            "warning: {} declares {} frames but only {} could be decoded: the file looks truncated or damaged",
+            args.input.display(),
+            run.frames_declared.unwrap_or(0),
+            run.frames
+        );
+    }
     if let Some(p) = &args.metrics {
         let json =
             serde_json::to_string_pretty(&run).map_err(|e| CliError::Usage(e.to_string()))?;
@@ -88,6 +98,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         }
         Command::Synth(a) => synth_cmd::run(&a),
         Command::Demo(a) => demo::run(&a),
+        Command::Serve(a) => serve::run(&a),
     }
 }
 

@@ -11,6 +11,8 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 use std::io::{BufWriter, IsTerminal, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Horizontal field of view assumed when `--fov auto` cannot pin the focal
@@ -39,6 +41,59 @@ pub struct RunConfig<'a> {
     /// Measure the quality metrics (costs about as much as stabilizing at 720p).
     pub measure: bool,
     pub label: &'a str,
+    /// Cancellation, a time limit and a progress counter, for runs driven by the service.
+    pub control: Option<&'a RunControl>,
+}
+
+/// Controls a run from another thread: cancel it, bound its time, read its progress.
+#[derive(Debug, Default)]
+pub struct RunControl {
+    cancelled: AtomicBool,
+    frames_done: AtomicU64,
+    /// When the run must have finished, and the limit it came from (seconds).
+    deadline: Option<(Instant, f64)>,
+    /// A counter shared by many runs (the service's frames processed).
+    shared_frames: Option<Arc<AtomicU64>>,
+}
+
+impl RunControl {
+    /// A control whose run is stopped once `limit` has passed (if any).
+    pub fn new(limit: Option<Duration>) -> Self {
+        Self {
+            deadline: limit.map(|l| (Instant::now() + l, l.as_secs_f64())),
+            ..Self::default()
+        }
+    }
+
+    /// Also counts this run's frames in `counter`.
+    pub fn counting_into(mut self, counter: Arc<AtomicU64>) -> Self {
+        self.shared_frames = Some(counter);
+        self
+    }
+
+    /// Asks the run to stop at its next frame (its children are killed, its partial output removed).
+    pub fn cancel(&self) {
+        self.cancelled.store(true, Ordering::SeqCst);
+    }
+
+    pub fn is_cancelled(&self) -> bool {
+        self.cancelled.load(Ordering::SeqCst)
+    }
+
+    /// Output frames written so far.
+    pub fn frames_done(&self) -> u64 {
+        self.frames_done.load(Ordering::Relaxed)
+    }
+
+    fn check(&self) -> Result<(), CliError> {
+        if self.is_cancelled() {
+            return Err(CliError::Cancelled);
+        }
+        match self.deadline {
+            Some((at, secs)) if Instant::now() > at => Err(CliError::TimeLimit { secs }),
+            _ => Ok(()),
+        }
+    }
 }
 
 /// One output frame's record.
@@ -52,6 +107,9 @@ pub struct FrameRecord {
 #[derive(Clone, Debug, Serialize)]
 pub struct RunSummary {
     pub frames: u64,
+    /// Frames the input's container declares (when it does).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frames_declared: Option<u64>,
     pub input_size: (usize, usize),
     pub output_size: (usize, usize),
     pub seconds: f64,
@@ -67,6 +125,7 @@ fn input_options(fps: Option<f64>, timeout: Duration) -> InputOptions {
     InputOptions {
         fps_override: fps,
         timeout,
+        ..InputOptions::default()
     }
 }
 
@@ -219,6 +278,20 @@ fn telemetry_row(t: &Telemetry) -> String {
     )
 }
 
+impl RunSummary {
+    /// Whether clearly fewer frames were decoded than the container declares:
+    /// the file is truncated or damaged (ffmpeg decodes what it can and
+    /// still succeeds).
+    pub fn looks_truncated(&self) -> bool {
+        self.frames_declared
+            .is_some_and(|n| (self.frames as f64) < TRUNCATED_SHARE * n as f64 - 2.0)
+    }
+}
+
+/// Share of the declared frames under which an input counts as truncated
+/// (declared counts can be a few frames off: edit lists, priming frames).
+pub const TRUNCATED_SHARE: f64 = 0.95;
+
 /// Runs the stabilizer over the whole input.
 pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
     let mut src: Box<dyn FrameSource> =
@@ -277,14 +350,23 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
         }
         frames += 1;
         pb.inc(1);
+        if let Some(c) = cfg.control {
+            c.frames_done.fetch_add(1, Ordering::Relaxed);
+            if let Some(shared) = &c.shared_frames {
+                shared.fetch_add(1, Ordering::Relaxed);
+            }
+        }
         Ok(())
     };
+    let check = || cfg.control.map_or(Ok(()), RunControl::check);
     while let Some(t) = src.next_frame(&mut frame)? {
+        check()?;
         if let Some(tel) = stab.push(frame.as_ref(), t)? {
             emit(&stab, tel)?;
         }
     }
     while let Some(tel) = stab.finish() {
+        check()?;
         emit(&stab, tel)?;
     }
     pb.finish_and_clear();
@@ -306,6 +388,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
     }
     Ok(RunSummary {
         frames,
+        frames_declared: info.frame_count,
         input_size: (info.width, info.height),
         output_size: (ow, oh),
         seconds,

@@ -10,7 +10,7 @@
 //! Encoding: `ffmpeg -f rawvideo -pix_fmt rgb24 -i pipe:0 [-i AUDIO_SRC] ... TMP`,
 //! renamed onto the output path once ffmpeg has succeeded.
 
-use super::probe::{probe, Probe};
+use super::probe::{probe, probe_device, probe_with, Probe};
 use super::process::{run_capture, Proc};
 use super::{
     as_rgb, check_frame, fps_rational, no_frames, parent_dir, partial_builder, partial_prefix,
@@ -84,11 +84,44 @@ pub(crate) struct FfmpegSource {
 impl FfmpegSource {
     /// Probes `path` and starts decoding it.
     pub fn open(path: &Path, opts: &InputOptions) -> Result<Self, VideoError> {
+        let probed = probe(path, opts.timeout)?;
+        Self::start(path, None, probed, opts)
+    }
+
+    /// Probes a live source (without counting its frames) and starts decoding it.
+    pub fn open_stream(
+        source: &str,
+        format: Option<&str>,
+        opts: &InputOptions,
+    ) -> Result<Self, VideoError> {
+        let path = Path::new(source);
+        let probed = if format.is_some() {
+            // A device (`-f v4l2 /dev/video0`) is only known once opened with
+            // its format; ffprobe would not know how to open it.
+            None
+        } else {
+            Some(probe_with(path, opts.timeout, false)?)
+        };
+        match probed {
+            Some(p) => Self::start(path, format, p, opts),
+            None => {
+                let p = probe_device(path, format.unwrap_or_default(), opts.timeout)?;
+                Self::start(path, format, p, opts)
+            }
+        }
+    }
+
+    fn start(
+        path: &Path,
+        format: Option<&str>,
+        probed: Probe,
+        opts: &InputOptions,
+    ) -> Result<Self, VideoError> {
         let Probe {
             mut info,
             video_index,
             ..
-        } = probe(path, opts.timeout)?;
+        } = probed;
         if let Some(fps) = opts.fps_override {
             info.fps = fps;
             info.duration_s = info.frame_count.map(|n| n as f64 / fps);
@@ -102,8 +135,17 @@ impl FfmpegSource {
             // from errors.
             "-loglevel",
             "level+info",
-            "-i",
         ]);
+        if opts.realtime {
+            args.push("-re".into());
+        }
+        if opts.looped {
+            args.extend(os_args(&["-stream_loop", "-1"]));
+        }
+        if let Some(f) = format {
+            args.extend(os_args(&["-f", f]));
+        }
+        args.push("-i".into());
         args.push(path.as_os_str().to_owned());
         args.extend(os_args(&[
             // Only the video stream: files can carry audio and data streams

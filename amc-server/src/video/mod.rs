@@ -151,6 +151,10 @@ pub struct InputOptions {
     /// for one frame, or for exiting) before it is killed. This bounds stalls,
     /// not the total decoding time, so long videos are fine.
     pub timeout: Duration,
+    /// Read a file at its own frame rate (ffmpeg `-re`), as a live feed would arrive.
+    pub realtime: bool,
+    /// Replay the file forever (ffmpeg `-stream_loop -1`); timestamps keep increasing.
+    pub looped: bool,
 }
 
 impl Default for InputOptions {
@@ -158,8 +162,48 @@ impl Default for InputOptions {
         Self {
             fps_override: None,
             timeout: Duration::from_secs(120),
+            realtime: false,
+            looped: false,
         }
     }
+}
+
+/// What ffprobe says about a file, for checks before decoding it.
+#[derive(Clone, Debug)]
+pub struct Inspection {
+    pub info: VideoInfo,
+    /// ffmpeg's name for the container, e.g. `mov,mp4,m4a,3gp,3g2,mj2` or `png_pipe`.
+    pub format_name: String,
+}
+
+impl Inspection {
+    /// Whether the file is a still picture (a PNG, a JPEG...) rather than a video.
+    pub fn is_still_image(&self) -> bool {
+        let f = self.format_name.as_str();
+        f.ends_with("_pipe") || f == "image2" || f == "gif" && self.info.frame_count == Some(1)
+    }
+}
+
+/// Probes a file (demuxing it to count frames) without decoding it.
+pub fn inspect(path: &Path, timeout: Duration) -> Result<Inspection, VideoError> {
+    let p = probe::probe(path, timeout)?;
+    Ok(Inspection {
+        info: p.info,
+        format_name: p.format_name,
+    })
+}
+
+/// Opens a live source ffmpeg can read (a file, an RTSP/UDP/SRT URL, a V4L2
+/// device), with `format` as ffmpeg's `-f` when given. The source is probed
+/// without counting its frames, so endless streams open at once.
+pub fn open_stream(
+    source: &str,
+    format: Option<&str>,
+    opts: &InputOptions,
+) -> Result<Box<dyn FrameSource>, VideoError> {
+    Ok(Box::new(ffmpeg::FfmpegSource::open_stream(
+        source, format, opts,
+    )?))
 }
 
 /// A stream of decoded frames.

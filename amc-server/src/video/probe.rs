@@ -15,22 +15,70 @@ pub(crate) struct Probe {
     pub video_index: u64,
     /// Codec of the first audio stream (`aac`, `opus`, ...), if any.
     pub audio_codec: Option<String>,
+    /// ffmpeg's name for the container (`mov,mp4,m4a,3gp,3g2,mj2`, `png_pipe`, ...).
+    pub format_name: String,
 }
 
 /// Probes `path`. A file ffprobe cannot open, or one without a video stream,
 /// is [`VideoError::NotAVideo`].
 pub(crate) fn probe(path: &Path, timeout: Duration) -> Result<Probe, VideoError> {
+    probe_with(path, timeout, true)
+}
+
+/// Probes `path`; `count_packets` demuxes the whole input for a frame count
+/// (never for a live stream, which has no end).
+pub(crate) fn probe_with(
+    path: &Path,
+    timeout: Duration,
+    count_packets: bool,
+) -> Result<Probe, VideoError> {
+    let mut args: Vec<OsString> = vec![
+        "-hide_banner".into(),
+        "-loglevel".into(),
+        "level+error".into(),
+    ];
+    if count_packets {
+        // Counting packets demuxes the file (no decoding: fast) and gives a
+        // frame count for containers without one in their header (mkv, webm).
+        args.push("-count_packets".into());
+    }
+    args.extend(
+        [
+            "-show_entries",
+            "stream=index,codec_type,codec_name,width,height,avg_frame_rate,r_frame_rate,\
+             nb_frames,nb_read_packets,duration:stream_side_data=rotation:stream_tags=rotate:\
+             stream_disposition=attached_pic:format=duration,format_name",
+            "-of",
+            "json",
+        ]
+        .iter()
+        .map(OsString::from),
+    );
+    args.push(path.as_os_str().to_owned());
+    let (_, out, err) = run_capture("ffprobe", &args, path, timeout)?;
+    if let Some(detail) = err {
+        return Err(VideoError::NotAVideo {
+            path: path.to_path_buf(),
+            detail,
+        });
+    }
+    parse(path, &out)
+}
+
+/// Probes a capture device opened with ffmpeg format `format` (`v4l2`, ...).
+pub(crate) fn probe_device(
+    path: &Path,
+    format: &str,
+    timeout: Duration,
+) -> Result<Probe, VideoError> {
     let args: Vec<OsString> = [
         "-hide_banner",
         "-loglevel",
         "level+error",
-        // Counting packets demuxes the file (no decoding: fast) and gives a
-        // frame count for containers without one in their header (mkv, webm).
-        "-count_packets",
+        "-f",
+        format,
         "-show_entries",
-        "stream=index,codec_type,codec_name,width,height,avg_frame_rate,r_frame_rate,\
-         nb_frames,nb_read_packets,duration:stream_side_data=rotation:stream_tags=rotate:\
-         stream_disposition=attached_pic:format=duration",
+        "stream=index,codec_type,codec_name,width,height,avg_frame_rate,r_frame_rate:format=format_name",
         "-of",
         "json",
     ]
@@ -115,6 +163,10 @@ fn parse(path: &Path, json: &[u8]) -> Result<Probe, VideoError> {
             has_audio: audio_codec.is_some(),
         },
         audio_codec,
+        format_name: root["format"]["format_name"]
+            .as_str()
+            .unwrap_or_default()
+            .to_string(),
         video_index: video["index"].as_u64().unwrap_or(0),
     })
 }

@@ -1,0 +1,77 @@
+//! What `POST /stabilize` and `POST /jobs` share: admission (or 503), the
+//! options (or 400), the upload (or 400/413/415) and its inspection (or 415/422).
+
+use super::options::JobOptions;
+use super::problem::ApiError;
+use super::storage::Scratch;
+use super::upload::{self, Upload};
+use super::work;
+use super::AppState;
+use crate::video::Inspection;
+use axum::body::BodyDataStream;
+use axum::extract::Request;
+use axum::http::request::Parts;
+use std::sync::Arc;
+use tokio::sync::OwnedSemaphorePermit;
+
+/// An accepted request, ready to be processed.
+pub struct Intake {
+    /// Holds the request's place among those the service takes at once.
+    pub admission: OwnedSemaphorePermit,
+    pub options: JobOptions,
+    pub scratch: Scratch,
+    pub upload: Upload,
+    pub inspection: Inspection,
+}
+
+/// Admits, parses and receives `request`. When it is refused before its
+/// body was read, the rest of the body is read and discarded in the
+/// background so the client gets the answer rather than a reset connection.
+pub async fn accept(state: &Arc<AppState>, request: Request) -> Result<Intake, ApiError> {
+    let (parts, body) = request.into_parts();
+    let mut body = Some(body.into_data_stream());
+    let result = accept_parts(state, &parts, &mut body).await;
+    if result.is_err() {
+        if let Some(rest) = body.take() {
+            upload::linger(rest);
+        }
+    }
+    result
+}
+
+async fn accept_parts(
+    state: &Arc<AppState>,
+    parts: &Parts,
+    body: &mut Option<BodyDataStream>,
+) -> Result<Intake, ApiError> {
+    let options = JobOptions::from_query(parts.uri.query())?;
+    let admission = state.admission.clone().try_acquire_owned().map_err(|_| {
+        ApiError::Saturated(format!(
+            "the service is busy: {} clips are being processed or queued (--workers {} plus --queue {}); try again shortly",
+            state.limits.workers + state.limits.queue,
+            state.limits.workers,
+            state.limits.queue
+        ))
+    })?;
+    let scratch = Scratch::new(&state.work_dir, state.disk.clone())
+        .map_err(|e| ApiError::Internal(format!("cannot create scratch space: {e}")))?;
+    let upload = upload::receive(
+        &parts.headers,
+        body,
+        &scratch,
+        state.limits.max_upload_bytes,
+    )
+    .await?;
+    let video = upload.video.clone();
+    let limits = state.limits.clone();
+    let inspection = tokio::task::spawn_blocking(move || work::inspect(&video, &limits))
+        .await
+        .map_err(|e| ApiError::Internal(format!("inspection failed: {e}")))??;
+    Ok(Intake {
+        admission,
+        options,
+        scratch,
+        upload,
+        inspection,
+    })
+}

@@ -1,0 +1,196 @@
+//! `GET /openapi.json`: an OpenAPI 3.1 description of every endpoint.
+//! A test checks that every route of [`super::app`] is described here.
+
+use super::options::OPTIONS;
+use super::stabilize::SUMMARY_HEADERS;
+use axum::Json;
+use serde_json::{json, Map, Value};
+
+fn problem(description: &str) -> Value {
+    json!({
+        "description": description,
+        "content": {"application/problem+json": {"schema": {"$ref": "#/components/schemas/Problem"}}}
+    })
+}
+
+fn query_parameters() -> Vec<Value> {
+    OPTIONS
+        .iter()
+        .map(|(name, allowed)| {
+            json!({"name": name, "in": "query", "required": false, "description": allowed,
+                   "schema": {"type": "string"}})
+        })
+        .collect()
+}
+
+fn upload_body() -> Value {
+    json!({
+        "required": true,
+        "description": "The clip: the raw body with a video/* content type, or multipart/form-data with a `video` file and an optional `lens` file (the project's lens JSON, an OpenCV calibration or a Gyroflow profile).",
+        "content": {
+            "video/*": {"schema": {"type": "string", "format": "binary"}},
+            "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
+            "multipart/form-data": {"schema": {"type": "object", "required": ["video"], "properties": {
+                "video": {"type": "string", "format": "binary"},
+                "lens": {"type": "string", "format": "binary"}
+            }}}
+        }
+    })
+}
+
+fn upload_errors(responses: &mut Map<String, Value>) {
+    responses.insert("400".into(), problem("A bad option (the message names it and the allowed range), an empty body or a broken upload"));
+    responses.insert("413".into(), problem("The upload is over --max-upload-mb"));
+    responses.insert("415".into(), problem("Not a video ffmpeg can decode"));
+    responses.insert(
+        "422".into(),
+        problem("Over the size or duration limits, or not stabilizable"),
+    );
+    responses.insert("503".into(), json!({
+        "description": "Saturated: too many clips in flight or the disk budget used up; retry after the Retry-After header's seconds",
+        "headers": {"Retry-After": {"schema": {"type": "integer"}}},
+        "content": {"application/problem+json": {"schema": {"$ref": "#/components/schemas/Problem"}}}
+    }));
+}
+
+fn id_parameter() -> Value {
+    json!({"name": "id", "in": "path", "required": true, "description": "Job id: 32 hex digits",
+           "schema": {"type": "string", "pattern": "^[0-9a-f]{32}$"}})
+}
+
+/// The document.
+pub fn spec() -> Value {
+    let mut stabilize_ok = Map::new();
+    let headers: Map<String, Value> = SUMMARY_HEADERS
+        .iter()
+        .map(|h| (h.to_string(), json!({"schema": {"type": "string"}})))
+        .collect();
+    stabilize_ok.insert("200".into(), json!({
+        "description": "The stabilized video (H.264 MP4 or VP9 WebM, the input's audio kept); the clip's summary metrics in X-Amc-* headers",
+        "headers": headers,
+        "content": {"video/mp4": {"schema": {"type": "string", "format": "binary"}},
+                    "video/webm": {"schema": {"type": "string", "format": "binary"}}}
+    }));
+    upload_errors(&mut stabilize_ok);
+    let mut jobs_created = Map::new();
+    jobs_created.insert(
+        "202".into(),
+        json!({
+            "description": "Queued",
+            "headers": {"Location": {"schema": {"type": "string"}, "description": "/jobs/{id}"}},
+            "content": {"application/json": {"schema": {"$ref": "#/components/schemas/Job"}}}
+        }),
+    );
+    upload_errors(&mut jobs_created);
+    let not_found = problem("No such job (unknown, expired or removed)");
+    json!({
+        "openapi": "3.1.0",
+        "info": {
+            "title": "amc serve",
+            "version": env!("CARGO_PKG_VERSION"),
+            "description": "Artificial Microsaccade Compensation: rotation-only video stabilization for cameras that shake hard. Errors are application/problem+json."
+        },
+        "paths": {
+            "/stabilize": {"post": {
+                "summary": "Stabilize a clip and stream the result back",
+                "parameters": query_parameters(),
+                "requestBody": upload_body(),
+                "responses": stabilize_ok
+            }},
+            "/jobs": {"post": {
+                "summary": "Queue a clip as a job",
+                "parameters": query_parameters(),
+                "requestBody": upload_body(),
+                "responses": jobs_created
+            }},
+            "/jobs/{id}": {
+                "get": {
+                    "summary": "A job's state, progress and (when done) metrics",
+                    "parameters": [id_parameter()],
+                    "responses": {
+                        "200": {"description": "The job", "content": {"application/json": {"schema": {"$ref": "#/components/schemas/Job"}}}},
+                        "404": not_found
+                    }
+                },
+                "delete": {
+                    "summary": "Cancel a queued or running job (its ffmpeg children are killed and files removed), or remove a finished one",
+                    "parameters": [id_parameter()],
+                    "responses": {
+                        "200": {"description": "Cancelled", "content": {"application/json": {"schema": {"$ref": "#/components/schemas/Job"}}}},
+                        "204": {"description": "Removed with its files"},
+                        "404": not_found
+                    }
+                }
+            },
+            "/jobs/{id}/output": {"get": {
+                "summary": "The stabilized video of a finished job",
+                "parameters": [id_parameter()],
+                "responses": {
+                    "200": {"description": "The video", "content": {"video/mp4": {}, "video/webm": {}}},
+                    "404": not_found,
+                    "409": problem("The job is not done")
+                }
+            }},
+            "/jobs/{id}/telemetry.csv": {"get": {
+                "summary": "Per-frame telemetry of a finished job: frame,t,rx,ry,rz,vx,vy,vz,...",
+                "parameters": [id_parameter()],
+                "responses": {
+                    "200": {"description": "CSV", "content": {"text/csv": {}}},
+                    "404": not_found,
+                    "409": problem("The job is not done")
+                }
+            }},
+            "/live": {"get": {
+                "summary": "WebSocket for viewers of the live feed: per stabilized frame, one binary message (JPEG) then one text message (LiveTelemetry JSON). Slow viewers skip frames.",
+                "responses": {"101": {"description": "Switching to the WebSocket protocol"}}
+            }},
+            "/live/ingest": {"get": {
+                "summary": "WebSocket for one publisher: each binary message is one JPEG frame of the feed to stabilize",
+                "responses": {
+                    "101": {"description": "Switching to the WebSocket protocol"},
+                    "409": problem("Another publisher is connected, or the feed comes from --live-source")
+                }
+            }},
+            "/healthz": {"get": {
+                "summary": "Health: ffmpeg runs and the work directory is writable",
+                "responses": {"200": {"description": "Healthy"}, "503": {"description": "Unhealthy"}}
+            }},
+            "/metrics": {"get": {
+                "summary": "Prometheus text format: jobs by state, frames processed, processing rate, live viewers, frames dropped",
+                "responses": {"200": {"description": "Metrics", "content": {"text/plain": {}}}}
+            }},
+            "/openapi.json": {"get": {
+                "summary": "This document",
+                "responses": {"200": {"description": "OpenAPI 3.1", "content": {"application/json": {}}}}
+            }}
+        },
+        "components": {"schemas": {
+            "Problem": {"type": "object", "properties": {
+                "type": {"type": "string"}, "title": {"type": "string"},
+                "status": {"type": "integer"}, "detail": {"type": "string"}
+            }},
+            "Job": {"type": "object", "required": ["id", "state", "frames_done"], "properties": {
+                "id": {"type": "string"},
+                "state": {"type": "string", "enum": ["queued", "running", "done", "failed", "cancelled"]},
+                "frames_done": {"type": "integer"},
+                "frames_total": {"type": ["integer", "null"]},
+                "progress": {"type": ["number", "null"], "minimum": 0, "maximum": 1},
+                "format": {"type": "string", "enum": ["mp4", "webm"]},
+                "error": {"type": ["string", "null"]},
+                "metrics": {"type": ["object", "null"], "description": "frames, sizes, seconds, frames_per_second and the paper's clip metrics"},
+                "output": {"type": ["string", "null"]},
+                "telemetry": {"type": ["string", "null"]}
+            }},
+            "LiveTelemetry": {"type": "object", "properties": {
+                "frame": {"type": "integer"}, "t": {"type": "number"},
+                "speed_est_dps": {"type": "number"}, "speed_view_dps": {"type": "number"},
+                "valid": {"type": "number"}, "saccade": {"type": "boolean"},
+                "latency_ms": {"type": "number"}, "width": {"type": "integer"}, "height": {"type": "integer"}
+            }}
+        }}
+    })
+}
+
+pub async fn document() -> Json<Value> {
+    Json(spec())
+}

@@ -1,0 +1,118 @@
+//! Errors of the service, answered as RFC 9457 `application/problem+json`.
+//!
+//! Every variant maps to one status a client can act on; none of them is a
+//! 500 caused by what a client sent. The `detail` is one line naming the bad
+//! value and what is allowed.
+
+use axum::http::{header, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+use serde::Serialize;
+use thiserror::Error;
+
+/// Seconds a saturated service asks clients to wait before retrying.
+pub const RETRY_AFTER_SECS: u64 = 5;
+
+#[derive(Debug, Error)]
+pub enum ApiError {
+    /// A query option (or form field) with a bad value; names it and the allowed range.
+    #[error("{0}")]
+    BadOption(String),
+    /// A malformed request (empty body, missing field, broken upload).
+    #[error("{0}")]
+    BadRequest(String),
+    /// The upload is larger than `--max-upload-mb`.
+    #[error("the upload is larger than the limit of {limit_mb} MB (set by --max-upload-mb)")]
+    TooLarge { limit_mb: u64 },
+    /// Not a video ffmpeg can decode (or a content type that is not video).
+    #[error("{0}")]
+    Unsupported(String),
+    /// A video over the size or duration limits, or one the stabilizer cannot process.
+    #[error("{0}")]
+    Unprocessable(String),
+    #[error("{0}")]
+    NoRoute(String),
+    #[error("{0}")]
+    MethodNotAllowed(String),
+    #[error("no job with id {0:?} (jobs expire after --job-ttl seconds)")]
+    JobNotFound(String),
+    /// The job exists but has nothing of that kind (yet).
+    #[error("{0}")]
+    Conflict(String),
+    /// Too many requests or jobs in flight, or the disk budget is used up.
+    #[error("{0}")]
+    Saturated(String),
+    /// The server cannot work (ffmpeg missing, disk error): not the client's fault.
+    #[error("{0}")]
+    Internal(String),
+}
+
+#[derive(Serialize)]
+struct Problem<'a> {
+    #[serde(rename = "type")]
+    kind: &'a str,
+    title: &'a str,
+    status: u16,
+    detail: String,
+}
+
+impl ApiError {
+    pub fn status(&self) -> StatusCode {
+        match self {
+            ApiError::BadOption(_) | ApiError::BadRequest(_) => StatusCode::BAD_REQUEST,
+            ApiError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
+            ApiError::Unsupported(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            ApiError::Unprocessable(_) => StatusCode::UNPROCESSABLE_ENTITY,
+            ApiError::JobNotFound(_) | ApiError::NoRoute(_) => StatusCode::NOT_FOUND,
+            ApiError::MethodNotAllowed(_) => StatusCode::METHOD_NOT_ALLOWED,
+            ApiError::Conflict(_) => StatusCode::CONFLICT,
+            ApiError::Saturated(_) => StatusCode::SERVICE_UNAVAILABLE,
+            ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
+        }
+    }
+
+    /// A short, stable identifier of the kind of problem (the `type` URI's last part).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            ApiError::BadOption(_) => "bad-option",
+            ApiError::BadRequest(_) => "bad-request",
+            ApiError::TooLarge { .. } => "too-large",
+            ApiError::Unsupported(_) => "unsupported-media",
+            ApiError::Unprocessable(_) => "unprocessable-video",
+            ApiError::JobNotFound(_) => "job-not-found",
+            ApiError::NoRoute(_) => "not-found",
+            ApiError::MethodNotAllowed(_) => "method-not-allowed",
+            ApiError::Conflict(_) => "conflict",
+            ApiError::Saturated(_) => "saturated",
+            ApiError::Internal(_) => "internal",
+        }
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let status = self.status();
+        if status.is_server_error() && status != StatusCode::SERVICE_UNAVAILABLE {
+            tracing::error!(error = %self, "request failed");
+        } else {
+            tracing::info!(status = status.as_u16(), error = %self, "request refused");
+        }
+        let kind = format!("/problems/{}", self.kind());
+        let body = Problem {
+            kind: &kind,
+            title: status.canonical_reason().unwrap_or("Error"),
+            status: status.as_u16(),
+            detail: self.to_string(),
+        };
+        let json = serde_json::to_vec(&body).unwrap_or_default();
+        let mut res = (status, json).into_response();
+        res.headers_mut().insert(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("application/problem+json"),
+        );
+        if status == StatusCode::SERVICE_UNAVAILABLE {
+            res.headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from(RETRY_AFTER_SECS));
+        }
+        res
+    }
+}

@@ -1,0 +1,232 @@
+//! Receiving a clip: the raw request body (a video content type) or
+//! `multipart/form-data` with a `video` file and an optional `lens` file.
+//! Bytes go straight to the request's scratch folder, counted against the
+//! upload limit and the disk budget as they arrive, never held in memory.
+
+use super::problem::ApiError;
+use super::storage::Scratch;
+use axum::body::{Body, BodyDataStream};
+use axum::extract::{FromRequest, Multipart, Request};
+use axum::http::{header, HeaderMap};
+use futures_util::StreamExt;
+use std::path::{Path, PathBuf};
+use tokio::io::AsyncWriteExt;
+
+/// Longest lens file accepted (a calibration is a few kilobytes).
+pub const MAX_LENS_BYTES: usize = 1 << 20;
+
+/// A received clip.
+#[derive(Debug)]
+pub struct Upload {
+    pub video: PathBuf,
+    /// The text of a lens file sent as the `lens` form field.
+    pub lens: Option<String>,
+    pub bytes: u64,
+}
+
+/// Content types accepted as a raw video body besides `video/*`.
+const RAW_TYPES: &[&str] = &[
+    "application/octet-stream",
+    "application/mp4",
+    "application/x-matroska",
+];
+
+/// A file being received, enforcing the upload limit and the disk budget.
+struct Incoming<'a> {
+    file: tokio::fs::File,
+    total: u64,
+    scratch: &'a Scratch,
+    max_bytes: u64,
+}
+
+fn store_error(e: std::io::Error) -> ApiError {
+    ApiError::Internal(format!("cannot store the upload: {e}"))
+}
+
+impl<'a> Incoming<'a> {
+    async fn create(path: &Path, scratch: &'a Scratch, max_bytes: u64) -> Result<Self, ApiError> {
+        Ok(Self {
+            file: tokio::fs::File::create(path).await.map_err(store_error)?,
+            total: 0,
+            scratch,
+            max_bytes,
+        })
+    }
+
+    async fn push(&mut self, chunk: &[u8]) -> Result<(), ApiError> {
+        self.total += chunk.len() as u64;
+        if self.total > self.max_bytes {
+            return Err(ApiError::TooLarge {
+                limit_mb: self.max_bytes / 1_000_000,
+            });
+        }
+        if !self.scratch.reserve(chunk.len() as u64) {
+            return Err(ApiError::Saturated(
+                "the service's disk space for uploads is in use; try again shortly".into(),
+            ));
+        }
+        self.file.write_all(chunk).await.map_err(store_error)
+    }
+
+    async fn finish(mut self) -> Result<u64, ApiError> {
+        self.file.flush().await.map_err(store_error)?;
+        Ok(self.total)
+    }
+}
+
+fn interrupted(e: impl std::fmt::Display) -> ApiError {
+    ApiError::BadRequest(format!("the upload was interrupted: {e}"))
+}
+
+/// Most of an unwanted upload read and discarded after an early answer.
+pub const LINGER_BYTES: u64 = 256 << 20;
+/// Longest an unwanted upload is read and discarded after an early answer.
+pub const LINGER_TIME: std::time::Duration = std::time::Duration::from_secs(30);
+
+/// Reads and discards what is left of a request body after it was answered
+/// early (a bad option, 413, 503): a client still sending would otherwise
+/// see the connection reset instead of the answer, as with nginx's lingering close.
+pub fn linger(mut rest: BodyDataStream) {
+    tokio::spawn(async move {
+        let _ = tokio::time::timeout(LINGER_TIME, async {
+            let mut n = 0u64;
+            while let Some(Ok(chunk)) = rest.next().await {
+                n += chunk.len() as u64;
+                if n > LINGER_BYTES {
+                    break;
+                }
+            }
+        })
+        .await;
+    });
+}
+
+/// Receives the clip into `scratch`. `body` is taken once fully read; on an
+/// error it is left for the caller to [`linger`] on.
+pub async fn receive(
+    headers: &HeaderMap,
+    body: &mut Option<BodyDataStream>,
+    scratch: &Scratch,
+    max_bytes: u64,
+) -> Result<Upload, ApiError> {
+    let content_type = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("")
+        .to_string();
+    let declared = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    if declared.is_some_and(|n| n > max_bytes) {
+        return Err(ApiError::TooLarge {
+            limit_mb: max_bytes / 1_000_000,
+        });
+    }
+    let essence = content_type
+        .split(';')
+        .next()
+        .unwrap_or("")
+        .trim()
+        .to_ascii_lowercase();
+    let video = scratch.file("input");
+    let upload = if essence == "multipart/form-data" {
+        let Some(stream) = body.take() else {
+            return Err(ApiError::BadRequest("the request has no body".into()));
+        };
+        receive_multipart(&content_type, stream, scratch, &video, max_bytes).await?
+    } else if essence.is_empty()
+        || essence.starts_with("video/")
+        || RAW_TYPES.contains(&essence.as_str())
+    {
+        let mut file = Incoming::create(&video, scratch, max_bytes).await?;
+        if let Some(chunks) = body.as_mut() {
+            while let Some(chunk) = chunks.next().await {
+                file.push(&chunk.map_err(interrupted)?).await?;
+            }
+        }
+        *body = None;
+        let bytes = file.finish().await?;
+        Upload {
+            video,
+            lens: None,
+            bytes,
+        }
+    } else {
+        return Err(ApiError::Unsupported(format!(
+            "Content-Type {essence} is not a video: send the clip as the body with a video/* type \
+             (video/mp4, video/webm, video/quicktime...) or as the `video` field of multipart/form-data"
+        )));
+    };
+    if upload.bytes == 0 {
+        return Err(ApiError::BadRequest(
+            "the request has no video: send the clip as the body (Content-Type video/mp4, ...) \
+             or as the `video` field of multipart/form-data"
+                .into(),
+        ));
+    }
+    Ok(upload)
+}
+
+async fn receive_multipart(
+    content_type: &str,
+    stream: BodyDataStream,
+    scratch: &Scratch,
+    video: &Path,
+    max_bytes: u64,
+) -> Result<Upload, ApiError> {
+    let request = Request::builder()
+        .header(header::CONTENT_TYPE, content_type)
+        .body(Body::from_stream(stream))
+        .map_err(|e| ApiError::BadRequest(format!("invalid multipart/form-data: {e}")))?;
+    let mut form = Multipart::from_request(request, &()).await.map_err(|e| {
+        ApiError::BadRequest(format!("invalid multipart/form-data: {}", e.body_text()))
+    })?;
+    let mut got_video = None;
+    let mut lens = None;
+    let bad = |e: axum::extract::multipart::MultipartError| {
+        ApiError::BadRequest(format!("invalid multipart/form-data: {}", e.body_text()))
+    };
+    while let Some(mut field) = form.next_field().await.map_err(bad)? {
+        match field.name().unwrap_or("") {
+            "video" => {
+                if got_video.is_some() {
+                    return Err(ApiError::BadRequest("more than one `video` field".into()));
+                }
+                let mut file = Incoming::create(video, scratch, max_bytes).await?;
+                while let Some(chunk) = field.chunk().await.map_err(interrupted)? {
+                    file.push(&chunk).await?;
+                }
+                got_video = Some(file.finish().await?);
+            }
+            "lens" => {
+                let mut text = Vec::new();
+                while let Some(chunk) = field.chunk().await.map_err(bad)? {
+                    text.extend_from_slice(&chunk);
+                    if text.len() > MAX_LENS_BYTES {
+                        return Err(ApiError::BadOption(format!(
+                            "the lens file is larger than {} KB; send a lens JSON/YAML calibration",
+                            MAX_LENS_BYTES / 1024
+                        )));
+                    }
+                }
+                lens = Some(String::from_utf8(text).map_err(|_| {
+                    ApiError::BadOption("the lens file is not UTF-8 text (JSON or YAML)".into())
+                })?);
+            }
+            other => {
+                return Err(ApiError::BadRequest(format!(
+                    "unknown form field {other:?} (known: video, lens)"
+                )))
+            }
+        }
+    }
+    let bytes = got_video.ok_or_else(|| {
+        ApiError::BadRequest("the form has no `video` field with the clip".into())
+    })?;
+    Ok(Upload {
+        video: video.to_path_buf(),
+        lens,
+        bytes,
+    })
+}

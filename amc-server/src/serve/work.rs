@@ -1,0 +1,164 @@
+//! The CPU work of a request or job: check the upload, then decode ->
+//! stabilize -> encode with the same pipeline as `amc stabilize`. Runs on a
+//! blocking thread; a [`RunControl`] cancels it (its ffmpeg children are
+//! killed and its partial files removed when the pipeline unwinds).
+
+use super::options::JobOptions;
+use super::problem::ApiError;
+use super::Limits;
+use crate::cli::LensChoice;
+use crate::error::CliError;
+use crate::pipeline::{self, RunConfig, RunControl, RunSummary};
+use crate::video::{self, Inspection, VideoError};
+use amc_core::AmcError;
+use std::path::{Path, PathBuf};
+
+/// What to process.
+pub struct WorkSpec {
+    pub input: PathBuf,
+    pub output: PathBuf,
+    pub telemetry: Option<PathBuf>,
+    pub lens_text: Option<String>,
+    pub options: JobOptions,
+}
+
+/// Probes an upload and checks it against the limits: 415 if it is not a
+/// video, 422 if it is too big or too long.
+pub fn inspect(path: &Path, limits: &Limits) -> Result<Inspection, ApiError> {
+    let found = video::inspect(path, limits.ffmpeg_timeout).map_err(|e| video_error(e, path))?;
+    if found.is_still_image() {
+        return Err(ApiError::Unsupported(format!(
+            "the upload is a still image ({}), not a video",
+            found.format_name
+        )));
+    }
+    let info = &found.info;
+    if info.width > limits.max_width || info.height > limits.max_height {
+        return Err(ApiError::Unprocessable(format!(
+            "the video is {}x{}; the limit is {}x{} (set by --max-width/--max-height)",
+            info.width, info.height, limits.max_width, limits.max_height
+        )));
+    }
+    let duration = info
+        .duration_s
+        .or_else(|| info.frame_count.map(|n| n as f64 / info.fps));
+    if let Some(d) = duration.filter(|&d| d > limits.max_duration_s) {
+        return Err(ApiError::Unprocessable(format!(
+            "the video is {d:.1} s long; the limit is {:.0} s (set by --max-duration)",
+            limits.max_duration_s
+        )));
+    }
+    if info.frame_count == Some(1) {
+        return Err(ApiError::Unsupported(
+            "the upload has a single frame; it is a picture, not a video".into(),
+        ));
+    }
+    Ok(found)
+}
+
+/// Stabilizes `spec.input` into `spec.output`.
+pub fn stabilize(
+    spec: &WorkSpec,
+    limits: &Limits,
+    control: &RunControl,
+) -> Result<RunSummary, ApiError> {
+    let params = spec.options.params.clone();
+    let lens = match &spec.lens_text {
+        Some(text) => amc_core::lens::parse_lens(text)
+            .map_err(|e| ApiError::BadOption(format!("invalid lens file: {e}")))?,
+        None => {
+            let choice = match spec.options.lens {
+                LensChoice::File(_) => LensChoice::Auto,
+                ref c => c.clone(),
+            };
+            pipeline::resolve_lens(
+                &choice,
+                &spec.input,
+                &params,
+                None,
+                limits.ffmpeg_timeout,
+                true,
+            )
+            .map_err(|e| cli_error(e, &spec.input))?
+        }
+    };
+    pipeline::run(&RunConfig {
+        input: &spec.input,
+        output: Some(&spec.output),
+        params,
+        lens,
+        telemetry: spec.telemetry.as_deref(),
+        fps: None,
+        timeout: limits.ffmpeg_timeout,
+        crf: None,
+        progress: false,
+        keep_per_frame: false,
+        measure: spec.options.measure,
+        label: "serve",
+        control: Some(control),
+    })
+    .map_err(|e| cli_error(e, &spec.input))
+    .and_then(|summary| {
+        if summary.looks_truncated() {
+            return Err(ApiError::Unsupported(format!(
+                "the video is truncated or damaged: only {} of the {} frames it declares could be decoded",
+                summary.frames,
+                summary.frames_declared.unwrap_or(0)
+            )));
+        }
+        Ok(summary)
+    })
+}
+
+/// How a failed run is answered: problems with the upload are the client's
+/// (415/422), anything else is the server's.
+pub fn cli_error(e: CliError, input: &Path) -> ApiError {
+    match e {
+        CliError::Video(v) => video_error(v, input),
+        CliError::Core(c) => core_error(c),
+        CliError::Usage(msg) => ApiError::Unsupported(strip_path(&msg, input)),
+        CliError::Cancelled => ApiError::Conflict("the job was cancelled".into()),
+        CliError::TimeLimit { secs } => ApiError::Unprocessable(format!(
+            "processing took longer than the limit of {secs:.0} s (set by --job-time-limit)"
+        )),
+        CliError::Io { path, source } => {
+            ApiError::Internal(format!("{}: {source}", path.display()))
+        }
+        CliError::Image { path, msg } => ApiError::Internal(format!("{}: {msg}", path.display())),
+    }
+}
+
+fn core_error(e: AmcError) -> ApiError {
+    match e {
+        AmcError::Lens(_) | AmcError::Camera(_) | AmcError::LensAspectMismatch { .. } => {
+            ApiError::BadOption(format!("the lens does not fit this video: {e}"))
+        }
+        AmcError::InvalidParameter { .. } => ApiError::BadOption(e.to_string()),
+        _ => ApiError::Unprocessable(format!("the video cannot be stabilized: {e}")),
+    }
+}
+
+fn video_error(e: VideoError, input: &Path) -> ApiError {
+    let msg = strip_path(&e.to_string(), input);
+    match &e {
+        VideoError::NotAVideo { .. } | VideoError::Y4m { .. } | VideoError::Image { .. } => {
+            ApiError::Unsupported(msg)
+        }
+        VideoError::BadFrame { .. } | VideoError::SizeMismatch { .. } => {
+            ApiError::Unprocessable(msg)
+        }
+        // A decoder failing on the upload is the upload's fault; the encoder
+        // failing is ours.
+        VideoError::Ffmpeg { path, .. } | VideoError::Timeout { path, .. } if path == input => {
+            ApiError::Unsupported(format!("the video cannot be decoded: {msg}"))
+        }
+        VideoError::ToolMissing { .. } => ApiError::Internal(msg),
+        _ => ApiError::Internal(msg),
+    }
+}
+
+/// Messages name the upload's scratch path, which means nothing to a client.
+fn strip_path(msg: &str, input: &Path) -> String {
+    let p = input.display().to_string();
+    msg.replace(&format!("{p}: "), "").replace(&p, "the upload")
+}

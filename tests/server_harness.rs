@@ -1,0 +1,402 @@
+//! A real `amc serve` on a loopback port, for the service's end-to-end tests and bench.
+
+use super::amc;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A running server; killed (SIGTERM, then SIGKILL) when dropped.
+pub struct Server {
+    pub child: Child,
+    /// `http://127.0.0.1:PORT`
+    pub base: String,
+    pub addr: String,
+    /// The parent given as `--work-dir` (the server makes its own folder inside).
+    pub work_parent: tempfile::TempDir,
+    stderr_log: PathBuf,
+}
+
+impl Server {
+    /// Starts `amc serve --addr 127.0.0.1:0 --work-dir TMP ARGS...` and waits until it listens.
+    pub fn start(args: &[&str]) -> Server {
+        let work_parent = tempfile::tempdir().expect("temp dir");
+        let stderr_log = work_parent.path().with_extension("log");
+        let log = std::fs::File::create(&stderr_log).expect("log file");
+        let mut child = Command::new(amc())
+            .arg("serve")
+            .args(["--addr", "127.0.0.1:0", "--work-dir"])
+            .arg(work_parent.path())
+            .args(args)
+            .current_dir(super::workspace_root())
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::from(log))
+            .spawn()
+            .expect("could not start amc serve");
+        let stdout = child.stdout.take().expect("stdout");
+        let mut line = String::new();
+        BufReader::new(stdout)
+            .read_line(&mut line)
+            .expect("reading amc serve's first line");
+        let base = line
+            .trim()
+            .strip_prefix("listening on ")
+            .unwrap_or_else(|| {
+                let log = std::fs::read_to_string(&stderr_log).unwrap_or_default();
+                panic!("amc serve did not start: {line:?}\n{log}")
+            })
+            .to_string();
+        let addr = base.trim_start_matches("http://").to_string();
+        Server {
+            child,
+            base,
+            addr,
+            work_parent,
+            stderr_log,
+        }
+    }
+
+    pub fn url(&self, path: &str) -> String {
+        format!("{}{}", self.base, path)
+    }
+
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// The server's log so far (for failure messages).
+    pub fn log(&self) -> String {
+        std::fs::read_to_string(&self.stderr_log).unwrap_or_default()
+    }
+
+    /// Files and folders left in the server's work directory (its scratch space).
+    pub fn scratch_entries(&self) -> Vec<PathBuf> {
+        let mut out = Vec::new();
+        fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+            if let Ok(rd) = std::fs::read_dir(dir) {
+                for e in rd.flatten() {
+                    out.push(e.path());
+                    if e.path().is_dir() {
+                        walk(&e.path(), out);
+                    }
+                }
+            }
+        }
+        for e in std::fs::read_dir(self.work_parent.path())
+            .into_iter()
+            .flatten()
+            .flatten()
+        {
+            // The server's own work folder is expected; what is inside is not.
+            walk(&e.path(), &mut out);
+        }
+        out
+    }
+
+    /// Waits (up to `within`) until the scratch space is empty; panics listing what is left.
+    pub fn assert_no_scratch_left(&self, within: Duration) {
+        let start = Instant::now();
+        loop {
+            let left = self.scratch_entries();
+            if left.is_empty() {
+                return;
+            }
+            if start.elapsed() > within {
+                panic!("files left in the server's scratch space: {left:?}");
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    /// ffmpeg processes started by the server that are still running.
+    pub fn ffmpeg_children(&self) -> Vec<u32> {
+        children_named(self.pid(), "ffmpeg")
+    }
+
+    /// Resident memory of the server, kilobytes.
+    pub fn rss_kb(&self) -> u64 {
+        rss_kb(self.pid())
+    }
+
+    /// Sends SIGTERM and waits (up to `within`) for the exit status.
+    pub fn terminate(&mut self, within: Duration) -> Option<std::process::ExitStatus> {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.pid().to_string()])
+            .status();
+        let start = Instant::now();
+        while start.elapsed() < within {
+            if let Ok(Some(status)) = self.child.try_wait() {
+                return Some(status);
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        None
+    }
+
+    pub fn healthy(&self) -> bool {
+        let agent = agent();
+        matches!(agent.get(&self.url("/healthz")).call(), Ok(r) if r.status() == 200)
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            if self.terminate(Duration::from_secs(20)).is_none() {
+                let _ = self.child.kill();
+                let _ = self.child.wait();
+            }
+        }
+    }
+}
+
+/// Direct children of `pid` whose command name is `name`.
+pub fn children_named(pid: u32, name: &str) -> Vec<u32> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir("/proc").into_iter().flatten().flatten() {
+        let Ok(child) = e.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(format!("/proc/{child}/stat")) else {
+            continue;
+        };
+        // pid (comm) state ppid ...
+        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else {
+            continue;
+        };
+        let comm = &stat[open + 1..close];
+        let ppid = stat[close + 1..]
+            .split_whitespace()
+            .nth(1)
+            .and_then(|p| p.parse::<u32>().ok());
+        if ppid == Some(pid) && comm == name {
+            out.push(child);
+        }
+    }
+    out
+}
+
+/// Running ffmpeg processes whose command line mentions `path` (orphans included).
+pub fn ffmpeg_using(path: &Path) -> Vec<u32> {
+    let needle = path.to_string_lossy().into_owned();
+    let mut out = Vec::new();
+    for e in std::fs::read_dir("/proc").into_iter().flatten().flatten() {
+        let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(cmd) = std::fs::read(format!("/proc/{pid}/cmdline")) else {
+            continue;
+        };
+        let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
+        if cmd.starts_with("ffmpeg") && cmd.contains(&needle) {
+            out.push(pid);
+        }
+    }
+    out
+}
+
+/// Resident memory of a process, kilobytes (0 if it is gone).
+pub fn rss_kb(pid: u32) -> u64 {
+    std::fs::read_to_string(format!("/proc/{pid}/status"))
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmRSS:"))
+                .and_then(|l| l.split_whitespace().nth(1))
+                .and_then(|v| v.parse().ok())
+        })
+        .unwrap_or(0)
+}
+
+/// An HTTP client that returns 4xx/5xx responses instead of errors.
+pub fn agent() -> ureq::Agent {
+    ureq::Agent::config_builder()
+        .http_status_as_error(false)
+        .timeout_global(Some(Duration::from_secs(300)))
+        .build()
+        .into()
+}
+
+/// A finished HTTP exchange.
+pub struct Reply {
+    pub status: u16,
+    pub headers: Vec<(String, String)>,
+    pub body: Vec<u8>,
+}
+
+impl Reply {
+    pub fn header(&self, name: &str) -> Option<&str> {
+        self.headers
+            .iter()
+            .find(|(k, _)| k.eq_ignore_ascii_case(name))
+            .map(|(_, v)| v.as_str())
+    }
+
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::from_slice(&self.body).unwrap_or_else(|e| {
+            panic!(
+                "status {}: body is not JSON ({e}): {}",
+                self.status,
+                String::from_utf8_lossy(&self.body)
+            )
+        })
+    }
+
+    pub fn text(&self) -> String {
+        String::from_utf8_lossy(&self.body).into_owned()
+    }
+}
+
+fn reply(mut res: ureq::http::Response<ureq::Body>) -> Reply {
+    let status = res.status().as_u16();
+    let headers = res
+        .headers()
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.to_str().unwrap_or("").to_string()))
+        .collect();
+    let body = res
+        .body_mut()
+        .with_config()
+        .limit(u64::MAX)
+        .read_to_vec()
+        .unwrap_or_default();
+    Reply {
+        status,
+        headers,
+        body,
+    }
+}
+
+pub fn get(url: &str) -> Reply {
+    reply(
+        agent()
+            .get(url)
+            .call()
+            .unwrap_or_else(|e| panic!("GET {url}: {e}")),
+    )
+}
+
+pub fn delete(url: &str) -> Reply {
+    reply(
+        agent()
+            .delete(url)
+            .call()
+            .unwrap_or_else(|e| panic!("DELETE {url}: {e}")),
+    )
+}
+
+/// POSTs `body` with `content_type` (no Content-Type header when empty).
+pub fn post(url: &str, content_type: &str, body: &[u8]) -> Reply {
+    let mut req = agent().post(url);
+    if !content_type.is_empty() {
+        req = req.header("Content-Type", content_type);
+    }
+    reply(req.send(body).unwrap_or_else(|e| panic!("POST {url}: {e}")))
+}
+
+/// POSTs a multipart form with (name, filename, content type, bytes) parts.
+pub fn post_multipart(url: &str, parts: &[(&str, &str, &str, &[u8])]) -> Reply {
+    let boundary = "amc-test-boundary-7d41c2";
+    let mut body = Vec::new();
+    for (name, filename, ctype, bytes) in parts {
+        write!(
+            body,
+            "--{boundary}\r\nContent-Disposition: form-data; name=\"{name}\"; filename=\"{filename}\"\r\nContent-Type: {ctype}\r\n\r\n"
+        )
+        .unwrap();
+        body.extend_from_slice(bytes);
+        body.extend_from_slice(b"\r\n");
+    }
+    write!(body, "--{boundary}--\r\n").unwrap();
+    post(
+        url,
+        &format!("multipart/form-data; boundary={boundary}"),
+        &body,
+    )
+}
+
+/// Sends a request by hand: `head` (request line and headers, without the
+/// final blank line) then `body`, then reads whatever comes back (status 0 if nothing).
+pub fn raw_request(addr: &str, head: &str, body: &[u8], close_early: bool) -> u16 {
+    let mut s = TcpStream::connect(addr).expect("connect");
+    s.set_read_timeout(Some(Duration::from_secs(30))).ok();
+    let _ = s.write_all(format!("{head}\r\n\r\n").as_bytes());
+    let _ = s.write_all(body);
+    if close_early {
+        // The client goes away mid-upload.
+        let _ = s.shutdown(std::net::Shutdown::Both);
+        return 0;
+    }
+    let mut out = Vec::new();
+    let _ = s.read_to_end(&mut out);
+    let text = String::from_utf8_lossy(&out);
+    text.split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0)
+}
+
+/// A WebSocket client on `path` with a read timeout.
+pub fn websocket(
+    addr: &str,
+    path: &str,
+    read_timeout: Duration,
+) -> Result<tungstenite::WebSocket<TcpStream>, String> {
+    let stream = TcpStream::connect(addr).map_err(|e| e.to_string())?;
+    stream.set_read_timeout(Some(read_timeout)).ok();
+    stream.set_nodelay(true).ok();
+    match tungstenite::client(format!("ws://{addr}{path}"), stream) {
+        Ok((ws, _)) => Ok(ws),
+        Err(tungstenite::HandshakeError::Failure(tungstenite::Error::Http(res))) => {
+            Err(format!("HTTP {}", res.status().as_u16()))
+        }
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// Makes a small test clip with ffmpeg (`testsrc2` with a tone), `seconds` long.
+pub fn make_clip(path: &Path, width: u32, height: u32, fps: u32, seconds: f64) {
+    let status = Command::new("ffmpeg")
+        .args(["-v", "error", "-y", "-f", "lavfi", "-i"])
+        .arg(format!("testsrc2=size={width}x{height}:rate={fps}"))
+        .args(["-f", "lavfi", "-i", "sine=frequency=440:sample_rate=48000"])
+        .args(["-t", &seconds.to_string()])
+        .args([
+            "-c:v",
+            "libx264",
+            "-preset",
+            "ultrafast",
+            "-pix_fmt",
+            "yuv420p",
+        ])
+        .args(["-c:a", "aac", "-shortest"])
+        .arg(path)
+        .status()
+        .expect("could not run ffmpeg");
+    assert!(status.success(), "ffmpeg could not make {}", path.display());
+}
+
+/// Duration of a file's first video stream, seconds.
+pub fn ffprobe_video_duration(path: &Path) -> f64 {
+    let out = Command::new("ffprobe")
+        .args([
+            "-v",
+            "error",
+            "-select_streams",
+            "v:0",
+            "-show_entries",
+            "stream=duration",
+            "-of",
+            "csv=p=0",
+        ])
+        .arg(path)
+        .output()
+        .expect("could not run ffprobe");
+    String::from_utf8_lossy(&out.stdout)
+        .trim()
+        .trim_end_matches(',')
+        .parse()
+        .unwrap_or(f64::NAN)
+}
