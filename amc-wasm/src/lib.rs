@@ -17,7 +17,6 @@
 use amc_core::camera::CameraModel;
 use amc_core::metrics::{FrameMetrics, MetricsAccumulator};
 use amc_core::{FrameRef, PixelFormat, StabilizerParams, Telemetry};
-use std::collections::VecDeque;
 use wasm_bindgen::prelude::*;
 
 /// Largest frame side accepted (the core's limit).
@@ -106,8 +105,8 @@ struct Metrics {
     output: MetricsAccumulator,
     input: MetricsAccumulator,
     full: Vec<u8>,
-    /// Input metrics of frames whose output the lookahead still holds back.
-    pending: VecDeque<FrameMetrics>,
+    /// Telemetry of the latest output (angular speeds for the clip summary).
+    last: Option<Telemetry>,
 }
 
 #[wasm_bindgen]
@@ -169,16 +168,57 @@ impl Stabilizer {
         self.inner.output_size().1
     }
 
-    /// Turns per-frame image metrics (RMS normal flow, RMS change, sharpness of
-    /// the input and the output) on or off; off by default (they cost time).
+    /// Turns per-frame image metrics on (fresh accumulators) or off; off by
+    /// default. Measuring is separate from stabilizing ([`Stabilizer::measure_input`],
+    /// [`Stabilizer::measure_output`]) so callers can time and skip it.
     #[wasm_bindgen(js_name = setMetrics)]
     pub fn set_metrics(&mut self, on: bool) {
         self.metrics = on.then(|| Metrics {
             output: MetricsAccumulator::new(),
             input: MetricsAccumulator::new(),
             full: vec![1; self.width * self.height],
-            pending: VecDeque::new(),
+            last: None,
         });
+    }
+
+    /// Image metrics (`rms_normal_flow`, `rms_change` against the previous
+    /// measured input, `sharpness`) of the frame in [`Stabilizer::input_buffer`].
+    #[wasm_bindgen(js_name = measureInput)]
+    pub fn measure_input(&mut self) -> Result<JsValue, JsError> {
+        let m = self
+            .metrics
+            .as_mut()
+            .ok_or_else(|| JsError::new("metrics are off: call setMetrics(true) first"))?;
+        if self.input.len() != self.width * self.height * 4 {
+            return Err(JsError::new(
+                "no input frame: fill inputBuffer() before measureInput()",
+            ));
+        }
+        let frame =
+            FrameRef::new(self.width, self.height, PixelFormat::Rgba8, &self.input).map_err(err)?;
+        let fm = m.input.push(&frame, &m.full, 1.0, None);
+        to_js(&metrics_json(&fm))
+    }
+
+    /// Image metrics of the latest output frame (black borders excluded),
+    /// against the previous measured output.
+    #[wasm_bindgen(js_name = measureOutput)]
+    pub fn measure_output(&mut self) -> Result<JsValue, JsError> {
+        let m = self
+            .metrics
+            .as_mut()
+            .ok_or_else(|| JsError::new("metrics are off: call setMetrics(true) first"))?;
+        let tel = m
+            .last
+            .take()
+            .ok_or_else(|| JsError::new("no new output frame to measure"))?;
+        let fm = m.output.push(
+            &self.inner.output(),
+            self.inner.output_coverage(),
+            tel.valid_fraction,
+            Some(&tel),
+        );
+        to_js(&metrics_json(&fm))
     }
 
     /// A `width * height * 4` byte view into WASM memory to decode the next
@@ -218,12 +258,7 @@ impl Stabilizer {
         }
         let frame =
             FrameRef::new(self.width, self.height, PixelFormat::Rgba8, rgba).map_err(err)?;
-        let tel = self.inner.push(frame, t).map_err(err)?;
-        if let Some(m) = &mut self.metrics {
-            let fm = m.input.push(&frame, &m.full, 1.0, None);
-            m.pending.push_back(fm);
-        }
-        match tel {
+        match self.inner.push(frame, t).map_err(err)? {
             Some(tel) => self.report(&tel),
             None => Ok(JsValue::UNDEFINED),
         }
@@ -266,23 +301,13 @@ impl Stabilizer {
     }
 
     /// Telemetry object of an output: the core's [`Telemetry`] plus angular
-    /// speeds in deg/s and, when on, image metrics.
+    /// speeds in deg/s.
     fn report(&mut self, tel: &Telemetry) -> Result<JsValue, JsError> {
         let mut v = serde_json::to_value(tel).map_err(err)?;
         v["speed_est_dps"] = norm_dps(tel.rate_est).into();
         v["speed_view_dps"] = norm_dps(tel.rate_view).into();
         if let Some(m) = &mut self.metrics {
-            let out = self.inner.output();
-            let fm = m.output.push(
-                &out,
-                self.inner.output_coverage(),
-                tel.valid_fraction,
-                Some(tel),
-            );
-            v["metrics"] = metrics_json(&fm);
-            if let Some(inp) = m.pending.pop_front() {
-                v["input_metrics"] = metrics_json(&inp);
-            }
+            m.last = Some(tel.clone());
         }
         to_js(&v)
     }

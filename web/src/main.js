@@ -74,12 +74,12 @@ async function start(file) {
     } else if (m.type === 'progress') {
       if (m.total) { $('progress').max = m.total; $('progress').value = m.done; }
       $('status-text').textContent = `Frame ${m.done}${m.total ? ' / ' + m.total : ''} · ${m.fps.toFixed(0)} frames/s ` +
-        `(stabilizer alone ${m.stabFps.toFixed(0)} frames/s)`;
+        `(stabilizer alone ${m.stabFps.toFixed(0)} frames/s; plot metrics ${m.metricsFps.toFixed(0)} frames/s)`;
     } else if (m.type === 'done') {
       const secs = (performance.now() - t0) / 1000;
       $('progress').max = m.frames; $('progress').value = m.frames;
       $('status-text').textContent = `Done: ${m.frames} frames in ${secs.toFixed(1)} s · ${m.fps.toFixed(0)} frames/s end to end ` +
-        `(decode + stabilize + encode); stabilizer alone ${m.stabFps.toFixed(0)} frames/s.`;
+        `(decode + stabilize + measure + encode); stabilizer alone ${m.stabFps.toFixed(0)} frames/s, plot metrics ${m.metricsFps.toFixed(0)} frames/s.`;
       body.dataset.frames = m.frames;
       body.dataset.fps = m.fps.toFixed(1);
       body.dataset.stabFps = m.stabFps.toFixed(1);

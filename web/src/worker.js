@@ -47,8 +47,19 @@ async function processClip({ file, params, lens, format }) {
   }
   const stats = await video.computePacketStats(Infinity).catch(() => null);
   const total = stats ? stats.packetCount : null;
-  const width = video.displayWidth, height = video.displayHeight;
-  const stab = new Stabilizer(width, height, JSON.stringify(params), lens);
+  // Frames are processed as decoded (coded orientation, visible rectangle); a
+  // rotation in the container is carried over to the output's metadata.
+  const samples = new VideoSampleSink(video).samples();
+  const first = await samples.next();
+  if (first.done) throw new Error('the video track has no frames');
+  const width = first.value.visibleRect.width, height = first.value.visibleRect.height;
+  let stab;
+  try {
+    stab = new Stabilizer(width, height, JSON.stringify(params), lens);
+  } catch (e) {
+    first.value.close();
+    throw e;
+  }
   stab.setMetrics(true);
   const ow = stab.outputWidth, oh = stab.outputHeight;
 
@@ -56,7 +67,10 @@ async function processClip({ file, params, lens, format }) {
   const outCodec = await pickVideoCodec(format, ow, oh);
   const output = new Output({ format: container, target: new BufferTarget() });
   const videoSource = new VideoSampleSource({ codec: outCodec, bitrate: 4e6, keyFrameInterval: 2 });
-  output.addVideoTrack(videoSource, { frameRate: stats && stats.averagePacketRate ? stats.averagePacketRate : undefined });
+  output.addVideoTrack(videoSource, {
+    frameRate: stats && stats.averagePacketRate ? stats.averagePacketRate : undefined,
+    rotation: video.rotation || 0,
+  });
 
   // Audio: copied packet by packet when the output container takes its codec.
   let audio = null, audioNote = null;
@@ -75,7 +89,8 @@ async function processClip({ file, params, lens, format }) {
     params: JSON.parse(stab.paramsJson()), audioNote });
 
   const t0 = performance.now();
-  let stabMs = 0, n = 0, out = 0, lastPost = 0, firstT = null, lastT = -Infinity;
+  const inputMetrics = []; // of frames whose output the lookahead still holds back
+  let stabMs = 0, metricsMs = 0, n = 0, out = 0, lastPost = 0, firstT = null, lastT = -Infinity;
   const telemetry = [];
   const emit = async (tel) => {
     telemetry.push(tel);
@@ -90,8 +105,15 @@ async function processClip({ file, params, lens, format }) {
     frame.close();
     out++;
   };
-  const sink = new VideoSampleSink(video);
-  for await (const sample of sink.samples()) {
+  async function* all() {
+    yield first.value;
+    for (;;) {
+      const r = await samples.next();
+      if (r.done) return;
+      yield r.value;
+    }
+  }
+  for await (const sample of all()) {
     if (cancelled) { sample.close(); throw new Error('cancelled'); }
     let t = sample.timestamp;
     if (firstT === null) firstT = t;
@@ -100,15 +122,25 @@ async function processClip({ file, params, lens, format }) {
     const buf = stab.inputBuffer();
     await sample.copyTo(buf, { format: 'RGBA' });
     sample.close();
+    const m0 = performance.now();
+    inputMetrics.push(stab.measureInput());
     const s0 = performance.now();
     const tel = stab.pushInput(t);
     stabMs += performance.now() - s0;
     n++;
-    if (tel) await emit(tel);
+    if (tel) {
+      const m1 = performance.now();
+      tel.metrics = stab.measureOutput();
+      tel.input_metrics = inputMetrics.shift();
+      metricsMs += s0 - m0 + performance.now() - m1;
+      await emit(tel);
+    } else {
+      metricsMs += s0 - m0;
+    }
     const now = performance.now();
     if (now - lastPost > 100) {
       lastPost = now;
-      post('progress', { done: n, total, fps: n / ((now - t0) / 1000), stabFps: n / (stabMs / 1000) });
+      post('progress', { done: n, total, fps: n / ((now - t0) / 1000), stabFps: n / (stabMs / 1000), metricsFps: n / (metricsMs / 1000) });
     }
   }
   for (;;) {
@@ -116,6 +148,8 @@ async function processClip({ file, params, lens, format }) {
     const tel = stab.finish();
     stabMs += performance.now() - s0;
     if (!tel) break;
+    tel.metrics = stab.measureOutput();
+    tel.input_metrics = inputMetrics.shift();
     await emit(tel);
   }
   if (audio) {
@@ -134,6 +168,6 @@ async function processClip({ file, params, lens, format }) {
   stab.free();
   post('done', {
     buffer, mime: format === 'webm' ? 'video/webm' : 'video/mp4', frames: n, outFrames: out,
-    fps: n / elapsed, stabFps: n / (stabMs / 1000), telemetry, summary, outCodec,
+    fps: n / elapsed, stabFps: n / (stabMs / 1000), metricsFps: n / (metricsMs / 1000), telemetry, summary, outCodec,
   }, [buffer]);
 }

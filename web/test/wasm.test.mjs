@@ -24,6 +24,7 @@ function frame(w, h, dx = 0, dy = 0) {
 }
 
 const W = 160, H = 90;
+const throwsMsg = (fn, re) => assert.throws(fn, (e) => e instanceof Error && re.test(e.message), `expected Error matching ${re}`);
 
 test('module is built with the simd128 kernel, bit-exact with the scalar path', () => {
   assert.equal(simdEnabled(), true);
@@ -40,8 +41,14 @@ test('stabilizes a stream: telemetry per frame, RGBA output of the cropped size'
   s.setMetrics(true);
   const tels = [];
   for (let i = 0; i < 12; i++) {
-    const tel = s.push(frame(W, H, (i % 3) - 1, ((i * 7) % 3) - 1), i / 30);
+    const f = frame(W, H, (i % 3) - 1, ((i * 7) % 3) - 1);
+    s.inputBuffer().set(f);
+    const inputMetrics = s.measureInput();
+    const tel = s.push(f, i / 30);
     assert.ok(tel, `telemetry for frame ${i}`);
+    tel.metrics = s.measureOutput();
+    tel.input_metrics = inputMetrics;
+    throwsMsg(() => s.measureOutput(), /no new output frame/);
     tels.push(tel);
     const out = s.output();
     assert.equal(out.length, s.outputWidth * s.outputHeight * 4);
@@ -49,6 +56,7 @@ test('stabilizes a stream: telemetry per frame, RGBA output of the cropped size'
   }
   assert.deepEqual(tels.map((t) => t.frame), [...Array(12).keys()]);
   assert.ok(tels.every((t) => Number.isFinite(t.speed_est_dps) && t.valid_fraction > 0));
+  assert.equal(tels[0].metrics.rms_change, null); // no previous frame
   assert.ok(tels[5].metrics && typeof tels[5].metrics.rms_change === 'number');
   assert.ok(tels[5].input_metrics && typeof tels[5].input_metrics.rms_change === 'number');
   assert.equal(s.finish(), undefined);
@@ -86,8 +94,6 @@ test('same frames through push and pushInput give identical output', () => {
   a.free(); b.free();
 });
 
-const throwsMsg = (fn, re) => assert.throws(fn, (e) => e instanceof Error && re.test(e.message), `expected Error matching ${re}`);
-
 test('bad sizes and parameters are JS Errors naming the value and the allowed range', () => {
   throwsMsg(() => new Stabilizer(0, 90, '{}', 70), /invalid width: 0 \(allowed: an integer 1\.\.=16384/);
   throwsMsg(() => new Stabilizer(160, -3, '{}', 70), /invalid height: -3/);
@@ -107,6 +113,10 @@ test('bad sizes and parameters are JS Errors naming the value and the allowed ra
 
 test('bad frames are JS Errors, and the stabilizer keeps working after them (no trap)', () => {
   const s = new Stabilizer(W, H, '{}', 70);
+  throwsMsg(() => s.measureInput(), /metrics are off/);
+  s.setMetrics(true);
+  throwsMsg(() => s.measureInput(), /no input frame/);
+  throwsMsg(() => s.measureOutput(), /no new output frame/);
   throwsMsg(() => s.push(new Uint8Array(10), 0), /invalid frame buffer length: 10 bytes \(allowed: exactly 57600 = 160x90 RGBA\)/);
   throwsMsg(() => s.push(new Uint8Array(W * H * 3), 0), /43200 bytes/);
   throwsMsg(() => s.push(new Uint8Array(0), 0), /0 bytes/);
