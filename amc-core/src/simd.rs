@@ -257,7 +257,7 @@ pub unsafe fn accumulate_row_simd128(
     let i128 = i32x4_splat(128);
     let byte = i32x4_splat(0xFF);
     let hi_byte = i32x4_splat(0xFF_0000);
-    let pair_mask = i32x4_splat(0x00FF_00FF);
+    let lo_bytes = i16x8_splat(0x00FF);
     let one = i32x4_splat(1);
     let lane = f32x4(0.0, 1.0, 2.0, 3.0);
     let eps = f32x4_splat(1e-6);
@@ -326,13 +326,14 @@ pub unsafe fn accumulate_row_simd128(
                 i32x4_mul(to_int(x0f), chans),
             );
             // Lanes hold 16-bit pairs (left, right) and (bx, ax): the signed
-            // 16-bit dot product gives left*bx + right*ax.
-            let wx = v128_or(bx, i32x4_shl(ax, 16));
+            // 16-bit dot product gives left*bx + right*ax. Invalid lanes get
+            // zero weights, so they come out as (0 + 0 + 128) >> 8 = 0.
+            let wx = v128_and(v128_or(bx, i32x4_shl(ax, 16)), valid);
             let vertical = |top: v128, bot: v128| {
                 let top = i32x4_dot_i16x8(top, wx);
                 let bot = i32x4_dot_i16x8(bot, wx);
                 let v = i32x4_add(i32x4_add(i32x4_mul(top, by), i32x4_mul(bot, ay)), i128);
-                v128_and(u32x4_shr(v, 8), valid)
+                u32x4_shr(v, 8)
             };
             let (r, gg, b);
             if rgba {
@@ -347,36 +348,29 @@ pub unsafe fn accumulate_row_simd128(
                 let top23 = u64x2(load2(i2), load2(i3));
                 let bot01 = u64x2(load2(i0 + s), load2(i1 + s));
                 let bot23 = u64x2(load2(i2 + s), load2(i3 + s));
-                // Channel k of lanes 0..4 as 16-bit (left, right) pairs; the
-                // odd bytes picked are masked off.
-                macro_rules! pairs {
-                    ($lo:expr, $hi:expr, $k:literal) => {
-                        v128_and(
-                            i8x16_shuffle::<
-                                $k,
-                                0,
-                                { $k + 4 },
-                                0,
-                                { $k + 8 },
-                                0,
-                                { $k + 12 },
-                                0,
-                                { $k + 16 },
-                                0,
-                                { $k + 20 },
-                                0,
-                                { $k + 24 },
-                                0,
-                                { $k + 28 },
-                                0,
-                            >($lo, $hi),
-                            pair_mask,
-                        )
-                    };
-                }
-                r = vertical(pairs!(top01, top23, 0), pairs!(bot01, bot23, 0));
-                gg = vertical(pairs!(top01, top23, 1), pairs!(bot01, bot23, 1));
-                b = vertical(pairs!(top01, top23, 2), pairs!(bot01, bot23, 2));
+                // Per 64-bit half (one lane's two pixels), 16-bit words
+                // (r0 g0) (b0 a0) (r1 g1) (b1 a1): masking the low or high
+                // bytes and swapping the middle words gives the 32-bit pairs
+                // (r0, r1) (b0, b1) or (g0, g1) (a0, a1); then lanes are
+                // gathered per channel. Only single-input word shuffles and
+                // `shufps`-like dword shuffles: cheap in wasm engines.
+                let swap = |v: v128| i16x8_shuffle::<0, 2, 1, 3, 4, 6, 5, 7>(v, v);
+                let split = |p01: v128, p23: v128| {
+                    let rb01 = swap(v128_and(p01, lo_bytes));
+                    let rb23 = swap(v128_and(p23, lo_bytes));
+                    let ga01 = swap(u16x8_shr(p01, 8));
+                    let ga23 = swap(u16x8_shr(p23, 8));
+                    (
+                        i32x4_shuffle::<0, 2, 4, 6>(rb01, rb23),
+                        i32x4_shuffle::<0, 2, 4, 6>(ga01, ga23),
+                        i32x4_shuffle::<1, 3, 5, 7>(rb01, rb23),
+                    )
+                };
+                let (tr, tg, tb) = split(top01, top23);
+                let (br, bg, bb) = split(bot01, bot23);
+                r = vertical(tr, br);
+                gg = vertical(tg, bg);
+                b = vertical(tb, bb);
             } else {
                 let load = |i: usize| (base.add(i) as *const u32).read_unaligned();
                 macro_rules! taps {

@@ -316,7 +316,7 @@ impl Stabilizer {
 /// Renders random frames through random rotations with the vectorized kernel
 /// (wasm `simd128` when the module was built with it) and with the scalar
 /// reference, and returns whether the images, coverage and valid share are
-/// identical. `fisheye` exercises the coordinate-table path.
+/// identical, for RGBA and RGB frames. `fisheye` exercises the coordinate-table path.
 #[wasm_bindgen(js_name = simdMatchesScalar)]
 pub fn simd_matches_scalar(
     width: f64,
@@ -342,19 +342,6 @@ pub fn simd_matches_scalar(
         };
     }
     let out = RenderParams::default().output_camera(&cam).map_err(err)?;
-    let mut s = seed as u64 + 1;
-    let frames: Vec<Vec<u8>> = (0..4)
-        .map(|_| {
-            let mut f = vec![0u8; w * h * 4 + amc_core::simd::FRAME_PADDING];
-            for b in f.iter_mut().take(w * h * 4) {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                *b = (s >> 56) as u8;
-            }
-            f
-        })
-        .collect();
     let rots: Vec<_> = (0..4)
         .map(|i| {
             *so3::exp(&Tangent::new(
@@ -365,26 +352,46 @@ pub fn simd_matches_scalar(
             .matrix()
         })
         .collect();
-    let render = |vectorized: bool| {
-        let mut warper = Warper::new(&cam, &out);
-        warper.set_vectorized(vectorized);
-        let mut img = vec![0u8; out.width * out.height * 4];
-        let mut cov = Vec::new();
-        let vf = warper.average_into(
-            |i| FrameRef {
-                width: w,
-                height: h,
-                format: PixelFormat::Rgba8,
-                data: &frames[i],
-            },
-            &rots,
-            &mut img,
-            4,
-            &mut cov,
-        );
-        (img, cov, vf)
-    };
-    Ok(render(false) == render(true))
+    // Both pixel formats (the kernel has an RGBA and an RGB path).
+    for format in [PixelFormat::Rgba8, PixelFormat::Rgb8] {
+        let c = format.channels();
+        let mut s = seed as u64 + 1;
+        let frames: Vec<Vec<u8>> = (0..4)
+            .map(|_| {
+                let mut f = vec![0u8; w * h * c + amc_core::simd::FRAME_PADDING];
+                for b in f.iter_mut().take(w * h * c) {
+                    s = s
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    *b = (s >> 56) as u8;
+                }
+                f
+            })
+            .collect();
+        let render = |vectorized: bool| {
+            let mut warper = Warper::new(&cam, &out);
+            warper.set_vectorized(vectorized);
+            let mut img = vec![0u8; out.width * out.height * c];
+            let mut cov = Vec::new();
+            let vf = warper.average_into(
+                |i| FrameRef {
+                    width: w,
+                    height: h,
+                    format,
+                    data: &frames[i],
+                },
+                &rots,
+                &mut img,
+                c,
+                &mut cov,
+            );
+            (img, cov, vf)
+        };
+        if render(false) != render(true) {
+            return Ok(false);
+        }
+    }
+    Ok(true)
 }
 
 /// Whether this module was built with the WebAssembly `simd128` kernel.
