@@ -217,7 +217,7 @@ pub unsafe fn accumulate_row_avx2(
 }
 
 /// The WebAssembly `simd128` twin of [`accumulate_row_avx2`]: four output
-/// pixels at a time. WebAssembly has no gathers, so each lane's taps are read
+/// pixels at a time, one frame after the other. WebAssembly has no gathers, so each lane's taps are read
 /// with scalar loads (an RGBA pixel and its right neighbour in one 8-byte load;
 /// lanes outside the frame read offset 0 and are masked off). Float-to-int
 /// conversions of the (non-negative, integral) coordinates use the `2^23`
@@ -269,17 +269,18 @@ pub unsafe fn accumulate_row_simd128(
     let to_int = |t: v128| i32x4_sub(f32x4_add(t, magic), magic_bits);
     let (s, c) = (g.stride as usize, g.channels as usize);
     let rgba = c == 4;
-    let mut u = 0;
-    while u < n8 {
-        let (mut sum_r, mut sum_g, mut sum_b, mut sum_n) = (
-            i32x4_splat(0),
-            i32x4_splat(0),
-            i32x4_splat(0),
-            i32x4_splat(0),
-        );
-        for f in 0..datas.len() {
-            let base = datas[f].as_ptr();
-            let (sx, sy) = match coords[f] {
+    // Frame-outer (unlike the AVX2 kernel): each frame's row is read as one
+    // stream and the row sums (a few KiB) stay in L1; at 720p this is ~30%
+    // faster in V8 than keeping sums in registers across frames.
+    for acc in [&mut *acc_r, &mut *acc_g, &mut *acc_b, &mut *count] {
+        acc[..n8].fill(0);
+    }
+    for f in 0..datas.len() {
+        let base = datas[f].as_ptr();
+        let coord = coords[f];
+        let mut u = 0;
+        while u < n8 {
+            let (sx, sy) = match coord {
                 RowCoords::Table(xs, ys) => (
                     v128_load(xs.as_ptr().add(u) as *const v128),
                     v128_load(ys.as_ptr().add(u) as *const v128),
@@ -307,6 +308,7 @@ pub unsafe fn accumulate_row_simd128(
                 v128_and(f32x4_le(sx, max_x), f32x4_le(sy, max_y)),
             );
             if !v128_any_true(valid) {
+                u += 4;
                 continue;
             }
             // Invalid lanes get coordinate 0 (offset 0 below, always readable).
@@ -404,16 +406,17 @@ pub unsafe fn accumulate_row_simd128(
                 gg = channel!(8, 8);
                 b = channel!(16, 0);
             }
-            sum_r = i32x4_add(sum_r, r);
-            sum_g = i32x4_add(sum_g, gg);
-            sum_b = i32x4_add(sum_b, b);
-            sum_n = i32x4_add(sum_n, v128_and(valid, one));
+            for (acc, v) in [
+                (acc_r.as_mut_ptr(), r),
+                (acc_g.as_mut_ptr(), gg),
+                (acc_b.as_mut_ptr(), b),
+                (count.as_mut_ptr(), v128_and(valid, one)),
+            ] {
+                let p = acc.add(u) as *mut v128;
+                v128_store(p, i32x4_add(v128_load(p), v));
+            }
+            u += 4;
         }
-        v128_store(acc_r.as_mut_ptr().add(u) as *mut v128, sum_r);
-        v128_store(acc_g.as_mut_ptr().add(u) as *mut v128, sum_g);
-        v128_store(acc_b.as_mut_ptr().add(u) as *mut v128, sum_b);
-        v128_store(count.as_mut_ptr().add(u) as *mut v128, sum_n);
-        u += 4;
     }
 }
 
