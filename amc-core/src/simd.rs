@@ -269,6 +269,11 @@ pub unsafe fn accumulate_row_simd128(
     let to_int = |t: v128| i32x4_sub(f32x4_add(t, magic), magic_bits);
     let (s, c) = (g.stride as usize, g.channels as usize);
     let rgba = c == 4;
+    let stride_f = f32x4_splat(g.stride as f32);
+    let chans_f = f32x4_splat(g.channels as f32);
+    // Largest offset computed: (max_y0 * stride + max_x0 * channels).
+    let small_frame =
+        (g.max_y0 as i64 * g.stride as i64 + g.max_x0 as i64 * g.channels as i64) < (1 << 23);
     // Frame-outer (unlike the AVX2 kernel): each frame's row is read as one
     // stream and the row sums (a few KiB) stay in L1; at 720p this is ~30%
     // faster in V8 than keeping sums in registers across frames.
@@ -323,10 +328,16 @@ pub unsafe fn accumulate_row_simd128(
             let ay = to_int(f32x4_trunc(f32x4_add(f32x4_mul(fy, c256), half)));
             let bx = i32x4_sub(i256, ax);
             let by = i32x4_sub(i256, ay);
-            let i00 = i32x4_add(
-                i32x4_mul(to_int(y0f), stride),
-                i32x4_mul(to_int(x0f), chans),
-            );
+            // Byte offsets: in f32 when every offset is below 2^23 (exact,
+            // and no 32-bit multiplies), else in integers.
+            let i00 = if small_frame {
+                to_int(f32x4_add(f32x4_mul(y0f, stride_f), f32x4_mul(x0f, chans_f)))
+            } else {
+                i32x4_add(
+                    i32x4_mul(to_int(y0f), stride),
+                    i32x4_mul(to_int(x0f), chans),
+                )
+            };
             // Lanes hold 16-bit pairs (left, right) and (bx, ax): the signed
             // 16-bit dot product gives left*bx + right*ax. Invalid lanes get
             // zero weights, so they come out as (0 + 0 + 128) >> 8 = 0.
