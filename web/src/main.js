@@ -4,9 +4,13 @@
 // decode; and shows the server's live feed.
 const $ = (id) => document.getElementById(id);
 const body = document.body;
-const setState = (s) => { body.dataset.state = s; };
+const setState = (s) => {
+  body.dataset.state = s;
+  $('cancel').hidden = s !== 'processing';
+};
 
 let worker = null;
+let cancelJob = null; // cancels the running work (worker or server job)
 let currentFile = null;
 let lastTelemetry = null;
 let urls = [];
@@ -95,6 +99,8 @@ async function start(file) {
       showError(m.message);
     }
   };
+  const w = worker;
+  cancelJob = () => { w.terminate(); if (worker === w) worker = null; showError('Cancelled.'); };
   worker.postMessage({ type: 'process', file, params: s.params, lens, format: s.format });
 }
 
@@ -194,6 +200,8 @@ drop.addEventListener('drop', (e) => { e.preventDefault(); start(e.dataTransfer.
 document.addEventListener('dragover', (e) => e.preventDefault());
 document.addEventListener('drop', (e) => { e.preventDefault(); if (e.target !== drop) start(e.dataTransfer.files[0]); });
 
+$('cancel').onclick = () => { if (cancelJob) cancelJob(); cancelJob = null; };
+
 // --- Server fallback (job API) ---------------------------------------------
 $('server-btn').onclick = () => serverJob(currentFile);
 async function problem(res) {
@@ -224,11 +232,15 @@ async function serverJob(file) {
   if (res.status !== 202 && !res.ok) return showError(`server refused the job: ${await problem(res)}`);
   const job = await res.json();
   const loc = res.headers.get('Location') || `/jobs/${job.id}`;
+  let cancelled = false;
+  cancelJob = () => { cancelled = true; fetch(loc, { method: 'DELETE' }).catch(() => {}); showError('Cancelled.'); };
   for (;;) {
+    if (cancelled) return;
     await new Promise((r) => setTimeout(r, 300));
     const r = await fetch(loc);
     if (!r.ok) return showError(`job status: ${await problem(r)}`);
     const st = await r.json();
+    if (cancelled) return;
     if (st.frames_total) { $('progress').max = st.frames_total; $('progress').value = st.frames_done; }
     $('status-text').textContent = `Server: ${st.state}, frame ${st.frames_done}${st.frames_total ? ' / ' + st.frames_total : ''}`;
     if (st.state === 'done') {

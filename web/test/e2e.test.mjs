@@ -111,6 +111,14 @@ test('bad settings and a file that is not a video end in the error state with a 
   assert.equal(await state(page), 'error');
   assert.ok((await page.textContent('#error')).length > 5);
   await shot(page, 'error-state');
+  // Cancel while processing.
+  await page.setInputFiles('[data-testid=file-input]', cup);
+  await page.waitForFunction(() => document.body.dataset.state === 'processing' && document.getElementById('progress').value > 5, null, { timeout: 60000 });
+  await page.click('#cancel');
+  assert.equal(await state(page), 'error');
+  assert.match(await page.textContent('#error'), /Cancelled/);
+  await page.waitForTimeout(500);
+  assert.equal(await state(page), 'error', 'a cancelled run stays cancelled');
   await page.close();
 });
 
