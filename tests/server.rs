@@ -540,6 +540,7 @@ fn bad_inputs_get_clear_statuses_and_leave_the_server_healthy() {
         ),
     ];
     for (what, path, ctype, body, want) in cases {
+        eprintln!("bad input: {what}");
         let r = post(&server.url(path), ctype, &body);
         assert_eq!(r.status, want, "{what}: {}", r.text());
         assert_eq!(
@@ -609,6 +610,36 @@ fn bad_inputs_get_clear_statuses_and_leave_the_server_healthy() {
             "POST {path} HTTP/1.1\r\nHost: x\r\nContent-Type: video/mp4\r\nContent-Length: 2000000"
         );
         raw_request(&server.addr, &head, &cup[..300_000], true);
+    }
+    // A client that disconnects while its clip is being processed: the work
+    // is cancelled, its ffmpeg children killed, its files removed.
+    {
+        use std::io::Write;
+        let mut c = std::net::TcpStream::connect(&server.addr).unwrap();
+        write!(
+            c,
+            "POST /stabilize?fov=70 HTTP/1.1\r\nHost: x\r\nContent-Type: video/mp4\r\nContent-Length: {}\r\n\r\n",
+            cup.len()
+        )
+        .unwrap();
+        c.write_all(&cup).unwrap();
+        let start = Instant::now();
+        while server.ffmpeg_children().is_empty() {
+            assert!(
+                start.elapsed() < Duration::from_secs(20),
+                "processing never started"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        drop(c);
+        let start = Instant::now();
+        while !server.ffmpeg_children().is_empty() {
+            assert!(
+                start.elapsed() < Duration::from_secs(5),
+                "ffmpeg still running after the client left"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
     }
     // A declared length over the limit is refused before the upload.
     let head = "POST /stabilize HTTP/1.1\r\nHost: x\r\nContent-Type: video/mp4\r\nContent-Length: 50000000\r\nConnection: close";

@@ -5,6 +5,7 @@ mod demo;
 mod error;
 mod eval;
 mod gt;
+mod measure;
 mod pipeline;
 mod plot;
 mod serve;

@@ -3,8 +3,9 @@
 
 use crate::cli::LensChoice;
 use crate::error::CliError;
+use crate::measure::MetricsWorker;
 use crate::video::{self, FrameSource, InputOptions, OutputSpec};
-use amc_core::metrics::{ClipMetrics, FrameMetrics, MetricsAccumulator};
+use amc_core::metrics::{ClipMetrics, FrameMetrics};
 use amc_core::selfcal;
 use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams, Telemetry};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -319,7 +320,9 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
         None => None,
     };
     let pb = progress_bar(info.frame_count, cfg.progress, cfg.label);
-    let mut metrics = MetricsAccumulator::new();
+    let mut measure = cfg
+        .measure
+        .then(|| MetricsWorker::start(cfg.keep_per_frame));
     let mut per_frame = Vec::new();
     let mut frame = Frame::new(info.width, info.height, PixelFormat::Rgb8);
     let start = Instant::now();
@@ -328,16 +331,9 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
         if let Some(s) = sink.as_mut() {
             s.write_frame(&stab.output())?;
         }
-        let m = if cfg.measure {
-            metrics.push(
-                &stab.output(),
-                stab.output_coverage(),
-                tel.valid_fraction,
-                Some(&tel),
-            )
-        } else {
-            Default::default()
-        };
+        if let Some(m) = measure.as_mut() {
+            m.push(&stab.output(), stab.output_coverage(), &tel);
+        }
         if let Some((w, path)) = telemetry.as_mut() {
             w.write_all(telemetry_row(&tel).as_bytes())
                 .map_err(|e| CliError::io(&*path, e))?;
@@ -345,7 +341,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
         if cfg.keep_per_frame {
             per_frame.push(FrameRecord {
                 telemetry: tel,
-                metrics: m,
+                metrics: FrameMetrics::default(),
             });
         }
         frames += 1;
@@ -369,6 +365,18 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
         check()?;
         emit(&stab, tel)?;
     }
+    let metrics = match measure {
+        Some(worker) => {
+            let (clip, frame_metrics) = worker.finish().ok_or_else(|| {
+                CliError::Usage("internal error: the metrics worker failed".into())
+            })?;
+            for (record, m) in per_frame.iter_mut().zip(frame_metrics) {
+                record.metrics = m;
+            }
+            Some(clip)
+        }
+        None => None,
+    };
     pb.finish_and_clear();
     if frames == 0 {
         return Err(CliError::Usage(format!(
@@ -393,7 +401,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
         output_size: (ow, oh),
         seconds,
         frames_per_second: frames as f64 / seconds.max(1e-9),
-        metrics: cfg.measure.then(|| metrics.summary()),
+        metrics,
         per_frame,
     })
 }

@@ -312,19 +312,7 @@ impl LiveHub {
             };
             let out = s.output();
             jpeg.clear();
-            let encoded = image::codecs::jpeg::JpegEncoder::new_with_quality(
-                &mut jpeg,
-                self.config.jpeg_quality,
-            )
-            .encode(
-                out.data,
-                out.width as u32,
-                out.height as u32,
-                match out.format {
-                    PixelFormat::Rgb8 => image::ExtendedColorType::Rgb8,
-                    PixelFormat::Rgba8 => image::ExtendedColorType::Rgba8,
-                },
-            );
+            let encoded = encode_jpeg(&out, self.config.jpeg_quality, &mut jpeg);
             if let Err(e) = encoded {
                 tracing::warn!(error = %e, "cannot encode a live frame");
                 continue;
@@ -379,6 +367,28 @@ impl LiveHub {
         };
         Stabilizer::new(&lens, width, height, self.config.params.clone())
     }
+}
+
+/// Encodes a stabilized frame for viewers (jpeg-encoder's SIMD path: a
+/// few milliseconds at 960x540, several times faster than `image`'s encoder).
+fn encode_jpeg(
+    frame: &amc_core::FrameRef<'_>,
+    quality: u8,
+    out: &mut Vec<u8>,
+) -> Result<(), String> {
+    let (Ok(w), Ok(h)) = (u16::try_from(frame.width), u16::try_from(frame.height)) else {
+        return Err(format!(
+            "{}x{} is too large for JPEG",
+            frame.width, frame.height
+        ));
+    };
+    let color = match frame.format {
+        PixelFormat::Rgb8 => jpeg_encoder::ColorType::Rgb,
+        PixelFormat::Rgba8 => jpeg_encoder::ColorType::Rgba,
+    };
+    jpeg_encoder::Encoder::new(out, quality)
+        .encode(frame.data, w, h, color)
+        .map_err(|e| e.to_string())
 }
 
 fn decode_jpeg(bytes: &[u8], into: &mut Frame) -> Result<(), image::ImageError> {

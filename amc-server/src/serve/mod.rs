@@ -24,6 +24,8 @@ mod options;
 mod problem;
 mod stabilize;
 mod storage;
+#[cfg(test)]
+mod tests;
 mod upload;
 mod work;
 
@@ -124,6 +126,10 @@ pub struct ServeArgs {
     /// JPEG quality of live frames (1..=100).
     #[arg(long, default_value_t = 80)]
     pub live_jpeg_quality: u8,
+    /// Log one JSON object per line (for log collectors) instead of text.
+    /// The level is set with RUST_LOG (default: info).
+    #[arg(long)]
+    pub log_json: bool,
 }
 
 /// The service's limits, from the flags.
@@ -441,13 +447,16 @@ pub fn run(args: &ServeArgs) -> Result<(), CliError> {
             (dir.path().to_path_buf(), dir)
         }
     };
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .with_writer(std::io::stderr)
-        .try_init();
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    let logs = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr);
+    let _ = if args.log_json {
+        logs.json().try_init()
+    } else {
+        logs.try_init()
+    };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()

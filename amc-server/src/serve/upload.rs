@@ -10,6 +10,7 @@ use axum::extract::{FromRequest, Multipart, Request};
 use axum::http::{header, HeaderMap};
 use futures_util::StreamExt;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 use tokio::io::AsyncWriteExt;
 
 /// Longest lens file accepted (a calibration is a few kilobytes).
@@ -134,7 +135,15 @@ pub async fn receive(
         let Some(stream) = body.take() else {
             return Err(ApiError::BadRequest("the request has no body".into()));
         };
-        receive_multipart(&content_type, stream, scratch, &video, max_bytes).await?
+        // The form parser owns the stream while it works; on an error the
+        // unread rest comes back through `shared` to be lingered on.
+        let shared = SharedStream(Arc::new(Mutex::new(Some(stream))));
+        let result =
+            receive_multipart(&content_type, shared.clone(), scratch, &video, max_bytes).await;
+        if result.is_err() {
+            *body = shared.0.lock().unwrap_or_else(|e| e.into_inner()).take();
+        }
+        result?
     } else if essence.is_empty()
         || essence.starts_with("video/")
         || RAW_TYPES.contains(&essence.as_str())
@@ -168,9 +177,28 @@ pub async fn receive(
     Ok(upload)
 }
 
+/// A body stream that can be taken back after the form parser is done with it.
+#[derive(Clone)]
+struct SharedStream(Arc<Mutex<Option<BodyDataStream>>>);
+
+impl futures_util::Stream for SharedStream {
+    type Item = Result<bytes::Bytes, axum::Error>;
+
+    fn poll_next(
+        self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<Option<Self::Item>> {
+        let mut inner = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        match inner.as_mut() {
+            Some(s) => s.poll_next_unpin(cx),
+            None => std::task::Poll::Ready(None),
+        }
+    }
+}
+
 async fn receive_multipart(
     content_type: &str,
-    stream: BodyDataStream,
+    stream: SharedStream,
     scratch: &Scratch,
     video: &Path,
     max_bytes: u64,

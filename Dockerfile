@@ -1,0 +1,38 @@
+# syntax=docker/dockerfile:1
+# amc serve in a container: a build stage compiles the `amc` binary and the
+# web page (amc-wasm + web/), a slim runtime stage carries them with ffmpeg.
+#
+#   docker build -t amc .
+#   docker run --rm -p 8080:8080 amc
+#   docker run --rm -p 8080:8080 -v "$PWD/clips:/clips:ro" amc serve --addr 0.0.0.0:8080 \
+#       --web-dir /srv/amc/web --live-source /clips/flight.mp4 --live-loop
+
+FROM rust:1-bookworm AS build
+WORKDIR /src
+RUN apt-get update \
+ && apt-get install -y --no-install-recommends nodejs npm \
+ && rm -rf /var/lib/apt/lists/*
+COPY . .
+# BuildKit cache mounts keep the crate registry and target/ between builds,
+# so an edit rebuilds only what changed. The binary and the page are copied
+# out of the cached target/ within the same step.
+RUN --mount=type=cache,target=/usr/local/cargo/registry \
+    --mount=type=cache,target=/src/target \
+    cargo build --release -p amc-server --bin amc \
+ && cp target/release/amc /usr/local/bin/amc \
+ && if [ -f web/build.sh ]; then bash web/build.sh; else mkdir -p web/dist; fi
+
+FROM debian:bookworm-slim AS runtime
+RUN apt-get update \
+ && apt-get install -y --no-install-recommends ffmpeg ca-certificates tini \
+ && rm -rf /var/lib/apt/lists/* \
+ && useradd --system --create-home --home-dir /srv/amc amc
+COPY --from=build /usr/local/bin/amc /usr/local/bin/amc
+COPY --from=build /src/web/dist /srv/amc/web
+USER amc
+WORKDIR /srv/amc
+EXPOSE 8080
+# tini forwards SIGTERM so `docker stop` shuts the service down gracefully
+# (running jobs cancelled, ffmpeg children killed, scratch files removed).
+ENTRYPOINT ["/usr/bin/tini", "--", "amc"]
+CMD ["serve", "--addr", "0.0.0.0:8080", "--web-dir", "/srv/amc/web"]

@@ -1,0 +1,125 @@
+//! `cargo bench -p amc-e2e --bench serve`: the service's speed on this machine.
+//!
+//! 1. A 1280x720, 30 fps, 20 s H.264 clip with audio (karma.mp4 looped and
+//!    scaled) goes through `POST /stabilize` (decode, stabilize, encode,
+//!    metrics) on a real server on loopback: wall time vs the clip's 20 s.
+//! 2. The same clip as a looped `--live-source`: the per-frame latency the
+//!    live feed adds (frame decoded -> stabilized JPEG ready), as reported in
+//!    each frame's telemetry, over 300 frames.
+
+use amc_e2e::data;
+use amc_e2e::server::{post, websocket, Server};
+use std::process::Command;
+use std::time::{Duration, Instant};
+use tungstenite::Message;
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    let i = ((sorted.len() - 1) as f64 * p).round() as usize;
+    sorted[i]
+}
+
+fn main() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let clip = dir.path().join("karma-720p30-20s.mp4");
+    let status = Command::new("ffmpeg")
+        .args(["-v", "error", "-y", "-stream_loop", "1", "-i"])
+        .arg(data("karma/karma.mp4"))
+        .args([
+            "-t",
+            "20",
+            "-map",
+            "0:v:0",
+            "-map",
+            "0:a:0",
+            "-vf",
+            "scale=1280:720,fps=30",
+            "-c:v",
+            "libx264",
+            "-preset",
+            "veryfast",
+            "-crf",
+            "20",
+            "-c:a",
+            "aac",
+        ])
+        .arg(&clip)
+        .status()
+        .expect("ffmpeg");
+    assert!(status.success(), "could not make the 720p clip");
+    let bytes = std::fs::read(&clip).expect("clip");
+    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
+    println!(
+        "machine: {cores} cores; clip: 1280x720, 30 fps, 20 s, {:.1} MB",
+        bytes.len() as f64 / 1e6
+    );
+
+    let server = Server::start(&[]);
+    println!("\n| POST /stabilize (720p30, 20 s) | wall time | frames/s | x real time |");
+    println!("|---|---|---|---|");
+    for (label, query) in [
+        ("defaults (metrics on)", "fov=70"),
+        ("metrics=false", "fov=70&metrics=false"),
+    ] {
+        let start = Instant::now();
+        let r = post(
+            &server.url(&format!("/stabilize?{query}")),
+            "video/mp4",
+            &bytes,
+        );
+        let secs = start.elapsed().as_secs_f64();
+        assert_eq!(r.status, 200, "{}", r.text());
+        let frames: f64 = r
+            .header("x-amc-frames")
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(0.0);
+        println!(
+            "| {label} | {secs:.1} s | {:.1} | {:.2}x |",
+            frames / secs,
+            20.0 / secs
+        );
+    }
+    drop(server);
+
+    let server = Server::start(&[
+        "--live-source",
+        clip.to_str().unwrap(),
+        "--live-loop",
+        "--live-fov",
+        "70",
+    ]);
+    let mut ws = websocket(&server.addr, "/live", Duration::from_secs(20)).expect("viewer");
+    let mut latencies = Vec::new();
+    let start = Instant::now();
+    let mut skipped = 0u64;
+    let mut last: Option<u64> = None;
+    while latencies.len() < 330 {
+        match ws.read() {
+            Ok(Message::Text(t)) => {
+                let v: serde_json::Value = serde_json::from_str(&t).expect("json");
+                let f = v["frame"].as_u64().unwrap_or(0);
+                if let Some(l) = last {
+                    skipped += f.saturating_sub(l + 1);
+                }
+                last = Some(f);
+                latencies.push(v["latency_ms"].as_f64().unwrap_or(f64::NAN));
+            }
+            Ok(_) => {}
+            Err(e) => panic!("viewer: {e}"),
+        }
+    }
+    let secs = start.elapsed().as_secs_f64();
+    // The first frames include the stabilizer's warm-up.
+    let mut lat: Vec<f64> = latencies[30..].to_vec();
+    lat.sort_by(|a, b| a.total_cmp(b));
+    println!(
+        "\n| live feed, 720p30 source | median | p95 | max | frames/s to a viewer | skipped |"
+    );
+    println!("|---|---|---|---|---|---|");
+    println!(
+        "| latency added per frame (decoded -> JPEG ready) | {:.1} ms | {:.1} ms | {:.1} ms | {:.1} | {skipped} |",
+        percentile(&lat, 0.5),
+        percentile(&lat, 0.95),
+        lat[lat.len() - 1],
+        latencies.len() as f64 / secs
+    );
+}
