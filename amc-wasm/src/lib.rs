@@ -73,6 +73,38 @@ fn parse_camera(lens: &JsValue, width: usize, height: usize) -> Result<CameraMod
     }
 }
 
+/// WebAssembly (wasm32) memory a stabilizer may use; beyond it allocations
+/// would fail inside the module (a trap), so such sizes are refused up front.
+const MEMORY_BUDGET: usize = 2 << 30;
+
+/// Rough upper bound of the stabilizer's memory: the frame ring (`n_avg +
+/// lookahead` RGBA frames), the input buffer, the saccade slots (7 bytes per
+/// output pixel per frame) and working images; refuses what cannot fit.
+fn check_memory(width: usize, height: usize, p: &StabilizerParams) -> Result<(), JsError> {
+    let frame = width * height * 4;
+    let frames = p.render.n_avg + p.view.lookahead + 4;
+    let slots = if p.view.mode == amc_core::Mode::Saccade {
+        p.render.n_avg * width * height * 7
+    } else {
+        0
+    };
+    let need = frame
+        .saturating_mul(frames)
+        .saturating_add(slots)
+        .saturating_add(width * height * 8);
+    if need > MEMORY_BUDGET {
+        return Err(JsError::new(&format!(
+            "invalid size: {width}x{height} with n_avg {} and lookahead {} needs about {} MiB \
+             (allowed: at most {} MiB of WebAssembly memory; use a smaller frame, n_avg or lookahead)",
+            p.render.n_avg,
+            p.view.lookahead,
+            need >> 20,
+            MEMORY_BUDGET >> 20
+        )));
+    }
+    Ok(())
+}
+
 fn to_js(v: &serde_json::Value) -> Result<JsValue, JsError> {
     js_sys::JSON::parse(&v.to_string()).map_err(|_| JsError::new("internal: telemetry is not JSON"))
 }
@@ -125,6 +157,7 @@ impl Stabilizer {
         let width = dimension("width", width)?;
         let height = dimension("height", height)?;
         let params = parse_params(params_json)?;
+        check_memory(width, height, &params)?;
         let cam = parse_camera(&lens, width, height)?;
         let inner = amc_core::Stabilizer::new(&cam, width, height, params).map_err(err)?;
         Ok(Stabilizer {

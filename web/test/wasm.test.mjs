@@ -101,6 +101,9 @@ test('bad sizes and parameters are JS Errors naming the value and the allowed ra
   throwsMsg(() => new Stabilizer(160.5, 90, '{}', 70), /invalid width: 160\.5/);
   throwsMsg(() => new Stabilizer(NaN, 90, '{}', 70), /invalid width: NaN/);
   throwsMsg(() => new Stabilizer(1e6, 90, '{}', 70), /invalid width: 1000000/);
+  // In range for the core, but more memory than a wasm32 module can have: an Error, not a trap.
+  throwsMsg(() => new Stabilizer(16384, 16384, '{}', 70), /16384x16384 with n_avg 6 and lookahead 0 needs about \d+ MiB \(allowed: at most 2048 MiB/);
+  throwsMsg(() => new Stabilizer(3840, 2160, '{"view":{"lookahead":600}}', 70), /needs about/);
   throwsMsg(() => new Stabilizer(W, H, '{"render":{"n_avg":0}}', 70), /invalid n_avg: 0 \(allowed: 1\.\.=64/);
   throwsMsg(() => new Stabilizer(W, H, '{"render":{"margin":0.6}}', 70), /invalid margin: 0\.6 \(allowed: 0\.\.=0\.45/);
   throwsMsg(() => new Stabilizer(W, H, '{"bogus":1}', 70), /unknown field `bogus`/);
