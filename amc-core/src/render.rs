@@ -128,7 +128,7 @@ pub struct Warper {
     grid_w: usize,
     grid_h: usize,
     maps: Vec<RowMap>,
-    /// Whether the AVX2 kernel is usable on this CPU.
+    /// Whether a vectorized kernel (AVX2 on this CPU, or wasm `simd128`) is usable.
     avx2: bool,
     /// Per-row accumulators of the vectorized path.
     acc_r: Vec<u32>,
@@ -216,7 +216,7 @@ impl Warper {
             grid_w,
             grid_h,
             maps: Vec::new(),
-            avx2: crate::simd::avx2_available(),
+            avx2: crate::simd::vector_kernel_available(),
             acc_r: Vec::new(),
             acc_g: Vec::new(),
             acc_b: Vec::new(),
@@ -228,7 +228,7 @@ impl Warper {
 
     /// Disables the vectorized path (for testing the scalar one against it).
     pub fn set_vectorized(&mut self, on: bool) {
-        self.avx2 = on && crate::simd::avx2_available();
+        self.avx2 = on && crate::simd::vector_kernel_available();
     }
 
     /// Prepares `map` for rotation `m` (output ray -> source ray).
@@ -283,7 +283,10 @@ impl Warper {
         geom: &Geometry,
         n8: usize,
     ) {
-        #[cfg(target_arch = "x86_64")]
+        #[cfg(any(
+            target_arch = "x86_64",
+            all(target_arch = "wasm32", target_feature = "simd128")
+        ))]
         {
             let kg = crate::simd::KernelGeometry {
                 channels: geom.channels as i32,
@@ -314,8 +317,24 @@ impl Warper {
             }
             // SAFETY: `self.avx2` is only true when the CPU has AVX2; the caller
             // checked every frame's padding; all row buffers hold `ow >= n8` values.
+            #[cfg(target_arch = "x86_64")]
             unsafe {
                 crate::simd::accumulate_row_avx2(
+                    &datas[..n],
+                    kg,
+                    &coords[..n],
+                    n8,
+                    &mut self.acc_r,
+                    &mut self.acc_g,
+                    &mut self.acc_b,
+                    &mut self.acc_n,
+                );
+            }
+            // SAFETY: as above (frames are non-empty: the caller checked the
+            // padding, so each holds at least `FRAME_PADDING` bytes).
+            #[cfg(target_arch = "wasm32")]
+            unsafe {
+                crate::simd::accumulate_row_simd128(
                     &datas[..n],
                     kg,
                     &coords[..n],
@@ -419,11 +438,29 @@ impl Warper {
             }
             let out_row = &mut out[v * ow * channels..(v + 1) * ow * channels];
             let cov_row = &mut coverage[v * ow..(v + 1) * ow];
+            // wasm simd128: RGBA rows are finished in one vectorized pass.
+            #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+            let finished = channels == 4 && n8 > 0 && {
+                // SAFETY: the row sums hold `ow >= n8` values, `out_row` `4 ow` bytes.
+                unsafe {
+                    crate::simd::finish_row_rgba_simd128(
+                        &self.acc_r,
+                        &self.acc_g,
+                        &self.acc_b,
+                        &self.acc_n,
+                        out_row,
+                        n8,
+                    )
+                };
+                true
+            };
+            #[cfg(not(all(target_arch = "wasm32", target_feature = "simd128")))]
+            let finished = false;
             // Averages in vectorizable passes (SoA), then interleave.
             let (r8, rest) = self.out8.split_at_mut(ow);
             let (g8, rest) = rest.split_at_mut(ow);
             let (b8, _) = rest.split_at_mut(ow);
-            for u in 0..n8 {
+            for u in 0..if finished { 0 } else { n8 } {
                 // 1 / (256 n); n = 0 gives inf and 0 * inf = NaN, which `as u8` maps to 0.
                 let k = 1.0 / (256.0 * self.acc_n[u] as f32);
                 r8[u] = (self.acc_r[u] as f32 * k + 0.5) as u8;
@@ -435,7 +472,8 @@ impl Warper {
                 cov_row[u] = n;
                 complete += (n == full) as usize;
             }
-            if channels == 3 {
+            if finished {
+            } else if channels == 3 {
                 for (u, px) in out_row[..3 * n8].chunks_exact_mut(3).enumerate() {
                     px[0] = r8[u];
                     px[1] = g8[u];

@@ -1,4 +1,5 @@
-//! Vectorized bilinear sampling (x86-64 AVX2), used when the CPU has it.
+//! Vectorized bilinear sampling: x86-64 AVX2 (used when the CPU has it) and
+//! WebAssembly `simd128` (used when the module is built with `+simd128`).
 //!
 //! Eight output pixels at a time: coordinates, weights and byte offsets are
 //! computed in 32-bit lanes, the four bilinear taps are fetched with masked
@@ -24,6 +25,12 @@ pub fn avx2_available() -> bool {
     {
         false
     }
+}
+
+/// Whether a vectorized kernel can run here: AVX2 on this x86-64 CPU, or a
+/// wasm32 build with the `simd128` target feature.
+pub fn vector_kernel_available() -> bool {
+    avx2_available() || cfg!(all(target_arch = "wasm32", target_feature = "simd128"))
 }
 
 /// Where a frame's source coordinates along the row come from.
@@ -206,5 +213,270 @@ pub unsafe fn accumulate_row_avx2(
         _mm256_storeu_si256(acc_b.as_mut_ptr().add(u) as *mut __m256i, sum_b);
         _mm256_storeu_si256(count.as_mut_ptr().add(u) as *mut __m256i, sum_n);
         u += 8;
+    }
+}
+
+/// The WebAssembly `simd128` twin of [`accumulate_row_avx2`]: four output
+/// pixels at a time, one frame after the other. WebAssembly has no gathers, so each lane's taps are read
+/// with scalar loads (an RGBA pixel and its right neighbour in one 8-byte load;
+/// lanes outside the frame read offset 0 and are masked off). Float-to-int
+/// conversions of the (non-negative, integral) coordinates use the `2^23`
+/// trick instead of the slow saturating conversion; the interpolation is the
+/// same 8.8 fixed-point integer arithmetic (`i32x4.dot_i16x8_s` plays
+/// `vpmaddwd`), bit-exact with the scalar path in `render.rs`.
+///
+/// # Safety
+/// Every `datas[f]` must be non-empty and hold the whole frame plus
+/// [`FRAME_PADDING`] bytes; coordinate tables and the outputs must have at
+/// least `n8` elements (`n8` a multiple of 4).
+#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+#[allow(clippy::too_many_arguments)]
+pub unsafe fn accumulate_row_simd128(
+    datas: &[&[u8]],
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    n8: usize,
+    acc_r: &mut [u32],
+    acc_g: &mut [u32],
+    acc_b: &mut [u32],
+    count: &mut [u32],
+) {
+    use core::arch::wasm32::*;
+    debug_assert!(n8 % 4 == 0 && datas.len() == coords.len());
+    debug_assert!(acc_r.len() >= n8 && acc_g.len() >= n8 && acc_b.len() >= n8 && count.len() >= n8);
+    let zero_ps = f32x4_splat(0.0);
+    let max_x = f32x4_splat(g.max_x);
+    let max_y = f32x4_splat(g.max_y);
+    let max_x0 = f32x4_splat(g.max_x0 as f32);
+    let max_y0 = f32x4_splat(g.max_y0 as f32);
+    let stride = i32x4_splat(g.stride);
+    let chans = i32x4_splat(g.channels);
+    let c256 = f32x4_splat(256.0);
+    let half = f32x4_splat(0.5);
+    let i256 = i32x4_splat(256);
+    let i128 = i32x4_splat(128);
+    let byte = i32x4_splat(0xFF);
+    let hi_byte = i32x4_splat(0xFF_0000);
+    let lo_bytes = i16x8_splat(0x00FF);
+    let one = i32x4_splat(1);
+    let lane = f32x4(0.0, 1.0, 2.0, 3.0);
+    let eps = f32x4_splat(1e-6);
+    let one_ps = f32x4_splat(1.0);
+    let nan = f32x4_splat(f32::NAN);
+    // An integral float t in [0, 2^23): the bits of t + 2^23 are 0x4B00_0000 + t.
+    let magic = f32x4_splat(8_388_608.0);
+    let magic_bits = i32x4_splat(0x4B00_0000);
+    let to_int = |t: v128| i32x4_sub(f32x4_add(t, magic), magic_bits);
+    let (s, c) = (g.stride as usize, g.channels as usize);
+    let rgba = c == 4;
+    let stride_f = f32x4_splat(g.stride as f32);
+    let chans_f = f32x4_splat(g.channels as f32);
+    // Largest offset computed: (max_y0 * stride + max_x0 * channels).
+    let small_frame =
+        (g.max_y0 as i64 * g.stride as i64 + g.max_x0 as i64 * g.channels as i64) < (1 << 23);
+    // Frame-outer (unlike the AVX2 kernel): each frame's row is read as one
+    // stream and the row sums (a few KiB) stay in L1; at 720p this is ~30%
+    // faster in V8 than keeping sums in registers across frames.
+    for acc in [&mut *acc_r, &mut *acc_g, &mut *acc_b, &mut *count] {
+        acc[..n8].fill(0);
+    }
+    for f in 0..datas.len() {
+        let base = datas[f].as_ptr();
+        let coord = coords[f];
+        let mut u = 0;
+        while u < n8 {
+            let (sx, sy) = match coord {
+                RowCoords::Table(xs, ys) => (
+                    v128_load(xs.as_ptr().add(u) as *const v128),
+                    v128_load(ys.as_ptr().add(u) as *const v128),
+                ),
+                RowCoords::Homography {
+                    x0,
+                    y0,
+                    z0,
+                    dx,
+                    dy,
+                    dz,
+                } => {
+                    let uf = f32x4_add(f32x4_splat(u as f32), lane);
+                    // Same operation order as the scalar path (no FMA): bit-exact.
+                    let z = f32x4_add(f32x4_splat(z0), f32x4_mul(f32x4_splat(dz), uf));
+                    let iz = v128_bitselect(f32x4_div(one_ps, z), nan, f32x4_gt(z, eps));
+                    let x = f32x4_add(f32x4_splat(x0), f32x4_mul(f32x4_splat(dx), uf));
+                    let y = f32x4_add(f32x4_splat(y0), f32x4_mul(f32x4_splat(dy), uf));
+                    (f32x4_mul(x, iz), f32x4_mul(y, iz))
+                }
+            };
+            // NaN compares false: NaN coordinates are invalid.
+            let valid = v128_and(
+                v128_and(f32x4_ge(sx, zero_ps), f32x4_ge(sy, zero_ps)),
+                v128_and(f32x4_le(sx, max_x), f32x4_le(sy, max_y)),
+            );
+            if !v128_any_true(valid) {
+                u += 4;
+                continue;
+            }
+            // Invalid lanes get coordinate 0 (offset 0 below, always readable).
+            let sxv = v128_and(sx, valid);
+            let syv = v128_and(sy, valid);
+            // x0 = min(trunc(sx), max_x0) as in the scalar `(sx as usize).min(max_x0)`.
+            let x0f = f32x4_pmin(f32x4_trunc(sxv), max_x0);
+            let y0f = f32x4_pmin(f32x4_trunc(syv), max_y0);
+            let fx = f32x4_sub(sxv, x0f);
+            let fy = f32x4_sub(syv, y0f);
+            let ax = to_int(f32x4_trunc(f32x4_add(f32x4_mul(fx, c256), half)));
+            let ay = to_int(f32x4_trunc(f32x4_add(f32x4_mul(fy, c256), half)));
+            let bx = i32x4_sub(i256, ax);
+            let by = i32x4_sub(i256, ay);
+            // Byte offsets: in f32 when every offset is below 2^23 (exact,
+            // and no 32-bit multiplies), else in integers.
+            let i00 = if small_frame {
+                to_int(f32x4_add(f32x4_mul(y0f, stride_f), f32x4_mul(x0f, chans_f)))
+            } else {
+                i32x4_add(
+                    i32x4_mul(to_int(y0f), stride),
+                    i32x4_mul(to_int(x0f), chans),
+                )
+            };
+            // Lanes hold 16-bit pairs (left, right) and (bx, ax): the signed
+            // 16-bit dot product gives left*bx + right*ax. Invalid lanes get
+            // zero weights, so they come out as (0 + 0 + 128) >> 8 = 0.
+            let wx = v128_and(v128_or(bx, i32x4_shl(ax, 16)), valid);
+            let vertical = |top: v128, bot: v128| {
+                let top = i32x4_dot_i16x8(top, wx);
+                let bot = i32x4_dot_i16x8(bot, wx);
+                let v = i32x4_add(i32x4_add(i32x4_mul(top, by), i32x4_mul(bot, ay)), i128);
+                u32x4_shr(v, 8)
+            };
+            let (r, gg, b);
+            if rgba {
+                // A pixel and its right neighbour are one 8-byte load:
+                // bytes r0 g0 b0 a0 r1 g1 b1 a1.
+                let load2 = |i: usize| (base.add(i) as *const u64).read_unaligned();
+                let i0 = i32x4_extract_lane::<0>(i00) as usize;
+                let i1 = i32x4_extract_lane::<1>(i00) as usize;
+                let i2 = i32x4_extract_lane::<2>(i00) as usize;
+                let i3 = i32x4_extract_lane::<3>(i00) as usize;
+                let top01 = u64x2(load2(i0), load2(i1));
+                let top23 = u64x2(load2(i2), load2(i3));
+                let bot01 = u64x2(load2(i0 + s), load2(i1 + s));
+                let bot23 = u64x2(load2(i2 + s), load2(i3 + s));
+                // Per 64-bit half (one lane's two pixels), 16-bit words
+                // (r0 g0) (b0 a0) (r1 g1) (b1 a1): masking the low or high
+                // bytes and swapping the middle words gives the 32-bit pairs
+                // (r0, r1) (b0, b1) or (g0, g1) (a0, a1); then lanes are
+                // gathered per channel. Only single-input word shuffles and
+                // `shufps`-like dword shuffles: cheap in wasm engines.
+                let swap = |v: v128| i16x8_shuffle::<0, 2, 1, 3, 4, 6, 5, 7>(v, v);
+                let split = |p01: v128, p23: v128| {
+                    let rb01 = swap(v128_and(p01, lo_bytes));
+                    let rb23 = swap(v128_and(p23, lo_bytes));
+                    let ga01 = swap(u16x8_shr(p01, 8));
+                    let ga23 = swap(u16x8_shr(p23, 8));
+                    (
+                        i32x4_shuffle::<0, 2, 4, 6>(rb01, rb23),
+                        i32x4_shuffle::<0, 2, 4, 6>(ga01, ga23),
+                        i32x4_shuffle::<1, 3, 5, 7>(rb01, rb23),
+                    )
+                };
+                let (tr, tg, tb) = split(top01, top23);
+                let (br, bg, bb) = split(bot01, bot23);
+                r = vertical(tr, br);
+                gg = vertical(tg, bg);
+                b = vertical(tb, bb);
+            } else {
+                let load = |i: usize| (base.add(i) as *const u32).read_unaligned();
+                macro_rules! taps {
+                    ($l:literal) => {{
+                        let i = i32x4_extract_lane::<$l>(i00) as usize;
+                        (load(i), load(i + c), load(i + s), load(i + s + c))
+                    }};
+                }
+                let (a00, a01, a10, a11) = taps!(0);
+                let (b00, b01, b10, b11) = taps!(1);
+                let (c00, c01, c10, c11) = taps!(2);
+                let (d00, d01, d10, d11) = taps!(3);
+                let p00 = u32x4(a00, b00, c00, d00);
+                let p01 = u32x4(a01, b01, c01, d01);
+                let p10 = u32x4(a10, b10, c10, d10);
+                let p11 = u32x4(a11, b11, c11, d11);
+                macro_rules! channel {
+                    ($shift:expr, $up:expr) => {{
+                        let top = v128_or(
+                            v128_and(u32x4_shr(p00, $shift), byte),
+                            v128_and(i32x4_shl(p01, $up), hi_byte),
+                        );
+                        let bot = v128_or(
+                            v128_and(u32x4_shr(p10, $shift), byte),
+                            v128_and(i32x4_shl(p11, $up), hi_byte),
+                        );
+                        vertical(top, bot)
+                    }};
+                }
+                r = channel!(0, 16);
+                gg = channel!(8, 8);
+                b = channel!(16, 0);
+            }
+            for (acc, v) in [
+                (acc_r.as_mut_ptr(), r),
+                (acc_g.as_mut_ptr(), gg),
+                (acc_b.as_mut_ptr(), b),
+                (count.as_mut_ptr(), v128_and(valid, one)),
+            ] {
+                let p = acc.add(u) as *mut v128;
+                v128_store(p, i32x4_add(v128_load(p), v));
+            }
+            u += 4;
+        }
+    }
+}
+
+/// Finishes `n8` pixels (a multiple of 4) of an RGBA output row from the
+/// kernel's sums: `round(sum / (256 n))` per channel, alpha 255, exactly the
+/// scalar `(sum as f32 * (1 / (256 n)) + 0.5) as u8` (0 where `n = 0`).
+///
+/// # Safety
+/// The sums must hold at least `n8` values and `out` at least `4 * n8` bytes.
+#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+pub unsafe fn finish_row_rgba_simd128(
+    acc_r: &[u32],
+    acc_g: &[u32],
+    acc_b: &[u32],
+    count: &[u32],
+    out: &mut [u8],
+    n8: usize,
+) {
+    use core::arch::wasm32::*;
+    debug_assert!(n8 % 4 == 0 && out.len() >= 4 * n8);
+    let one = f32x4_splat(1.0);
+    let c256 = f32x4_splat(256.0);
+    let half = f32x4_splat(0.5);
+    let magic = f32x4_splat(8_388_608.0);
+    let magic_bits = i32x4_splat(0x4B00_0000);
+    let max = i32x4_splat(255);
+    let alpha = i32x4_splat(0xFF00_0000_u32 as i32);
+    let zero = i32x4_splat(0);
+    let mut u = 0;
+    while u < n8 {
+        let n = v128_load(count.as_ptr().add(u) as *const v128);
+        let k = f32x4_div(one, f32x4_mul(c256, f32x4_convert_i32x4(n)));
+        let covered = i32x4_ne(n, zero);
+        // Sums are below 2^24 (64 frames of 255 * 256): exact as f32; the
+        // rounded values are integral and in 0..=255 (NaN where n = 0, masked).
+        let ch = |p: *const u32| {
+            let x = f32x4_convert_i32x4(v128_load(p.add(u) as *const v128));
+            let t = f32x4_trunc(f32x4_add(f32x4_mul(x, k), half));
+            let v = i32x4_sub(f32x4_add(t, magic), magic_bits);
+            v128_and(i32x4_min(v, max), covered)
+        };
+        let r = ch(acc_r.as_ptr());
+        let g = ch(acc_g.as_ptr());
+        let b = ch(acc_b.as_ptr());
+        let px = v128_or(
+            v128_or(r, i32x4_shl(g, 8)),
+            v128_or(i32x4_shl(b, 16), alpha),
+        );
+        v128_store(out.as_mut_ptr().add(4 * u) as *mut v128, px);
+        u += 4;
     }
 }

@@ -1,0 +1,434 @@
+//! # amc-wasm
+//!
+//! Thin wasm-bindgen bindings over [`amc_core`] for the web page: a
+//! [`Stabilizer`] built from the shared [`StabilizerParams`] (JSON, the same
+//! definition the CLI and the REST API use), fed RGBA frames with their
+//! timestamps, returning the stabilized frame as a view into WASM memory and
+//! its telemetry as a plain object.
+//!
+//! Every bad input (sizes, buffer lengths, timestamps, parameters, lens files)
+//! becomes a JavaScript `Error` whose message names the value and the allowed
+//! range; nothing here panics on user input.
+//!
+//! Views returned by [`Stabilizer::input_buffer`], [`Stabilizer::output`] and
+//! [`Stabilizer::coverage`] alias WASM memory: they are valid until the next
+//! call into the module (memory growth detaches them); copy what you keep.
+
+use amc_core::camera::CameraModel;
+use amc_core::metrics::{FrameMetrics, MetricsAccumulator};
+use amc_core::{FrameRef, PixelFormat, StabilizerParams, Telemetry};
+use wasm_bindgen::prelude::*;
+
+/// Largest frame side accepted (the core's limit).
+const MAX_SIDE: f64 = 16384.0;
+
+fn err(e: impl std::fmt::Display) -> JsError {
+    JsError::new(&e.to_string())
+}
+
+/// Checks a frame dimension given as a JS number.
+fn dimension(name: &str, v: f64) -> Result<usize, JsError> {
+    if v.is_finite() && v.fract() == 0.0 && (1.0..=MAX_SIDE).contains(&v) {
+        Ok(v as usize)
+    } else {
+        Err(JsError::new(&format!(
+            "invalid {name}: {v} (allowed: an integer 1..=16384 pixels)"
+        )))
+    }
+}
+
+/// Parses the shared parameters from JSON (`""`, `null` or `{}`: the defaults).
+fn parse_params(json: &str) -> Result<StabilizerParams, JsError> {
+    let json = json.trim();
+    let params: StabilizerParams = if json.is_empty() || json == "null" {
+        StabilizerParams::default()
+    } else {
+        serde_json::from_str(json).map_err(|e| {
+            JsError::new(&format!(
+                "invalid stabilizer parameters: {e} (allowed: a JSON object of StabilizerParams: \
+                 track_width, tracker, view, render)"
+            ))
+        })?
+    };
+    params.validate().map_err(err)?;
+    Ok(params)
+}
+
+/// The lens: a number is a horizontal field of view in degrees (pinhole), a
+/// string is the text of a lens file (project JSON, OpenCV YAML/JSON, Gyroflow).
+fn parse_camera(lens: &JsValue, width: usize, height: usize) -> Result<CameraModel, JsError> {
+    if let Some(deg) = lens.as_f64() {
+        if !(deg.is_finite() && deg > 1.0 && deg < 179.0) {
+            return Err(JsError::new(&format!(
+                "invalid fov: {deg} (allowed: a horizontal field of view in degrees, 1 < DEG < 179)"
+            )));
+        }
+        CameraModel::pinhole_hfov(width, height, deg).map_err(err)
+    } else if let Some(text) = lens.as_string() {
+        amc_core::lens::parse_lens(&text).map_err(|e| JsError::new(&format!("lens file: {e}")))
+    } else {
+        Err(JsError::new(
+            "invalid lens: expected a number (horizontal field of view, degrees) or the text of a lens file",
+        ))
+    }
+}
+
+/// WebAssembly (wasm32) memory a stabilizer may use; beyond it allocations
+/// would fail inside the module (a trap), so such sizes are refused up front.
+const MEMORY_BUDGET: usize = 2 << 30;
+
+/// Rough upper bound of the stabilizer's memory: the frame ring (`n_avg +
+/// lookahead` RGBA frames), the input buffer, the saccade slots (7 bytes per
+/// output pixel per frame) and working images; refuses what cannot fit.
+fn check_memory(width: usize, height: usize, p: &StabilizerParams) -> Result<(), JsError> {
+    let frame = width * height * 4;
+    let frames = p.render.n_avg + p.view.lookahead + 4;
+    let slots = if p.view.mode == amc_core::Mode::Saccade {
+        p.render.n_avg * width * height * 7
+    } else {
+        0
+    };
+    let need = frame
+        .saturating_mul(frames)
+        .saturating_add(slots)
+        .saturating_add(width * height * 8);
+    if need > MEMORY_BUDGET {
+        return Err(JsError::new(&format!(
+            "invalid size: {width}x{height} with n_avg {} and lookahead {} needs about {} MiB \
+             (allowed: at most {} MiB of WebAssembly memory; use a smaller frame, n_avg or lookahead)",
+            p.render.n_avg,
+            p.view.lookahead,
+            need >> 20,
+            MEMORY_BUDGET >> 20
+        )));
+    }
+    Ok(())
+}
+
+fn to_js(v: &serde_json::Value) -> Result<JsValue, JsError> {
+    js_sys::JSON::parse(&v.to_string()).map_err(|_| JsError::new("internal: telemetry is not JSON"))
+}
+
+fn metrics_json(m: &FrameMetrics) -> serde_json::Value {
+    serde_json::json!({
+        "rms_normal_flow": m.rms_normal_flow,
+        "rms_change": m.rms_change,
+        "sharpness": m.sharpness,
+    })
+}
+
+fn norm_dps(v: [f64; 3]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt().to_degrees()
+}
+
+/// A streaming stabilizer for one clip of `width x height` RGBA frames.
+#[wasm_bindgen]
+pub struct Stabilizer {
+    inner: amc_core::Stabilizer,
+    width: usize,
+    height: usize,
+    /// Frame buffer JS may decode into directly ([`Stabilizer::input_buffer`]).
+    input: Vec<u8>,
+    metrics: Option<Metrics>,
+}
+
+/// Per-frame image metrics of the input and the output (for the page's plot).
+struct Metrics {
+    output: MetricsAccumulator,
+    input: MetricsAccumulator,
+    full: Vec<u8>,
+    /// Telemetry of the latest output (angular speeds for the clip summary).
+    last: Option<Telemetry>,
+}
+
+#[wasm_bindgen]
+impl Stabilizer {
+    /// `new Stabilizer(width, height, paramsJson, lens)`: `paramsJson` is a JSON
+    /// `StabilizerParams` (unknown fields are errors; `"{}"` gives the paper's
+    /// settings); `lens` is a horizontal field of view in degrees or the text
+    /// of a lens file.
+    #[wasm_bindgen(constructor)]
+    pub fn new(
+        width: f64,
+        height: f64,
+        params_json: &str,
+        lens: JsValue,
+    ) -> Result<Stabilizer, JsError> {
+        let width = dimension("width", width)?;
+        let height = dimension("height", height)?;
+        let params = parse_params(params_json)?;
+        check_memory(width, height, &params)?;
+        let cam = parse_camera(&lens, width, height)?;
+        let inner = amc_core::Stabilizer::new(&cam, width, height, params).map_err(err)?;
+        Ok(Stabilizer {
+            inner,
+            width,
+            height,
+            input: Vec::new(),
+            metrics: None,
+        })
+    }
+
+    /// The effective parameters, as a JSON string (defaults filled in).
+    #[wasm_bindgen(js_name = paramsJson)]
+    pub fn params_json(&self) -> String {
+        serde_json::to_string(self.inner.params()).unwrap_or_default()
+    }
+
+    /// Horizontal field of view of the output camera, degrees.
+    #[wasm_bindgen(getter, js_name = outputHfovDeg)]
+    pub fn output_hfov_deg(&self) -> f64 {
+        self.inner.output_camera().hfov_deg()
+    }
+
+    #[wasm_bindgen(getter)]
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    #[wasm_bindgen(getter)]
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    #[wasm_bindgen(getter, js_name = outputWidth)]
+    pub fn output_width(&self) -> usize {
+        self.inner.output_size().0
+    }
+
+    #[wasm_bindgen(getter, js_name = outputHeight)]
+    pub fn output_height(&self) -> usize {
+        self.inner.output_size().1
+    }
+
+    /// Turns per-frame image metrics on (fresh accumulators) or off; off by
+    /// default. Measuring is separate from stabilizing ([`Stabilizer::measure_input`],
+    /// [`Stabilizer::measure_output`]) so callers can time and skip it.
+    #[wasm_bindgen(js_name = setMetrics)]
+    pub fn set_metrics(&mut self, on: bool) {
+        self.metrics = on.then(|| Metrics {
+            output: MetricsAccumulator::new(),
+            input: MetricsAccumulator::new(),
+            full: vec![1; self.width * self.height],
+            last: None,
+        });
+    }
+
+    /// Image metrics (`rms_normal_flow`, `rms_change` against the previous
+    /// measured input, `sharpness`) of the frame in [`Stabilizer::input_buffer`].
+    #[wasm_bindgen(js_name = measureInput)]
+    pub fn measure_input(&mut self) -> Result<JsValue, JsError> {
+        let m = self
+            .metrics
+            .as_mut()
+            .ok_or_else(|| JsError::new("metrics are off: call setMetrics(true) first"))?;
+        if self.input.len() != self.width * self.height * 4 {
+            return Err(JsError::new(
+                "no input frame: fill inputBuffer() before measureInput()",
+            ));
+        }
+        let frame =
+            FrameRef::new(self.width, self.height, PixelFormat::Rgba8, &self.input).map_err(err)?;
+        let fm = m.input.push(&frame, &m.full, 1.0, None);
+        to_js(&metrics_json(&fm))
+    }
+
+    /// Image metrics of the latest output frame (black borders excluded),
+    /// against the previous measured output.
+    #[wasm_bindgen(js_name = measureOutput)]
+    pub fn measure_output(&mut self) -> Result<JsValue, JsError> {
+        let m = self
+            .metrics
+            .as_mut()
+            .ok_or_else(|| JsError::new("metrics are off: call setMetrics(true) first"))?;
+        let tel = m
+            .last
+            .take()
+            .ok_or_else(|| JsError::new("no new output frame to measure"))?;
+        let fm = m.output.push(
+            &self.inner.output(),
+            self.inner.output_coverage(),
+            tel.valid_fraction,
+            Some(&tel),
+        );
+        to_js(&metrics_json(&fm))
+    }
+
+    /// A `width * height * 4` byte view into WASM memory to decode the next
+    /// frame into (e.g. `VideoFrame.copyTo`), then call
+    /// [`Stabilizer::push_input`]: no copy through JS.
+    #[wasm_bindgen(js_name = inputBuffer)]
+    pub fn input_buffer(&mut self) -> js_sys::Uint8Array {
+        self.input.resize(self.width * self.height * 4, 0);
+        // SAFETY: the view aliases `self.input`, which is not touched until the
+        // next call into the module; callers are told views die at that point.
+        unsafe { js_sys::Uint8Array::view(&self.input) }
+    }
+
+    /// Pushes the frame in [`Stabilizer::input_buffer`] at `t` seconds.
+    /// Returns the telemetry of the output frame that became ready, or
+    /// `undefined` while the lookahead fills.
+    #[wasm_bindgen(js_name = pushInput)]
+    pub fn push_input(&mut self, t: f64) -> Result<JsValue, JsError> {
+        let input = std::mem::take(&mut self.input);
+        let r = self.push(&input, t);
+        self.input = input;
+        r
+    }
+
+    /// Pushes an RGBA frame (`width * height * 4` bytes, copied into WASM
+    /// memory) at `t` seconds (strictly increasing). Returns the telemetry of
+    /// the output frame that became ready, or `undefined`.
+    pub fn push(&mut self, rgba: &[u8], t: f64) -> Result<JsValue, JsError> {
+        let expected = self.width * self.height * 4;
+        if rgba.len() != expected {
+            return Err(JsError::new(&format!(
+                "invalid frame buffer length: {} bytes (allowed: exactly {expected} = {}x{} RGBA)",
+                rgba.len(),
+                self.width,
+                self.height
+            )));
+        }
+        let frame =
+            FrameRef::new(self.width, self.height, PixelFormat::Rgba8, rgba).map_err(err)?;
+        match self.inner.push(frame, t).map_err(err)? {
+            Some(tel) => self.report(&tel),
+            None => Ok(JsValue::UNDEFINED),
+        }
+    }
+
+    /// After the last frame: the next output still held back by the lookahead
+    /// (read it with [`Stabilizer::output`]), or `undefined` when all are out.
+    pub fn finish(&mut self) -> Result<JsValue, JsError> {
+        match self.inner.finish() {
+            Some(tel) => self.report(&tel),
+            None => Ok(JsValue::UNDEFINED),
+        }
+    }
+
+    /// The latest stabilized frame: an RGBA view (`outputWidth * outputHeight * 4`
+    /// bytes) into WASM memory, empty before the first output.
+    pub fn output(&self) -> js_sys::Uint8Array {
+        // SAFETY: aliases the core's output buffer, unchanged until the next call.
+        unsafe { js_sys::Uint8Array::view(self.inner.output().data) }
+    }
+
+    /// Per-pixel count of frames averaged into the latest output (0: black border).
+    pub fn coverage(&self) -> js_sys::Uint8Array {
+        // SAFETY: as for `output`.
+        unsafe { js_sys::Uint8Array::view(self.inner.output_coverage()) }
+    }
+
+    /// Clip metrics so far (`null` unless metrics are on).
+    pub fn summary(&self) -> Result<JsValue, JsError> {
+        match &self.metrics {
+            None => Ok(JsValue::NULL),
+            Some(m) => {
+                let v = serde_json::json!({
+                    "output": m.output.summary(),
+                    "input": m.input.summary(),
+                });
+                to_js(&v)
+            }
+        }
+    }
+
+    /// Telemetry object of an output: the core's [`Telemetry`] plus angular
+    /// speeds in deg/s.
+    fn report(&mut self, tel: &Telemetry) -> Result<JsValue, JsError> {
+        let mut v = serde_json::to_value(tel).map_err(err)?;
+        v["speed_est_dps"] = norm_dps(tel.rate_est).into();
+        v["speed_view_dps"] = norm_dps(tel.rate_view).into();
+        if let Some(m) = &mut self.metrics {
+            m.last = Some(tel.clone());
+        }
+        to_js(&v)
+    }
+}
+
+/// Renders random frames through random rotations with the vectorized kernel
+/// (wasm `simd128` when the module was built with it) and with the scalar
+/// reference, and returns whether the images, coverage and valid share are
+/// identical, for RGBA and RGB frames. `fisheye` exercises the coordinate-table path.
+#[wasm_bindgen(js_name = simdMatchesScalar)]
+pub fn simd_matches_scalar(
+    width: f64,
+    height: f64,
+    seed: u32,
+    fisheye: bool,
+) -> Result<bool, JsError> {
+    use amc_core::render::{RenderParams, Warper};
+    use amc_core::so3::{self, Tangent};
+    let (w, h) = (dimension("width", width)?, dimension("height", height)?);
+    if w < 16 || h < 16 {
+        return Err(JsError::new(&format!(
+            "invalid size: {w}x{h} (allowed: at least 16x16)"
+        )));
+    }
+    let mut cam = CameraModel::pinhole_hfov(w, h, 80.0).map_err(err)?;
+    if fisheye {
+        cam.distortion = amc_core::camera::Distortion::Fisheye {
+            k1: 0.05,
+            k2: -0.01,
+            k3: 0.0,
+            k4: 0.0,
+        };
+    }
+    let out = RenderParams::default().output_camera(&cam).map_err(err)?;
+    let rots: Vec<_> = (0..4)
+        .map(|i| {
+            *so3::exp(&Tangent::new(
+                0.06 * i as f64,
+                -0.1 + 0.01 * (seed % 7) as f64,
+                0.05 * i as f64,
+            ))
+            .matrix()
+        })
+        .collect();
+    // Both pixel formats (the kernel has an RGBA and an RGB path).
+    for format in [PixelFormat::Rgba8, PixelFormat::Rgb8] {
+        let c = format.channels();
+        let mut s = seed as u64 + 1;
+        let frames: Vec<Vec<u8>> = (0..4)
+            .map(|_| {
+                let mut f = vec![0u8; w * h * c + amc_core::simd::FRAME_PADDING];
+                for b in f.iter_mut().take(w * h * c) {
+                    s = s
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    *b = (s >> 56) as u8;
+                }
+                f
+            })
+            .collect();
+        let render = |vectorized: bool| {
+            let mut warper = Warper::new(&cam, &out);
+            warper.set_vectorized(vectorized);
+            let mut img = vec![0u8; out.width * out.height * c];
+            let mut cov = Vec::new();
+            let vf = warper.average_into(
+                |i| FrameRef {
+                    width: w,
+                    height: h,
+                    format,
+                    data: &frames[i],
+                },
+                &rots,
+                &mut img,
+                c,
+                &mut cov,
+            );
+            (img, cov, vf)
+        };
+        if render(false) != render(true) {
+            return Ok(false);
+        }
+    }
+    Ok(true)
+}
+
+/// Whether this module was built with the WebAssembly `simd128` kernel.
+#[wasm_bindgen(js_name = simdEnabled)]
+pub fn simd_enabled() -> bool {
+    amc_core::simd::vector_kernel_available()
+}

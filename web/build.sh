@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Builds the web page into web/dist: amc-wasm for wasm32 with SIMD, its JS
+# bindings (wasm-bindgen CLI at the exact version of the crate, installed if
+# missing), the page's sources and mediabunny. Needs Rust (rustup), Node + npm.
+set -euo pipefail
+cd "$(dirname "$0")"
+root="$(cd .. && pwd)"
+dist="$PWD/dist"
+
+# The wasm-bindgen CLI must match the crate's pinned version exactly.
+want="$(sed -n 's/^wasm-bindgen = "=\(.*\)"/\1/p' "$root/amc-wasm/Cargo.toml")"
+have="$(wasm-bindgen --version 2>/dev/null | awk '{print $2}' || true)"
+if [ "$have" != "$want" ]; then
+  echo "installing wasm-bindgen-cli $want (found: ${have:-none})" >&2
+  cargo install wasm-bindgen-cli --version "$want"
+fi
+rustup target add wasm32-unknown-unknown >/dev/null 2>&1 || true
+
+# Only the wasm target gets +simd128 (native builds of the workspace are untouched).
+CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS="-C target-feature=+simd128" \
+  cargo build --release -p amc-wasm --target wasm32-unknown-unknown --manifest-path "$root/Cargo.toml"
+
+rm -rf "$dist"
+mkdir -p "$dist/pkg" "$dist/vendor"
+wasm-bindgen --target web --no-typescript --out-dir "$dist/pkg" \
+  "$root/target/wasm32-unknown-unknown/release/amc_wasm.wasm"
+
+[ -d node_modules/mediabunny ] && [ -d node_modules/playwright-core ] || npm ci --no-audit --no-fund
+cp node_modules/mediabunny/dist/bundles/mediabunny.min.mjs "$dist/vendor/mediabunny.mjs"
+cp src/*.html src/*.js src/*.css "$dist/"
+echo "built $dist ($(du -sh "$dist" | cut -f1))" >&2

@@ -1,0 +1,173 @@
+// Stabilizes a clip off the main thread: demux (mediabunny), decode every frame
+// (WebCodecs), stabilize (amc-wasm), encode (WebCodecs) and mux (mediabunny),
+// copying the original's audio packets where the container allows.
+import init, { Stabilizer, simdEnabled } from './pkg/amc_wasm.js';
+import {
+  Input, ALL_FORMATS, BlobSource, VideoSampleSink, EncodedPacketSink, VideoSample,
+  Output, Mp4OutputFormat, WebMOutputFormat, BufferTarget, VideoSampleSource,
+  EncodedAudioPacketSource, canEncodeVideo,
+} from './vendor/mediabunny.mjs';
+
+const ready = init();
+let cancelled = false;
+
+self.onmessage = async (ev) => {
+  const msg = ev.data;
+  if (msg.type === 'cancel') { cancelled = true; return; }
+  if (msg.type !== 'process') return;
+  cancelled = false;
+  try {
+    await ready;
+    await processClip(msg);
+  } catch (e) {
+    self.postMessage({ type: 'error', message: String(e && e.message ? e.message : e) });
+  }
+};
+
+function post(type, data = {}, transfer = []) {
+  self.postMessage({ type, ...data }, transfer);
+}
+
+async function pickVideoCodec(format, width, height) {
+  const prefs = format === 'webm' ? ['vp9', 'vp8', 'av1'] : ['avc', 'vp9', 'av1'];
+  for (const codec of prefs) {
+    if (await canEncodeVideo(codec, { width, height, bitrate: 4e6 })) return codec;
+  }
+  throw new Error(`this browser cannot encode ${format === 'webm' ? 'VP9, VP8 or AV1' : 'H.264, VP9 or AV1'} video`);
+}
+
+async function processClip({ file, params, lens, format }) {
+  const input = new Input({ source: new BlobSource(file), formats: ALL_FORMATS });
+  const video = await input.getPrimaryVideoTrack();
+  if (!video) throw new Error('no video track in this file');
+  const codec = video.codec;
+  if (!(await video.canDecode())) {
+    post('unsupported', { codec: codec || 'unknown', fileName: file.name });
+    return;
+  }
+  const stats = await video.computePacketStats(Infinity).catch(() => null);
+  const total = stats ? stats.packetCount : null;
+  // Frames are processed as decoded (coded orientation, visible rectangle); a
+  // rotation in the container is carried over to the output's metadata.
+  const samples = new VideoSampleSink(video).samples();
+  const first = await samples.next();
+  if (first.done) throw new Error('the video track has no frames');
+  const width = first.value.visibleRect.width, height = first.value.visibleRect.height;
+  let stab;
+  try {
+    stab = new Stabilizer(width, height, JSON.stringify(params), lens);
+  } catch (e) {
+    first.value.close();
+    throw e;
+  }
+  stab.setMetrics(true);
+  const ow = stab.outputWidth, oh = stab.outputHeight;
+
+  const container = format === 'webm' ? new WebMOutputFormat() : new Mp4OutputFormat({ fastStart: 'in-memory' });
+  const outCodec = await pickVideoCodec(format, ow, oh);
+  const output = new Output({ format: container, target: new BufferTarget() });
+  const videoSource = new VideoSampleSource({ codec: outCodec, bitrate: 4e6, keyFrameInterval: 2 });
+  output.addVideoTrack(videoSource, {
+    frameRate: stats && stats.averagePacketRate ? stats.averagePacketRate : undefined,
+    rotation: video.rotation || 0,
+  });
+
+  // Audio: copied packet by packet when the output container takes its codec.
+  let audio = null, audioNote = null;
+  const audioTrack = await input.getPrimaryAudioTrack();
+  if (audioTrack) {
+    if (audioTrack.codec && container.getSupportedAudioCodecs().includes(audioTrack.codec)) {
+      audio = { track: audioTrack, source: new EncodedAudioPacketSource(audioTrack.codec) };
+      output.addAudioTrack(audio.source);
+    } else {
+      audioNote = `audio (${audioTrack.codec}) not copied: ${format.toUpperCase()} cannot hold it`;
+    }
+  }
+  await output.start();
+
+  post('start', { width, height, outWidth: ow, outHeight: oh, total, codec, outCodec, simd: simdEnabled(),
+    params: JSON.parse(stab.paramsJson()), audioNote });
+
+  const t0 = performance.now();
+  const inputMetrics = []; // of frames whose output the lookahead still holds back
+  let stabMs = 0, metricsMs = 0, n = 0, out = 0, lastPost = 0, firstT = null, lastT = -Infinity;
+  const telemetry = [];
+  const emit = async (tel) => {
+    telemetry.push(tel);
+    // VideoFrame copies the pixels out of WASM memory (the view dies on the next call).
+    const frame = new VideoFrame(stab.output(), {
+      format: 'RGBA', codedWidth: ow, codedHeight: oh,
+      timestamp: Math.round((tel.t - firstT) * 1e6),
+    });
+    const sample = new VideoSample(frame);
+    await videoSource.add(sample);
+    sample.close();
+    frame.close();
+    out++;
+  };
+  async function* all() {
+    yield first.value;
+    for (;;) {
+      const r = await samples.next();
+      if (r.done) return;
+      yield r.value;
+    }
+  }
+  for await (const sample of all()) {
+    if (cancelled) { sample.close(); throw new Error('cancelled'); }
+    let t = sample.timestamp;
+    if (firstT === null) firstT = t;
+    if (!(t > lastT)) t = lastT + 1e-6; // duplicate timestamps: keep order
+    lastT = t;
+    const buf = stab.inputBuffer();
+    await sample.copyTo(buf, { format: 'RGBA' });
+    sample.close();
+    const m0 = performance.now();
+    inputMetrics.push(stab.measureInput());
+    const s0 = performance.now();
+    const tel = stab.pushInput(t);
+    stabMs += performance.now() - s0;
+    n++;
+    if (tel) {
+      const m1 = performance.now();
+      tel.metrics = stab.measureOutput();
+      tel.input_metrics = inputMetrics.shift();
+      metricsMs += s0 - m0 + performance.now() - m1;
+      await emit(tel);
+    } else {
+      metricsMs += s0 - m0;
+    }
+    const now = performance.now();
+    if (now - lastPost > 100) {
+      lastPost = now;
+      post('progress', { done: n, total, fps: n / ((now - t0) / 1000), stabFps: n / (stabMs / 1000), metricsFps: n / (metricsMs / 1000) });
+    }
+  }
+  for (;;) {
+    const s0 = performance.now();
+    const tel = stab.finish();
+    stabMs += performance.now() - s0;
+    if (!tel) break;
+    tel.metrics = stab.measureOutput();
+    tel.input_metrics = inputMetrics.shift();
+    await emit(tel);
+  }
+  if (audio) {
+    const sink = new EncodedPacketSink(audio.track);
+    const decoderConfig = await audio.track.getDecoderConfig();
+    let first = true;
+    for await (const packet of sink.packets()) {
+      await audio.source.add(packet, first ? { decoderConfig } : undefined);
+      first = false;
+    }
+  }
+  await output.finalize();
+  const elapsed = (performance.now() - t0) / 1000;
+  const buffer = output.target.buffer;
+  const summary = stab.summary();
+  stab.free();
+  post('done', {
+    buffer, mime: format === 'webm' ? 'video/webm' : 'video/mp4', frames: n, outFrames: out,
+    fps: n / elapsed, stabFps: n / (stabMs / 1000), metricsFps: n / (metricsMs / 1000), telemetry, summary, outCodec,
+  }, [buffer]);
+}

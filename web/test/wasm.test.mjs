@@ -1,0 +1,144 @@
+// WASM-level tests of amc-wasm's exported API, in Node (same module the page loads).
+// Run: node --test test/wasm.test.mjs   (after ./build.sh)
+import { test } from 'node:test';
+import assert from 'node:assert/strict';
+import { readFileSync } from 'node:fs';
+import { fileURLToPath } from 'node:url';
+import { initSync, Stabilizer, simdEnabled, simdMatchesScalar } from '../dist/pkg/amc_wasm.js';
+
+const wasmPath = fileURLToPath(new URL('../dist/pkg/amc_wasm_bg.wasm', import.meta.url));
+initSync({ module: readFileSync(wasmPath) });
+
+// A textured RGBA frame of a scene shifted by (dx, dy) pixels (smooth, so tracking works).
+function frame(w, h, dx = 0, dy = 0) {
+  const d = new Uint8Array(w * h * 4);
+  for (let y = 0; y < h; y++) {
+    for (let x = 0; x < w; x++) {
+      const u = x + dx, v = y + dy;
+      const val = 128 + 60 * Math.sin(u * 0.21) * Math.cos(v * 0.17) + 40 * Math.sin((u + 2 * v) * 0.05);
+      const i = 4 * (y * w + x);
+      d[i] = val; d[i + 1] = 255 - val; d[i + 2] = (val * 0.5 + 60) | 0; d[i + 3] = 255;
+    }
+  }
+  return d;
+}
+
+const W = 160, H = 90;
+const throwsMsg = (fn, re) => assert.throws(fn, (e) => e instanceof Error && re.test(e.message), `expected Error matching ${re}`);
+
+test('module is built with the simd128 kernel, bit-exact with the scalar path', () => {
+  assert.equal(simdEnabled(), true);
+  // 2048x1100 RGBA has byte offsets above 2^23: the kernel's integer offset path.
+  for (const [w, h, seed, fisheye] of [[203, 117, 1, false], [203, 117, 2, true], [320, 180, 3, false], [97, 61, 4, true], [64, 48, 5, false], [2048, 1100, 6, false]]) {
+    assert.equal(simdMatchesScalar(w, h, seed, fisheye), true, `${w}x${h} seed ${seed} fisheye ${fisheye}`);
+  }
+});
+
+test('stabilizes a stream: telemetry per frame, RGBA output of the cropped size', () => {
+  const s = new Stabilizer(W, H, '{}', 70);
+  assert.equal(s.width, W);
+  assert.equal(s.outputWidth, 120); // margin 0.125 each side: 75% of 160
+  assert.equal(s.outputHeight, 68);
+  s.setMetrics(true);
+  const tels = [];
+  for (let i = 0; i < 12; i++) {
+    const f = frame(W, H, (i % 3) - 1, ((i * 7) % 3) - 1);
+    s.inputBuffer().set(f);
+    const inputMetrics = s.measureInput();
+    const tel = s.push(f, i / 30);
+    assert.ok(tel, `telemetry for frame ${i}`);
+    tel.metrics = s.measureOutput();
+    tel.input_metrics = inputMetrics;
+    throwsMsg(() => s.measureOutput(), /no new output frame/);
+    tels.push(tel);
+    const out = s.output();
+    assert.equal(out.length, s.outputWidth * s.outputHeight * 4);
+    assert.equal(out[3], 255);
+  }
+  assert.deepEqual(tels.map((t) => t.frame), [...Array(12).keys()]);
+  assert.ok(tels.every((t) => Number.isFinite(t.speed_est_dps) && t.valid_fraction > 0));
+  assert.equal(tels[0].metrics.rms_change, null); // no previous frame
+  assert.ok(tels[5].metrics && typeof tels[5].metrics.rms_change === 'number');
+  assert.ok(tels[5].input_metrics && typeof tels[5].input_metrics.rms_change === 'number');
+  assert.equal(s.finish(), undefined);
+  const sum = s.summary();
+  assert.equal(sum.output.frames, 12);
+  // Averaging and stabilizing make consecutive outputs change less than the inputs.
+  assert.ok(sum.output.rms_change < sum.input.rms_change, JSON.stringify(sum));
+  const p = JSON.parse(s.paramsJson());
+  assert.equal(p.render.n_avg, 6);
+  s.free();
+});
+
+test('inputBuffer/pushInput: decode straight into WASM memory; lookahead drains with finish', () => {
+  const s = new Stabilizer(W, H, JSON.stringify({ view: { lookahead: 3 } }), 70);
+  let outs = 0;
+  for (let i = 0; i < 8; i++) {
+    s.inputBuffer().set(frame(W, H, i % 2, 0));
+    if (s.pushInput(i / 30)) outs++;
+  }
+  assert.equal(outs, 5);
+  while (s.finish()) outs++;
+  assert.equal(outs, 8);
+  s.free();
+});
+
+test('same frames through push and pushInput give identical output', () => {
+  const a = new Stabilizer(W, H, '{}', 60), b = new Stabilizer(W, H, '{}', 60);
+  for (let i = 0; i < 5; i++) {
+    const f = frame(W, H, i, -i);
+    a.push(f, i * 0.04);
+    b.inputBuffer().set(f);
+    b.pushInput(i * 0.04);
+    assert.deepEqual(Array.from(a.output()), Array.from(b.output()));
+  }
+  a.free(); b.free();
+});
+
+test('bad sizes and parameters are JS Errors naming the value and the allowed range', () => {
+  throwsMsg(() => new Stabilizer(0, 90, '{}', 70), /invalid width: 0 \(allowed: an integer 1\.\.=16384/);
+  throwsMsg(() => new Stabilizer(160, -3, '{}', 70), /invalid height: -3/);
+  throwsMsg(() => new Stabilizer(160.5, 90, '{}', 70), /invalid width: 160\.5/);
+  throwsMsg(() => new Stabilizer(NaN, 90, '{}', 70), /invalid width: NaN/);
+  throwsMsg(() => new Stabilizer(1e6, 90, '{}', 70), /invalid width: 1000000/);
+  // In range for the core, but more memory than a wasm32 module can have: an Error, not a trap.
+  throwsMsg(() => new Stabilizer(16384, 16384, '{}', 70), /16384x16384 with n_avg 6 and lookahead 0 needs about \d+ MiB \(allowed: at most 2048 MiB/);
+  throwsMsg(() => new Stabilizer(3840, 2160, '{"view":{"lookahead":600}}', 70), /needs about/);
+  throwsMsg(() => new Stabilizer(W, H, '{"render":{"n_avg":0}}', 70), /invalid n_avg: 0 \(allowed: 1\.\.=64/);
+  throwsMsg(() => new Stabilizer(W, H, '{"render":{"margin":0.6}}', 70), /invalid margin: 0\.6 \(allowed: 0\.\.=0\.45/);
+  throwsMsg(() => new Stabilizer(W, H, '{"bogus":1}', 70), /unknown field `bogus`/);
+  throwsMsg(() => new Stabilizer(W, H, '{"view":{"mode":"wobble"}}', 70), /unknown variant `wobble`/);
+  throwsMsg(() => new Stabilizer(W, H, 'not json', 70), /invalid stabilizer parameters/);
+  throwsMsg(() => new Stabilizer(W, H, '{}', 0), /invalid fov: 0 \(allowed: .*1 < DEG < 179\)/);
+  throwsMsg(() => new Stabilizer(W, H, '{}', 400), /invalid fov: 400/);
+  throwsMsg(() => new Stabilizer(W, H, '{}', undefined), /invalid lens/);
+  throwsMsg(() => new Stabilizer(W, H, '{}', '{"nonsense": true}'), /lens file/);
+});
+
+test('bad frames are JS Errors, and the stabilizer keeps working after them (no trap)', () => {
+  const s = new Stabilizer(W, H, '{}', 70);
+  throwsMsg(() => s.measureInput(), /metrics are off/);
+  s.setMetrics(true);
+  throwsMsg(() => s.measureInput(), /no input frame/);
+  throwsMsg(() => s.measureOutput(), /no new output frame/);
+  throwsMsg(() => s.push(new Uint8Array(10), 0), /invalid frame buffer length: 10 bytes \(allowed: exactly 57600 = 160x90 RGBA\)/);
+  throwsMsg(() => s.push(new Uint8Array(W * H * 3), 0), /43200 bytes/);
+  throwsMsg(() => s.push(new Uint8Array(0), 0), /0 bytes/);
+  throwsMsg(() => s.push(frame(W, H), NaN), /timestamp NaN is not a finite number/);
+  throwsMsg(() => s.push(frame(W, H), Infinity), /not a finite number/);
+  assert.ok(s.push(frame(W, H), 1.0));
+  throwsMsg(() => s.push(frame(W, H), 1.0), /timestamp 1 s is not after the previous frame's 1 s/);
+  throwsMsg(() => s.push(frame(W, H), 0.5), /timestamps must increase/);
+  assert.ok(s.push(frame(W, H, 1, 0), 1.04));
+  assert.equal(s.output().length, s.outputWidth * s.outputHeight * 4);
+  s.free();
+});
+
+test('a lens file from text (project JSON) is accepted and rescaled', () => {
+  const lens = readFileSync(fileURLToPath(new URL('../../../shared/data/cc9/lens.json', import.meta.url)), 'utf8');
+  const cal = JSON.parse(lens);
+  const w = cal.width || cal.image_width, h = cal.height || cal.image_height;
+  const s = new Stabilizer(w ? w / 4 : 320, h ? h / 4 : 240, '{}', lens);
+  assert.ok(s.outputHfovDeg > 10 && s.outputHfovDeg < 170);
+  s.free();
+});
