@@ -49,7 +49,8 @@ use std::time::Duration;
 use storage::DiskBudget;
 use tokio::sync::{watch, Semaphore};
 use tokio_util::task::TaskTracker;
-use tower_http::services::{ServeDir, ServeFile};
+use axum::handler::HandlerWithoutStateExt;
+use tower_http::services::ServeDir;
 use tower_http::trace::TraceLayer;
 
 /// `amc serve` options.
@@ -325,9 +326,8 @@ pub fn app(state: Arc<AppState>) -> Router {
         .route("/openapi.json", get(openapi::document));
     let index = state.web_dir.join("index.html");
     let router = if index.is_file() {
-        api.fallback_service(
-            ServeDir::new(&state.web_dir).not_found_service(ServeFile::new(&index)),
-        )
+        // The page's files; anything else is an unknown endpoint (problem+json 404).
+        api.fallback_service(ServeDir::new(&state.web_dir).not_found_service(no_page.into_service()))
     } else {
         api.fallback(no_page)
     };
