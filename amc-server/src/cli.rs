@@ -24,6 +24,8 @@ pub enum Command {
     Synth(crate::synth_cmd::SynthArgs),
     /// Render a built-in shaky clip, stabilize it and say where the results are.
     Demo(DemoArgs),
+    /// Compare our modes with ffmpeg's vid.stab and deshake: speed and quality, one report.
+    Compare(crate::compare::CompareArgs),
 }
 
 /// How the lens is known.

@@ -1,6 +1,7 @@
 //! `amc`: the command line of Artificial Microsaccade Compensation.
 
 mod cli;
+mod compare;
 mod demo;
 mod error;
 mod eval;
@@ -88,6 +89,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         }
         Command::Synth(a) => synth_cmd::run(&a),
         Command::Demo(a) => demo::run(&a),
+        Command::Compare(a) => compare::run(&a),
     }
 }
 
