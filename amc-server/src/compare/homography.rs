@@ -21,13 +21,15 @@ use amc_core::image::GrayImage;
 use nalgebra::{Matrix3, SMatrix, SVector};
 
 /// Width (px) of the finest pyramid level the fit works on.
-pub const FINEST_WIDTH: usize = 256;
+pub const FINEST_WIDTH: usize = 160;
 /// Width (px) under which no coarser level is built.
 const COARSEST_WIDTH: usize = 40;
 /// Huber threshold on the luma residual (intensities in `[0, 1]`).
 const HUBER: f64 = 0.04;
 /// Translation search at the coarsest level: +- this many pixels.
 const SEARCH_PX: i32 = 6;
+/// Parameter step (normalized units, ~1/100 px at the finest level) that ends the iterations.
+const CONVERGED: f64 = 5e-5;
 /// Fewest usable pixels for a fit.
 const MIN_PIXELS: usize = 200;
 
@@ -251,7 +253,7 @@ fn refine(src: &Pyramid, dst: &Pyramid, level: usize, mut h: Matrix3<f64>, iters
                 h = cand;
                 lambda = (lambda * 0.3).max(1e-7);
                 improved = true;
-                if delta.norm() < 1e-7 {
+                if delta.norm() < CONVERGED {
                     return h;
                 }
                 break;
@@ -291,7 +293,7 @@ pub fn fit(src: &Pyramid, dst: &Pyramid, init: &Matrix3<f64>) -> Option<Fit> {
         h = best.1;
     }
     for level in (0..=top).rev() {
-        h = refine(src, dst, level, h, if level == top { 30 } else { 12 });
+        h = refine(src, dst, level, h, if level == top { 20 } else { 8 });
         h /= h[(2, 2)];
     }
     let acc = accumulate(src, dst, 0, &h, false);

@@ -10,8 +10,9 @@
 //! Validity of peer pixels: vid.stab and deshake fill uncovered pixels, so
 //! each peer is run a second time (untimed) with a different fill
 //! (`vidstabtransform crop=black` vs `crop=keep`, `deshake edge=blank` vs
-//! `edge=mirror`) and the same motion (vid.stab reuses its transforms file;
-//! deshake is deterministic). A pixel is valid where the two outputs agree
+//! `edge=original`) and the same motion (vid.stab reuses its transforms file;
+//! deshake is deterministic and estimates motion on its input, not its
+//! output; its `edge=mirror` is not used because it changes interior pixels too). A pixel is valid where the two outputs agree
 //! exactly: a fill cannot agree with both black and the other fill except by
 //! chance, and pixels interpolated from the border differ, so they count as
 //! invalid too.
@@ -214,6 +215,10 @@ fn log_tail(log: &Path) -> String {
     }
 }
 
+/// Filter prefix converting any decoded format (RGB from PNG frames, full-range JPEG)
+/// to the planar 4:2:0 the peers need.
+const PLANAR: &str = "format=yuv420p,";
+
 fn ffmpeg() -> Command {
     let mut c = Command::new("ffmpeg");
     c.args(["-nostdin", "-hide_banner", "-v", "error", "-y"]);
@@ -255,7 +260,7 @@ pub fn run_peer(
             let trf = work.join(format!("{label}.trf"));
             let tripod = method == Method::VidStabTripod;
             let detect = format!(
-                "vidstabdetect=result={}{}",
+                "{PLANAR}vidstabdetect=result={}{}",
                 filter_path(&trf),
                 if tripod { ":tripod=1" } else { "" }
             );
@@ -266,7 +271,7 @@ pub fn run_peer(
                     _ => "tripod=1".to_string(),
                 };
                 format!(
-                    "vidstabtransform=input={}:{opts}:crop={crop}",
+                    "{PLANAR}vidstabtransform=input={}:{opts}:crop={crop}",
                     filter_path(&trf)
                 )
             };
@@ -299,7 +304,7 @@ pub fn run_peer(
             pass1.then(pass2)
         }
         Method::Deshake => {
-            let f = |edge: &str| format!("deshake=rx=48:ry=48:edge={edge}");
+            let f = |edge: &str| format!("{PLANAR}deshake=rx=48:ry=48:edge={edge}");
             let u = run_timed(
                 label,
                 ffmpeg()
@@ -313,7 +318,7 @@ pub fn run_peer(
                 &format!("{label} (validity run)"),
                 ffmpeg()
                     .args(input.args())
-                    .args(["-vf", &f("mirror")])
+                    .args(["-vf", &f("original")])
                     .args(out_args(&alt)),
                 &log,
                 limit,

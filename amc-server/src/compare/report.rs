@@ -5,7 +5,6 @@
 
 use super::{ClipResult, CompareArgs, MethodResult};
 use crate::error::CliError;
-use crate::pipeline::write_atomic;
 use crate::plot::{self, ModeSeries};
 use amc_core::image::Frame;
 use std::fmt::Write as _;
@@ -21,6 +20,18 @@ const STRIP_COLUMNS: u32 = 3;
 const CROP_TOLERANCE: f64 = 0.005;
 /// Speed factor our `stabilize` must have over vid.stab's two passes.
 const SPEED_BAR: f64 = 5.0;
+
+/// Writes `bytes` to `path` atomically, readable by everyone (0644), like the plots.
+fn write_public(path: &Path, bytes: &[u8]) -> Result<(), CliError> {
+    crate::pipeline::write_atomic(path, bytes)?;
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o644))
+            .map_err(|e| CliError::io(path, e))?;
+    }
+    Ok(())
+}
 
 /// The machine the report ran on: CPU model, logical CPUs, memory.
 pub fn machine_description(extra: Option<&str>) -> String {
@@ -315,7 +326,7 @@ fn write_strip(dir: &Path, c: &ClipResult) -> Result<Option<String>, CliError> {
             path: path.clone(),
             msg: e.to_string(),
         })?;
-    write_atomic(&path, png.get_ref())?;
+    write_public(&path, png.get_ref())?;
     Ok(Some(name))
 }
 
@@ -418,9 +429,9 @@ pub fn write(dir: &Path, results: &[ClipResult], args: &CompareArgs) -> Result<(
     for (clip, b) in &missed {
         let _ = writeln!(s, "- {clip}: {} ({})", b.what, b.detail);
     }
-    write_atomic(&dir.join(REPORT_FILE), s.as_bytes())?;
+    write_public(&dir.join(REPORT_FILE), s.as_bytes())?;
     let json = serde_json::to_string_pretty(results).map_err(|e| CliError::Usage(e.to_string()))?;
-    write_atomic(&dir.join("results.json"), json.as_bytes())?;
+    write_public(&dir.join("results.json"), json.as_bytes())?;
     Ok(())
 }
 
@@ -437,7 +448,7 @@ const METHODS_TEXT: &str = r#"## How it is measured
   "x vid.stab s10" is the frame-rate ratio to vid.stab's two passes with `smoothing=10`.
 - **Valid pixels**: ours from the renderer's coverage (pixels some averaged frame covers).
   Peers fill uncovered pixels, so each is run a second time with another fill
-  (`crop=keep` instead of `crop=black`; `edge=mirror` instead of `edge=blank`) and the same
+  (`crop=keep` instead of `crop=black`; `edge=original` instead of `edge=blank`) and the same
   motion; pixels where the two outputs differ are fill (invalid). Every metric uses valid
   pixels only, never borders. "valid %" is, for ours, the share covered by every averaged
   frame (stricter), for peers the share of valid pixels.
