@@ -30,6 +30,8 @@ const HUBER: f64 = 0.04;
 const SEARCH_PX: i32 = 6;
 /// Parameter step (normalized units, ~1/100 px at the finest level) that ends the iterations.
 const CONVERGED: f64 = 5e-5;
+/// Levels with more pixels are sampled on every other row and column.
+const SUBSAMPLE_ABOVE: usize = 8000;
 /// Fewest usable pixels for a fit.
 const MIN_PIXELS: usize = 200;
 
@@ -67,19 +69,72 @@ fn half(src: &GrayImage) -> GrayImage {
     out
 }
 
+/// Area-averages `src` along x by the factor `f >= 1` into `w` columns (column
+/// `x` covers source columns `[x f, (x + 1) f)`): each output pixel is the
+/// coverage-weighted mean of the source pixels under it; `NaN` if any is `NaN`.
+fn shrink_x(src: &GrayImage, w: usize, f: f64) -> GrayImage {
+    let mut out = GrayImage::new(w, src.height);
+    for x in 0..w {
+        let (a, b) = (x as f64 * f, (x + 1) as f64 * f);
+        let (i0, i1) = (a.floor() as usize, (b.ceil() as usize).min(src.width));
+        for y in 0..src.height {
+            let row = &src.data[y * src.width..(y + 1) * src.width];
+            let (mut sum, mut wsum) = (0f64, 0f64);
+            for (i, &v) in row.iter().enumerate().take(i1).skip(i0) {
+                let wt = (b.min(i as f64 + 1.0) - a.max(i as f64)).max(0.0);
+                if wt > 0.0 {
+                    sum += wt * v as f64;
+                    wsum += wt;
+                }
+            }
+            out.data[y * w + x] = (sum / wsum.max(1e-12)) as f32;
+        }
+    }
+    out
+}
+
+/// Transpose of a gray image.
+fn transpose(src: &GrayImage) -> GrayImage {
+    let mut out = GrayImage::new(src.height, src.width);
+    for y in 0..src.height {
+        for x in 0..src.width {
+            out.data[x * src.height + y] = src.data[y * src.width + x];
+        }
+    }
+    out
+}
+
 impl Pyramid {
-    /// Builds the pyramid of `gray` (`NaN` where invalid).
+    /// Builds the pyramid of `gray` (`NaN` where invalid), halving until the
+    /// finest level is at most [`FINEST_WIDTH`] wide.
     pub fn new(gray: &GrayImage) -> Self {
-        let mut levels = Vec::new();
-        let mut scales = Vec::new();
         let mut cur = gray.clone();
         let mut scale = 1.0;
         while cur.width > FINEST_WIDTH && cur.width / 2 >= COARSEST_WIDTH && cur.height >= 8 {
             cur = half(&cur);
             scale *= 2.0;
         }
-        levels.push(cur);
-        scales.push(scale);
+        Self::from_finest(gray, cur, scale)
+    }
+
+    /// Builds the pyramid of `gray` with its finest level area-resampled to
+    /// `width` (at most `gray.width`), so that two frames showing the scene at
+    /// different pixel scales can be compared at the same sampling density.
+    pub fn with_finest_width(gray: &GrayImage, width: usize) -> Self {
+        let w = width.clamp(COARSEST_WIDTH.min(gray.width), gray.width);
+        if w == gray.width {
+            return Self::from_finest(gray, gray.clone(), 1.0);
+        }
+        let f = gray.width as f64 / w as f64;
+        let h = ((gray.height as f64 / f).floor() as usize).clamp(1, gray.height);
+        let finest = transpose(&shrink_x(&transpose(&shrink_x(gray, w, f)), h, f));
+        Self::from_finest(gray, finest, f)
+    }
+
+    fn from_finest(gray: &GrayImage, finest: GrayImage, scale: f64) -> Self {
+        let mut levels = vec![finest];
+        let mut scales = vec![scale];
+        let mut scale = scale;
         while let Some(last) = levels.last() {
             if last.width / 2 < COARSEST_WIDTH || last.height / 2 < 4 {
                 break;
@@ -95,6 +150,11 @@ impl Pyramid {
             levels,
             scales,
         }
+    }
+
+    /// Width of the finest level.
+    pub fn finest_width(&self) -> usize {
+        self.levels[0].width
     }
 
     /// Pixel -> normalized coordinates at `level` (an affine map `x_n = a x + b`).
@@ -115,7 +175,8 @@ fn sample_grad(img: &GrayImage, x: f64, y: f64) -> Option<(f64, f64, f64)> {
     if !(x >= 0.0 && y >= 0.0) {
         return None;
     }
-    let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+    // Non-negative here, so truncation is floor (and much cheaper than libm's floor).
+    let (x0, y0) = (x as usize, y as usize);
     if x0 + 1 >= img.width || y0 + 1 >= img.height {
         return None;
     }
@@ -147,9 +208,10 @@ pub fn apply(h: &Matrix3<f64>, x: f64, y: f64) -> Option<(f64, f64)> {
     ))
 }
 
-/// Sum of squared residuals, count, and (optionally) the normal equations.
+/// Sum of squared residuals, count, and (optionally) the normal equations
+/// (`jtj` holds the upper triangle, row-major, until [`Accum::normal_matrix`]).
 struct Accum {
-    jtj: SMatrix<f64, 8, 8>,
+    jtj: [f64; 36],
     jtr: SVector<f64, 8>,
     cost: f64,
     sq: f64,
@@ -166,15 +228,17 @@ fn accumulate(
     let (s_img, d_img) = (&src.levels[level], &dst.levels[level]);
     let (sa, sbx, sby) = src.to_norm(level);
     let (da, dbx, dby) = dst.to_norm(level);
+    // Every pixel of small levels, every other row and column of large ones.
+    let step = if d_img.width * d_img.height > SUBSAMPLE_ABOVE { 2 } else { 1 };
     let mut acc = Accum {
-        jtj: SMatrix::zeros(),
+        jtj: [0.0; 36],
         jtr: SVector::zeros(),
         cost: 0.0,
         sq: 0.0,
         n: 0,
     };
-    for v in 0..d_img.height {
-        for u in 0..d_img.width {
+    for v in (0..d_img.height).step_by(step) {
+        for u in (0..d_img.width).step_by(step) {
             let t = d_img.data[v * d_img.width + u] as f64;
             if !t.is_finite() {
                 continue;
@@ -202,7 +266,7 @@ fn accumulate(
                 // d(src)/d(normalized) = gradient per level pixel / sa.
                 let (gxn, gyn) = (gx / sa, gy / sa);
                 let d = h[(2, 0)] * x + h[(2, 1)] * y + 1.0;
-                let j = SVector::<f64, 8>::from([
+                let j = [
                     gxn * x / d,
                     gxn * y / d,
                     gxn / d,
@@ -211,13 +275,36 @@ fn accumulate(
                     gyn / d,
                     -(gxn * xn + gyn * yn) * x / d,
                     -(gxn * xn + gyn * yn) * y / d,
-                ]);
-                acc.jtj += wgt * j * j.transpose();
-                acc.jtr += wgt * r * j;
+                ];
+                let mut k = 0;
+                for a in 0..8 {
+                    let wa = wgt * j[a];
+                    for &jb in &j[a..] {
+                        acc.jtj[k] += wa * jb;
+                        k += 1;
+                    }
+                    acc.jtr[a] += wa * r;
+                }
             }
         }
     }
     acc
+}
+
+impl Accum {
+    /// The full symmetric `J^T W J`.
+    fn normal_matrix(&self) -> SMatrix<f64, 8, 8> {
+        let mut m = SMatrix::<f64, 8, 8>::zeros();
+        let mut k = 0;
+        for a in 0..8 {
+            for b in a..8 {
+                m[(a, b)] = self.jtj[k];
+                m[(b, a)] = self.jtj[k];
+                k += 1;
+            }
+        }
+        m
+    }
 }
 
 fn with_params(h: &Matrix3<f64>, delta: &SVector<f64, 8>) -> Matrix3<f64> {
@@ -236,11 +323,12 @@ fn refine(src: &Pyramid, dst: &Pyramid, level: usize, mut h: Matrix3<f64>, iters
         if acc.n < MIN_PIXELS / 4 {
             break;
         }
+        let jtj = acc.normal_matrix();
         let mut improved = false;
         for _ in 0..6 {
-            let mut a = acc.jtj;
+            let mut a = jtj;
             for k in 0..8 {
-                a[(k, k)] += lambda * acc.jtj[(k, k)].max(1e-12);
+                a[(k, k)] += lambda * jtj[(k, k)].max(1e-12);
             }
             let Some(delta) = a.cholesky().map(|c| c.solve(&(-acc.jtr))) else {
                 lambda *= 10.0;
@@ -357,6 +445,18 @@ mod tests {
             }
         }
         let f = fit(&src, &Pyramid::new(&d), &Matrix3::identity()).unwrap();
+        assert!(close(&f.h, &g, 1e-3), "{}", f.h);
+    }
+
+    #[test]
+    fn density_matched_pyramid_fits_the_same() {
+        // A 0.75 crop at the input's pixel scale, fitted at matched sampling density.
+        let src = Pyramid::new(&render(192, 108, &Matrix3::identity()));
+        let g = Matrix3::new(0.75, 0.0, 0.0, 0.0, 0.75, 0.0, 0.0, 0.0, 1.0);
+        let out = render(144, 81, &g);
+        let dst = Pyramid::with_finest_width(&out, (src.finest_width() as f64 * 0.75) as usize);
+        assert_eq!(dst.finest_width(), 72);
+        let f = fit(&src, &dst, &g).unwrap();
         assert!(close(&f.h, &g, 1e-3), "{}", f.h);
     }
 

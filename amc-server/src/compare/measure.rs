@@ -73,6 +73,8 @@ pub struct Measurer {
     luma: GrayImage,
     prev: Option<(Pyramid, GrayImage)>,
     g_in: Option<Matrix3<f64>>,
+    /// Cropping of the last fitted frame (sets the sampling density of the next fit).
+    crop_est: Option<f64>,
     consecutive: Vec<Matrix3<f64>>,
     nf_input_sq: f64,
     nf_input_n: u64,
@@ -106,6 +108,7 @@ impl Measurer {
             luma: GrayImage::default(),
             prev: None,
             g_in: None,
+            crop_est: None,
             consecutive: Vec::new(),
             nf_input_sq: 0.0,
             nf_input_n: 0,
@@ -169,7 +172,19 @@ impl Measurer {
             valid_fraction,
             ..Default::default()
         };
-        let fit = self.fit_input(input, &pyr);
+        // Fit at the input's sampling density: the output's finest level spans
+        // as many pixels as the part of the input it shows (the last cropping).
+        let crop_guess = match self.crop_est {
+            Some(c) => c,
+            None => self
+                .fit_input(input, &pyr)
+                .and_then(|f| invert(&f.h))
+                .map(|a| liu::cropping_ratio(&a))
+                .unwrap_or(1.0),
+        };
+        let matched_width = (input.finest_width() as f64 * crop_guess).round() as usize;
+        let matched = Pyramid::with_finest_width(&self.luma, matched_width);
+        let fit = self.fit_input(input, &matched);
         let mut crop = None;
         match fit.and_then(|f| invert(&f.h).map(|a| (f, a))) {
             Some((f, a)) => {
@@ -178,6 +193,9 @@ impl Measurer {
                 self.fits += 1;
                 let c = liu::cropping_ratio(&a);
                 crop = Some(c);
+                if c.is_finite() && c > 0.05 {
+                    self.crop_est = Some(c.min(1.0));
+                }
                 row.cropping = Some(c);
                 row.distortion = Some(liu::distortion_value(&a));
             }
