@@ -21,17 +21,35 @@ fn compare_short_synthetic_clip() {
     synth(
         &clip,
         &[
-            "--width", "192", "--height", "108", "--fps", "60", "--seconds", "1", "--shake-dps",
-            "100", "--seed", "3",
+            "--width",
+            "192",
+            "--height",
+            "108",
+            "--fps",
+            "60",
+            "--seconds",
+            "1",
+            "--shake-dps",
+            "100",
+            "--seed",
+            "3",
         ],
     );
     let report = tmp.path().join("report");
     let t0 = std::time::Instant::now();
     amc_ok(&["compare", &s(&clip), "--report", &s(&report), "-q"]);
-    eprintln!("amc compare on 60 frames took {:.1} s", t0.elapsed().as_secs_f64());
+    eprintln!(
+        "amc compare on 60 frames took {:.1} s",
+        t0.elapsed().as_secs_f64()
+    );
 
     let files = list_dir(&report);
-    for f in ["README.md", "results.json", "shaky-motion.png", "shaky-strip.png"] {
+    for f in [
+        "README.md",
+        "results.json",
+        "shaky-motion.png",
+        "shaky-strip.png",
+    ] {
         assert!(files.contains(&f.to_string()), "{f} missing from {files:?}");
     }
     // No scratch files left behind.
@@ -75,11 +93,19 @@ fn compare_short_synthetic_clip() {
     assert!((crop - 0.75).abs() < 0.01, "none cropping {crop}");
     assert!(json_f64(none, "/measured/distortion") > 0.98);
     // The estimate is checked against the ground truth.
-    let gt = json_f64(method(c, "stabilize"), "/ground_truth/median_frame_error_deg");
+    let gt = json_f64(
+        method(c, "stabilize"),
+        "/ground_truth/median_frame_error_deg",
+    );
     assert!(gt < 0.05, "median rotation error {gt} deg");
     // Stabilizing removes image motion: less normal flow than the shaky input.
     let flow = |m: &str| json_f64(method(c, m), "/measured/paper/rms_normal_flow");
-    assert!(flow("saccade") < 0.5 * flow("none"), "{} vs {}", flow("saccade"), flow("none"));
+    assert!(
+        flow("saccade") < 0.5 * flow("none"),
+        "{} vs {}",
+        flow("saccade"),
+        flow("none")
+    );
 }
 
 #[test]
@@ -88,12 +114,34 @@ fn compare_bad_input_is_one_line_error() {
     let report = tmp.path().join("r");
     let r = run_amc(&["compare", "--report", &s(&report)]);
     assert_eq!(r.code, Some(1), "{}", r.stderr);
-    assert!(r.stderr.starts_with("error: nothing to compare"), "{}", r.stderr);
+    assert!(
+        r.stderr.starts_with("error: nothing to compare"),
+        "{}",
+        r.stderr
+    );
     let missing = Path::new("/nonexistent/clip.mp4");
-    let r = run_amc(&["compare", &s(missing), "--fov", "70", "--report", &s(&report)]);
+    let r = run_amc(&[
+        "compare",
+        &s(missing),
+        "--fov",
+        "70",
+        "--report",
+        &s(&report),
+    ]);
     assert_eq!(r.code, Some(1), "{}", r.stderr);
-    assert!(r.stderr.contains("clip.mp4") && !r.stderr.contains("panicked"), "{}", r.stderr);
-    let r = run_amc(&["compare", &s(missing), "--lookahead", "0", "--report", &s(&report)]);
+    assert!(
+        r.stderr.contains("clip.mp4") && !r.stderr.contains("panicked"),
+        "{}",
+        r.stderr
+    );
+    let r = run_amc(&[
+        "compare",
+        &s(missing),
+        "--lookahead",
+        "0",
+        "--report",
+        &s(&report),
+    ]);
     assert_eq!(r.code, Some(1));
     assert!(r.stderr.contains("--lookahead 0"), "{}", r.stderr);
 }

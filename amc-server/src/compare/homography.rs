@@ -62,7 +62,10 @@ fn half(src: &GrayImage) -> GrayImage {
     for y in 0..h {
         for x in 0..w {
             let i = 2 * y * src.width + 2 * x;
-            let s = src.data[i] + src.data[i + 1] + src.data[i + src.width] + src.data[i + src.width + 1];
+            let s = src.data[i]
+                + src.data[i + 1]
+                + src.data[i + src.width]
+                + src.data[i + src.width + 1];
             out.data[y * w + x] = 0.25 * s;
         }
     }
@@ -165,7 +168,11 @@ impl Pyramid {
         let cx = (self.full_width as f64 - 1.0) / 2.0;
         let cy = (self.full_height as f64 - 1.0) / 2.0;
         // x_n = (x s + (s - 1) / 2 - c) / W
-        (s / w, ((s - 1.0) / 2.0 - cx) / w, ((s - 1.0) / 2.0 - cy) / w)
+        (
+            s / w,
+            ((s - 1.0) / 2.0 - cx) / w,
+            ((s - 1.0) / 2.0 - cy) / w,
+        )
     }
 }
 
@@ -229,7 +236,11 @@ fn accumulate(
     let (sa, sbx, sby) = src.to_norm(level);
     let (da, dbx, dby) = dst.to_norm(level);
     // Every pixel of small levels, every other row and column of large ones.
-    let step = if d_img.width * d_img.height > SUBSAMPLE_ABOVE { 2 } else { 1 };
+    let step = if d_img.width * d_img.height > SUBSAMPLE_ABOVE {
+        2
+    } else {
+        1
+    };
     let mut acc = Accum {
         jtj: [0.0; 36],
         jtr: SVector::zeros(),
@@ -316,7 +327,13 @@ fn with_params(h: &Matrix3<f64>, delta: &SVector<f64, 8>) -> Matrix3<f64> {
 }
 
 /// Levenberg-Marquardt at one level; returns the refined homography.
-fn refine(src: &Pyramid, dst: &Pyramid, level: usize, mut h: Matrix3<f64>, iters: usize) -> Matrix3<f64> {
+fn refine(
+    src: &Pyramid,
+    dst: &Pyramid,
+    level: usize,
+    mut h: Matrix3<f64>,
+    iters: usize,
+) -> Matrix3<f64> {
     let mut lambda = 1e-3;
     for _ in 0..iters {
         let acc = accumulate(src, dst, level, &h, true);
@@ -365,7 +382,17 @@ pub fn fit(src: &Pyramid, dst: &Pyramid, init: &Matrix3<f64>) -> Option<Fit> {
     let mut best = (f64::INFINITY, h);
     for dy in -SEARCH_PX..=SEARCH_PX {
         for dx in -SEARCH_PX..=SEARCH_PX {
-            let t = Matrix3::new(1.0, 0.0, dx as f64 * step, 0.0, 1.0, dy as f64 * step, 0.0, 0.0, 1.0);
+            let t = Matrix3::new(
+                1.0,
+                0.0,
+                dx as f64 * step,
+                0.0,
+                1.0,
+                dy as f64 * step,
+                0.0,
+                0.0,
+                1.0,
+            );
             let cand = t * h;
             let acc = accumulate(src, dst, top, &cand, false);
             if acc.n < MIN_PIXELS / 8 {
@@ -400,7 +427,8 @@ mod tests {
 
     /// A smooth, textured test image (sum of sines), sampled at normalized coordinates.
     fn texture(xn: f64, yn: f64) -> f32 {
-        (0.5 + 0.2 * (17.0 * xn + 3.0 * yn).sin() + 0.15 * (23.0 * yn - 5.0 * xn).cos()
+        (0.5 + 0.2 * (17.0 * xn + 3.0 * yn).sin()
+            + 0.15 * (23.0 * yn - 5.0 * xn).cos()
             + 0.1 * (41.0 * (xn + yn)).sin()) as f32
     }
 
@@ -426,9 +454,24 @@ mod tests {
     fn recovers_shift_zoom_and_rotation() {
         let src = Pyramid::new(&render(320, 180, &Matrix3::identity()));
         let (c, s) = (0.05f64.cos(), 0.05f64.sin());
-        let g = Matrix3::new(0.8 * c, -0.8 * s, 0.03, 0.8 * s, 0.8 * c, -0.02, 0.0, 0.0, 1.0);
+        let g = Matrix3::new(
+            0.8 * c,
+            -0.8 * s,
+            0.03,
+            0.8 * s,
+            0.8 * c,
+            -0.02,
+            0.0,
+            0.0,
+            1.0,
+        );
         let dst = Pyramid::new(&render(240, 135, &g));
-        let f = fit(&src, &dst, &Matrix3::new(0.8, 0.0, 0.0, 0.0, 0.8, 0.0, 0.0, 0.0, 1.0)).unwrap();
+        let f = fit(
+            &src,
+            &dst,
+            &Matrix3::new(0.8, 0.0, 0.0, 0.0, 0.8, 0.0, 0.0, 0.0, 1.0),
+        )
+        .unwrap();
         assert!(close(&f.h, &g, 2e-3), "{}", f.h);
         assert!(f.rms_residual < 0.01, "{}", f.rms_residual);
     }

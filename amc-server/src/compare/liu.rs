@@ -31,7 +31,10 @@ pub const LIU_LOW_BINS: usize = 5;
 /// The upper-left 2x2 block of `h / h33`.
 fn linear_part(h: &Matrix3<f64>) -> [[f64; 2]; 2] {
     let s = h[(2, 2)];
-    [[h[(0, 0)] / s, h[(0, 1)] / s], [h[(1, 0)] / s, h[(1, 1)] / s]]
+    [
+        [h[(0, 0)] / s, h[(0, 1)] / s],
+        [h[(1, 0)] / s, h[(1, 1)] / s],
+    ]
 }
 
 /// Kept linear fraction of the input, `1 / sqrt|det A|` of the 2x2 part of `a` (input to output).

@@ -143,7 +143,11 @@ impl Measurer {
                 }
                 let again = best(guesses);
                 match (prev, again) {
-                    (Some(a), Some(b)) => Some(if a.rms_residual <= b.rms_residual { a } else { b }),
+                    (Some(a), Some(b)) => Some(if a.rms_residual <= b.rms_residual {
+                        a
+                    } else {
+                        b
+                    }),
                     (a, b) => a.or(b),
                 }
             }
@@ -208,8 +212,8 @@ impl Measurer {
         }
         if let Some((prev_pyr, prev_luma)) = &self.prev {
             row.psnr_db = liu::psnr(&prev_luma.data, &self.luma.data);
-            if let Some(m) = homography::fit(prev_pyr, &pyr, &Matrix3::identity())
-                .and_then(|f| invert(&f.h))
+            if let Some(m) =
+                homography::fit(prev_pyr, &pyr, &Matrix3::identity()).and_then(|f| invert(&f.h))
             {
                 self.consecutive.push(m);
                 let shift = m[(0, 2)].hypot(m[(1, 2)]) * self.input_width * crop.unwrap_or(1.0);
@@ -271,7 +275,9 @@ mod tests {
         let mut f = Frame::new(w, h, PixelFormat::Rgb8);
         for y in 0..h {
             for x in 0..w {
-                let v = (50.0 + g * 255.0 * (x as f64 - d)).round().clamp(0.0, 255.0) as u8;
+                let v = (50.0 + g * 255.0 * (x as f64 - d))
+                    .round()
+                    .clamp(0.0, 255.0) as u8;
                 let i = 3 * (y * w + x);
                 f.data[i..i + 3].copy_from_slice(&[v, v, v]);
             }
@@ -303,7 +309,8 @@ mod tests {
                 // Normalized coordinates of the input this output pixel shows.
                 let xn = (x as f64 - cx) / w as f64 * crop;
                 let yn = (y as f64 - cy) / w as f64 * crop;
-                let v = 0.5 + 0.2 * (17.0 * xn + 3.0 * yn).sin() + 0.15 * (23.0 * yn - 5.0 * xn).cos();
+                let v =
+                    0.5 + 0.2 * (17.0 * xn + 3.0 * yn).sin() + 0.15 * (23.0 * yn - 5.0 * xn).cos();
                 let b = (v * 255.0).round() as u8;
                 let i = 3 * (y * w + x);
                 f.data[i..i + 3].copy_from_slice(&[b, b, b]);

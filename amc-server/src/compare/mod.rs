@@ -180,6 +180,8 @@ pub struct ClipResult {
     pub frames: usize,
     pub fps: f64,
     pub hfov_deg: f64,
+    /// Whether the bars apply (synthetic clips and `cup`).
+    pub has_bars: bool,
     pub methods: Vec<MethodResult>,
     #[serde(skip)]
     pub input_middle: Option<Frame>,
@@ -265,13 +267,21 @@ fn fps_of(input: &DecodedInput) -> f64 {
     30.0
 }
 
+/// What the in-process run of one of our modes gives besides the measurements.
+struct OursMeasured {
+    measured: Measured,
+    ground_truth: Option<GtReport>,
+    middle: Option<Frame>,
+    saccades: Vec<bool>,
+}
+
 /// Measures one of our modes in-process (same output as the timed child).
 fn measure_ours(
     method: Method,
     clip: &Clip,
     input: &DecodedInput,
     args: &CompareArgs,
-) -> Result<(Measured, Option<GtReport>, Option<Frame>, Vec<bool>), CliError> {
+) -> Result<OursMeasured, CliError> {
     let params = our_params(method, args.lookahead);
     let mut src = video::open_input(&clip.input, &input_options(clip, args))?;
     let (w, h) = input.size;
@@ -313,7 +323,12 @@ fn measure_ours(
         handle(&stab, tel);
     }
     let ground_truth = clip.gt.as_ref().map(|g| gt::compare(g, &est));
-    Ok((m.finish(), ground_truth, middle, saccades))
+    Ok(OursMeasured {
+        measured: m.finish(),
+        ground_truth,
+        middle,
+        saccades,
+    })
 }
 
 /// Measures a peer's output `.y4m` (validity from the alternative-fill run).
@@ -366,7 +381,12 @@ fn list_images(dir: &Path) -> Result<Vec<PathBuf>, CompareError> {
         })
         .collect();
     files.sort_by(|a, b| {
-        let n = |p: &PathBuf| p.file_name().unwrap_or_default().to_string_lossy().into_owned();
+        let n = |p: &PathBuf| {
+            p.file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned()
+        };
         natord::compare(&n(a), &n(b))
     });
     Ok(files)
@@ -410,8 +430,12 @@ fn compare_clip(clip: &Clip, args: &CompareArgs, work: &Path) -> Result<ClipResu
             )?;
             let _ = std::fs::remove_file(&out);
             say(format!("{}: measuring", method.label()));
-            let (measured, ground_truth, middle, saccades) =
-                measure_ours(method, clip, &input, args)?;
+            let OursMeasured {
+                measured,
+                ground_truth,
+                middle,
+                saccades,
+            } = measure_ours(method, clip, &input, args)?;
             MethodResult {
                 method: method.label(),
                 frames: measured.frames.len(),
@@ -456,6 +480,7 @@ fn compare_clip(clip: &Clip, args: &CompareArgs, work: &Path) -> Result<ClipResu
         frames: input.times.len(),
         fps,
         hfov_deg: clip.lens.hfov_deg(),
+        has_bars: clip.gt.is_some() || clip.name == "cup",
         methods,
         input_middle: input.middle,
     })
@@ -499,14 +524,25 @@ fn resolve_clip(path: &Path, args: &CompareArgs) -> Result<Clip, CliError> {
     }
     let fps = if path.is_dir() { args.fps } else { None };
     let params = StabilizerParams::default();
-    let lens = pipeline::resolve_lens(&args.lens.choice()?, path, &params, fps, timeout, args.quiet)?;
+    let lens = pipeline::resolve_lens(
+        &args.lens.choice()?,
+        path,
+        &params,
+        fps,
+        timeout,
+        args.quiet,
+    )?;
     Ok(Clip {
         name: stem(path),
         input: path.to_path_buf(),
         lens: lens.clone(),
         fps,
         gt: None,
-        description: format!("`{}` (pinhole, hfov {:.1} deg)", path.display(), lens.hfov_deg()),
+        description: format!(
+            "`{}` (pinhole, hfov {:.1} deg)",
+            path.display(),
+            lens.hfov_deg()
+        ),
     })
 }
 
@@ -554,10 +590,7 @@ pub fn run(args: &CompareArgs) -> Result<(), CliError> {
         report::write(&args.report, &results, args)?;
     }
     if !args.quiet {
-        eprintln!(
-            "wrote {}",
-            args.report.join(report::REPORT_FILE).display()
-        );
+        eprintln!("wrote {}", args.report.join(report::REPORT_FILE).display());
     }
     Ok(())
 }

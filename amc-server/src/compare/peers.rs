@@ -3,9 +3,11 @@
 //! Every method reads the same clip (the original file, or an ffmpeg concat
 //! list of the image folder in natural order) and writes raw `.y4m`, so
 //! "frames/s" is decode + stabilize + write for all, with no encoder cost.
-//! Wall time and peak resident memory (`ru_maxrss` from `wait4`) are those of
-//! the whole child process; vid.stab's two passes are summed (time) and
-//! maxed (memory).
+//! Wall time and peak resident memory are those of the whole child process;
+//! vid.stab's two passes are summed (time) and maxed (memory). Peak memory is
+//! the kernel's high-water mark `VmHWM` of the child, read from
+//! `/proc/PID/status` every 10 ms while it runs (`ru_maxrss` cannot be used:
+//! Linux carries the parent's resident size across fork and exec into it).
 //!
 //! Validity of peer pixels: vid.stab and deshake fill uncovered pixels, so
 //! each peer is run a second time (untimed) with a different fill
@@ -161,7 +163,17 @@ pub fn run_timed(
         source: e,
     })?;
     let pid = child.id() as libc::pid_t;
+    let status_path = PathBuf::from(format!("/proc/{pid}/status"));
+    let mut peak_kib: Option<f64> = None;
+    let mut polls = 0u64;
     loop {
+        // `spawn` returns after the exec, so this is the child program's own memory.
+        if polls % 5 == 0 {
+            if let Some(kib) = vm_hwm_kib(&status_path) {
+                peak_kib = Some(peak_kib.map_or(kib, |p| p.max(kib)));
+            }
+        }
+        polls += 1;
         let mut status: libc::c_int = 0;
         // SAFETY: `rusage` is plain data that wait4 fills in; `pid` is our own child,
         // reaped only here (std's `Child` is never waited on afterwards).
@@ -176,10 +188,11 @@ pub fn run_timed(
                     detail: log_tail(log),
                 });
             }
+            // Without /proc (not Linux), ru_maxrss (KiB on Linux, an upper bound).
+            let kib = peak_kib.unwrap_or(usage.ru_maxrss as f64);
             return Ok(Usage {
                 seconds,
-                // Linux reports ru_maxrss in KiB.
-                peak_mib: usage.ru_maxrss as f64 / 1024.0,
+                peak_mib: kib / 1024.0,
             });
         }
         if r < 0 {
@@ -201,6 +214,17 @@ pub fn run_timed(
         }
         std::thread::sleep(Duration::from_millis(2));
     }
+}
+
+/// `VmHWM` (peak resident set, KiB) from a `/proc/PID/status` file.
+fn vm_hwm_kib(status: &Path) -> Option<f64> {
+    let text = std::fs::read_to_string(status).ok()?;
+    text.lines()
+        .find(|l| l.starts_with("VmHWM:"))?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()
 }
 
 /// The last lines of a child's log, as one line.
@@ -405,6 +429,18 @@ mod tests {
         .unwrap();
         assert!(u.seconds >= 0.19 && u.seconds < 5.0, "{u:?}");
         assert!(u.peak_mib > 0.0);
+        // A child that allocates 200 MiB (touching it) peaks above that, one that
+        // does not stays far below, whatever this (test) process holds.
+        let big = vec![1u8; 300 << 20];
+        let small = run_timed(
+            "sleep",
+            Command::new("sh").args(["-c", "sleep 0.1"]),
+            &log,
+            Duration::from_secs(10),
+        )
+        .unwrap();
+        assert!(small.peak_mib < 50.0, "{small:?} (parent holds {} MiB)", big.len() >> 20);
+        drop(big);
         let e = run_timed(
             "false",
             Command::new("sh").args(["-c", "echo boom >&2; exit 3"]),

@@ -138,6 +138,9 @@ pub struct Bar {
 /// The bars of the issue for one clip (`stabilize` vs vid.stab, `saccade` vs tripod).
 pub fn bars(c: &ClipResult) -> Vec<Bar> {
     let mut out = Vec::new();
+    if !c.has_bars {
+        return out;
+    }
     let (Some(st), Some(sa)) = (find(c, "stabilize"), find(c, "saccade")) else {
         return out;
     };
@@ -199,14 +202,20 @@ fn peer_wins(c: &ClipResult) -> Vec<String> {
         .filter(|m| m.method.starts_with("vidstab") || m.method == "deshake");
     type Get = fn(&MethodResult) -> Option<f64>;
     let metrics: [(&str, Get, bool); 4] = [
-        ("normal flow (input px)", |m| Some(m.measured.rms_normal_flow_input_px), false),
+        (
+            "normal flow (input px)",
+            |m| Some(m.measured.rms_normal_flow_input_px),
+            false,
+        ),
         ("frame change", |m| Some(m.measured.paper.rms_change), false),
         ("stability (Liu)", |m| m.measured.stability.score, true),
         ("ITF", |m| m.measured.itf_db, true),
     ];
     for p in peers {
         for (name, get, higher_better) in metrics {
-            let Some(pv) = get(p).filter(|v| v.is_finite()) else { continue };
+            let Some(pv) = get(p).filter(|v| v.is_finite()) else {
+                continue;
+            };
             let best = ours
                 .iter()
                 .filter_map(|m| get(m).filter(|v| v.is_finite()))
@@ -235,7 +244,13 @@ fn peer_wins(c: &ClipResult) -> Vec<String> {
 
 fn file_stem(clip: &str) -> String {
     clip.chars()
-        .map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' })
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
         .collect()
 }
 
@@ -295,7 +310,9 @@ fn write_strip(dir: &Path, c: &ClipResult) -> Result<Option<String>, CliError> {
         return Ok(None);
     }
     let (iw, ih) = c.input_size;
-    let tile_h = ((TILE_WIDTH as f64) * ih as f64 / iw.max(1) as f64).round().max(1.0) as u32;
+    let tile_h = ((TILE_WIDTH as f64) * ih as f64 / iw.max(1) as f64)
+        .round()
+        .max(1.0) as u32;
     let rows = (tiles.len() as u32).div_ceil(STRIP_COLUMNS);
     let mut canvas = image::RgbImage::from_pixel(
         STRIP_COLUMNS * TILE_WIDTH,
@@ -312,9 +329,16 @@ fn write_strip(dir: &Path, c: &ClipResult) -> Result<Option<String>, CliError> {
         let Some(img) = image::RgbImage::from_raw(f.width as u32, f.height as u32, rgb) else {
             continue;
         };
-        let small =
-            image::imageops::resize(&img, TILE_WIDTH, tile_h, image::imageops::FilterType::Triangle);
-        let (x, y) = ((k as u32 % STRIP_COLUMNS) * TILE_WIDTH, (k as u32 / STRIP_COLUMNS) * tile_h);
+        let small = image::imageops::resize(
+            &img,
+            TILE_WIDTH,
+            tile_h,
+            image::imageops::FilterType::Triangle,
+        );
+        let (x, y) = (
+            (k as u32 % STRIP_COLUMNS) * TILE_WIDTH,
+            (k as u32 / STRIP_COLUMNS) * tile_h,
+        );
         image::imageops::replace(&mut canvas, &small, x as i64, y as i64);
     }
     let name = format!("{}-strip.png", file_stem(&c.clip));
@@ -388,7 +412,11 @@ pub fn write(dir: &Path, results: &[ClipResult], args: &CompareArgs) -> Result<(
                 let _ = writeln!(
                     s,
                     "- {} {}: {}",
-                    if bar.cleared { "cleared:" } else { "**NOT cleared:**" },
+                    if bar.cleared {
+                        "cleared:"
+                    } else {
+                        "**NOT cleared:**"
+                    },
                     bar.what,
                     bar.detail
                 );
@@ -406,7 +434,12 @@ pub fn write(dir: &Path, results: &[ClipResult], args: &CompareArgs) -> Result<(
         if let Some(strip) = write_strip(dir, c)? {
             let order: Vec<&str> = std::iter::once("input")
                 .filter(|_| c.input_middle.is_some())
-                .chain(c.methods.iter().filter(|m| m.middle.is_some()).map(|m| m.method))
+                .chain(
+                    c.methods
+                        .iter()
+                        .filter(|m| m.middle.is_some())
+                        .map(|m| m.method),
+                )
                 .collect();
             let _ = writeln!(
                 s,
@@ -424,7 +457,11 @@ pub fn write(dir: &Path, results: &[ClipResult], args: &CompareArgs) -> Result<(
         "{} of {} bars cleared.{}\n",
         all_bars.len() - missed.len(),
         all_bars.len(),
-        if missed.is_empty() { "" } else { " Not cleared:" }
+        if missed.is_empty() {
+            ""
+        } else {
+            " Not cleared:"
+        }
     );
     for (clip, b) in &missed {
         let _ = writeln!(s, "- {clip}: {} ({})", b.what, b.detail);
