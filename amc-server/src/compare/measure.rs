@@ -41,6 +41,8 @@ pub struct FrameRow {
     pub distortion: Option<f64>,
     pub psnr_db: Option<f64>,
     pub valid_fraction: f64,
+    /// RMS luma residual of the input-output homography fit.
+    pub fit_residual: Option<f64>,
 }
 
 /// A whole clip's measurements for one method.
@@ -201,6 +203,7 @@ impl Measurer {
                     self.crop_est = Some(c.min(1.0));
                 }
                 row.cropping = Some(c);
+                row.fit_residual = Some(f.rms_residual);
                 row.distortion = Some(liu::distortion_value(&a));
             }
             None => self.out.fit_failures += 1,

@@ -65,6 +65,8 @@ pub enum CompareError {
     SyntheticSeconds(f64),
     #[error("invalid --lookahead {0} (allowed: 1 to {MAX_LOOKAHEAD} frames)")]
     Lookahead(usize),
+    #[error("invalid --repeat {0} (allowed: 1 to 10 runs)")]
+    Repeat(usize),
     #[error("{}: the panorama for --synthetic does not exist (pass --panorama FILE)", .0.display())]
     NoPanorama(PathBuf),
     #[error("{method} on {clip}: produced no frames")]
@@ -119,6 +121,12 @@ pub struct CompareArgs {
     /// Text describing the machine, added to the detected CPU and memory in the report.
     #[arg(long)]
     pub machine: Option<String>,
+    /// Timed runs per method (1..=10); the fastest counts (least disturbed on a shared machine).
+    #[arg(long, default_value_t = 1)]
+    pub repeat: usize,
+    /// Also write every method's per-frame measurements (`CLIP-frames.csv`).
+    #[arg(long)]
+    pub per_frame: bool,
     /// No progress messages.
     #[arg(short, long)]
     pub quiet: bool,
@@ -427,6 +435,7 @@ fn compare_clip(clip: &Clip, args: &CompareArgs, work: &Path) -> Result<ClipResu
                 args.lookahead,
                 &dir,
                 timeout(args),
+                args.repeat,
             )?;
             let _ = std::fs::remove_file(&out);
             say(format!("{}: measuring", method.label()));
@@ -447,7 +456,8 @@ fn compare_clip(clip: &Clip, args: &CompareArgs, work: &Path) -> Result<ClipResu
                 saccades,
             }
         } else {
-            let (usage, outs) = peers::run_peer(method, &ff_input, &dir, timeout(args))?;
+            let (usage, outs) =
+                peers::run_peer(method, &ff_input, &dir, timeout(args), args.repeat)?;
             say(format!("{}: measuring", method.label()));
             let measured = measure_peer(clip, &input, &outs, args);
             let _ = std::fs::remove_file(&outs.main);
@@ -556,6 +566,9 @@ pub fn run(args: &CompareArgs) -> Result<(), CliError> {
     }
     if !(1..=MAX_LOOKAHEAD).contains(&args.lookahead) {
         return Err(CompareError::Lookahead(args.lookahead).into());
+    }
+    if !(1..=10).contains(&args.repeat) {
+        return Err(CompareError::Repeat(args.repeat).into());
     }
     if args.synthetic && !args.panorama.is_file() {
         return Err(CompareError::NoPanorama(args.panorama.clone()).into());

@@ -354,6 +354,39 @@ fn write_strip(dir: &Path, c: &ClipResult) -> Result<Option<String>, CliError> {
     Ok(Some(name))
 }
 
+/// Writes every method's per-frame measurements of one clip as CSV.
+fn write_frames_csv(dir: &Path, c: &ClipResult) -> Result<(), CliError> {
+    let f = |v: Option<f64>| {
+        v.filter(|x| x.is_finite())
+            .map(|x| format!("{x:.6}"))
+            .unwrap_or_default()
+    };
+    let mut s = String::from(
+        "method,frame,t,rms_normal_flow,apparent_speed_dps,cropping,distortion,fit_residual,psnr_db,valid_fraction\n",
+    );
+    for m in &c.methods {
+        for (j, r) in m.measured.frames.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "{},{j},{:.6},{},{},{},{},{},{},{:.5}",
+                m.method,
+                r.t,
+                f(r.rms_normal_flow),
+                f(r.apparent_speed_dps),
+                f(r.cropping),
+                f(r.distortion),
+                f(r.fit_residual),
+                f(r.psnr_db),
+                r.valid_fraction
+            );
+        }
+    }
+    write_public(
+        &dir.join(format!("{}-frames.csv", file_stem(&c.clip))),
+        s.as_bytes(),
+    )
+}
+
 /// Writes the report for the clips done so far.
 pub fn write(dir: &Path, results: &[ClipResult], args: &CompareArgs) -> Result<(), CliError> {
     let mut s = String::new();
@@ -366,6 +399,8 @@ pub fn write(dir: &Path, results: &[ClipResult], args: &CompareArgs) -> Result<(
         machine_description(args.machine.as_deref()),
         ffmpeg_version()
     );
+    s += "A reading of these numbers, written by hand after the run, is in [NOTES.md](NOTES.md) \
+          next to this file (where present).\n\n";
     s += METHODS_TEXT;
     let mut all_bars = Vec::new();
     for c in results {
@@ -428,6 +463,9 @@ pub fn write(dir: &Path, results: &[ClipResult], args: &CompareArgs) -> Result<(
             for w in &wins {
                 let _ = writeln!(s, "- {w}");
             }
+        }
+        if args.per_frame {
+            write_frames_csv(dir, c)?;
         }
         let plot_name = write_clip_plot(dir, c)?;
         let _ = writeln!(s, "\n![{} motion]({plot_name})", c.clip);
