@@ -185,12 +185,13 @@ pub fn run_timed(
     let mut polls = 0u64;
     loop {
         // `spawn` returns after the exec, so this is the child program's own memory.
-        if polls % 5 == 0 {
+        if polls == 0 {
             if let Some(kib) = vm_hwm_kib(&status_path) {
                 peak_kib = Some(peak_kib.map_or(kib, |p| p.max(kib)));
             }
         }
-        polls += 1;
+        // Every 5th pass of the 2 ms loop.
+        polls = (polls + 1) % 5;
         let mut status: libc::c_int = 0;
         // SAFETY: `rusage` is plain data that wait4 fills in; `pid` is our own child,
         // reaped only here (std's `Child` is never waited on afterwards).
