@@ -26,6 +26,8 @@ pub enum Command {
     Demo(DemoArgs),
     /// Run the HTTP service: REST stabilization, batch jobs, a live WebSocket feed, the web page.
     Serve(crate::serve::ServeArgs),
+    /// Compare our modes with ffmpeg's vid.stab and deshake: speed and quality, one report.
+    Compare(crate::compare::CompareArgs),
 }
 
 /// How the lens is known.

@@ -16,6 +16,8 @@ pub enum CliError {
     Core(#[from] amc_core::AmcError),
     #[error(transparent)]
     Video(#[from] crate::video::VideoError),
+    #[error(transparent)]
+    Compare(#[from] crate::compare::CompareError),
     /// Bad command-line usage that clap cannot catch (a message a person can act on).
     #[error("{0}")]
     Usage(String),

@@ -1,6 +1,7 @@
 //! `amc`: the command line of Artificial Microsaccade Compensation.
 
 mod cli;
+mod compare;
 mod demo;
 mod error;
 mod eval;
@@ -100,6 +101,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Synth(a) => synth_cmd::run(&a),
         Command::Demo(a) => demo::run(&a),
         Command::Serve(a) => serve::run(&a),
+        Command::Compare(a) => compare::run(&a),
     }
 }
 

@@ -35,6 +35,7 @@ use crate::cli::parse_mode;
 use crate::error::CliError;
 use amc_core::view::Mode;
 use axum::extract::{DefaultBodyLimit, State};
+use axum::handler::HandlerWithoutStateExt;
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{Html, IntoResponse, Response};
 use axum::routing::{get, post};
@@ -49,7 +50,6 @@ use std::time::Duration;
 use storage::DiskBudget;
 use tokio::sync::{watch, Semaphore};
 use tokio_util::task::TaskTracker;
-use axum::handler::HandlerWithoutStateExt;
 use tower_http::services::ServeDir;
 use tower_http::trace::TraceLayer;
 
@@ -327,7 +327,9 @@ pub fn app(state: Arc<AppState>) -> Router {
     let index = state.web_dir.join("index.html");
     let router = if index.is_file() {
         // The page's files; anything else is an unknown endpoint (problem+json 404).
-        api.fallback_service(ServeDir::new(&state.web_dir).not_found_service(no_page.into_service()))
+        api.fallback_service(
+            ServeDir::new(&state.web_dir).not_found_service(no_page.into_service()),
+        )
     } else {
         api.fallback(no_page)
     };

@@ -151,6 +151,7 @@ pub fn cli_error(e: CliError, input: &Path) -> ApiError {
             ApiError::Internal(format!("{}: {source}", path.display()))
         }
         CliError::Image { path, msg } => ApiError::Internal(format!("{}: {msg}", path.display())),
+        CliError::Compare(e) => ApiError::Internal(e.to_string()),
     }
 }
 
