@@ -172,9 +172,12 @@ impl Geometry {
     /// outside the frame.
     #[inline(always)]
     fn sample(&self, data: &[u8], sx: f32, sy: f32) -> Option<[u32; 3]> {
-        if !(sx >= 0.0 && sy >= 0.0 && sx <= self.max_x && sy <= self.max_y) {
+        let tol = crate::simd::EDGE_TOLERANCE;
+        if !(sx >= -tol && sy >= -tol && sx <= self.max_x + tol && sy <= self.max_y + tol) {
             return None;
         }
+        // Points within the tolerance outside the frame sample its edge.
+        let (sx, sy) = (sx.max(0.0).min(self.max_x), sy.max(0.0).min(self.max_y));
         let c = self.channels;
         let x0 = (sx as usize).min(self.max_x0);
         let y0 = (sy as usize).min(self.max_y0);

@@ -11,6 +11,12 @@
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
 
+/// How far (pixels) outside a frame a sample point may fall and still sample
+/// its edge. An identity warp computes `x = u +- 1e-13` at the borders; without
+/// a tolerance that rounding blanks the first or last row or column. 1/512 px
+/// is half the bilinear weights' resolution, so the clamp changes no weight.
+pub const EDGE_TOLERANCE: f32 = 1.0 / 512.0;
+
 /// Bytes a frame buffer must have past its last pixel for the gathers: the
 /// last tap reads a whole dword starting at the last pixel (3 bytes for RGB).
 pub const FRAME_PADDING: usize = 4;
@@ -88,6 +94,9 @@ pub unsafe fn accumulate_row_avx2(
     let zero_ps = _mm256_setzero_ps();
     let max_x = _mm256_set1_ps(g.max_x);
     let max_y = _mm256_set1_ps(g.max_y);
+    let lo = _mm256_set1_ps(-EDGE_TOLERANCE);
+    let hi_x = _mm256_set1_ps(g.max_x + EDGE_TOLERANCE);
+    let hi_y = _mm256_set1_ps(g.max_y + EDGE_TOLERANCE);
     let max_x0 = _mm256_set1_epi32(g.max_x0);
     let max_y0 = _mm256_set1_epi32(g.max_y0);
     let stride = _mm256_set1_epi32(g.stride);
@@ -146,21 +155,22 @@ pub unsafe fn accumulate_row_avx2(
             // NaN compares false: NaN coordinates are invalid.
             let valid = _mm256_and_ps(
                 _mm256_and_ps(
-                    _mm256_cmp_ps(sx, zero_ps, _CMP_GE_OQ),
-                    _mm256_cmp_ps(sy, zero_ps, _CMP_GE_OQ),
+                    _mm256_cmp_ps(sx, lo, _CMP_GE_OQ),
+                    _mm256_cmp_ps(sy, lo, _CMP_GE_OQ),
                 ),
                 _mm256_and_ps(
-                    _mm256_cmp_ps(sx, max_x, _CMP_LE_OQ),
-                    _mm256_cmp_ps(sy, max_y, _CMP_LE_OQ),
+                    _mm256_cmp_ps(sx, hi_x, _CMP_LE_OQ),
+                    _mm256_cmp_ps(sy, hi_y, _CMP_LE_OQ),
                 ),
             );
             let mask = _mm256_castps_si256(valid);
             if _mm256_testz_si256(mask, mask) != 0 {
                 continue;
             }
-            // Invalid lanes get coordinate 0 so the integer conversions stay tame.
-            let sxv = _mm256_and_ps(sx, valid);
-            let syv = _mm256_and_ps(sy, valid);
+            // Invalid lanes get coordinate 0 so the integer conversions stay
+            // tame; valid ones are clamped onto the frame (edge tolerance).
+            let sxv = _mm256_min_ps(_mm256_max_ps(_mm256_and_ps(sx, valid), zero_ps), max_x);
+            let syv = _mm256_min_ps(_mm256_max_ps(_mm256_and_ps(sy, valid), zero_ps), max_y);
             let x0 = _mm256_min_epi32(_mm256_cvttps_epi32(sxv), max_x0);
             let y0 = _mm256_min_epi32(_mm256_cvttps_epi32(syv), max_y0);
             let fx = _mm256_sub_ps(sxv, _mm256_cvtepi32_ps(x0));
@@ -247,6 +257,9 @@ pub unsafe fn accumulate_row_simd128(
     let zero_ps = f32x4_splat(0.0);
     let max_x = f32x4_splat(g.max_x);
     let max_y = f32x4_splat(g.max_y);
+    let lo = f32x4_splat(-EDGE_TOLERANCE);
+    let hi_x = f32x4_splat(g.max_x + EDGE_TOLERANCE);
+    let hi_y = f32x4_splat(g.max_y + EDGE_TOLERANCE);
     let max_x0 = f32x4_splat(g.max_x0 as f32);
     let max_y0 = f32x4_splat(g.max_y0 as f32);
     let stride = i32x4_splat(g.stride);
@@ -309,16 +322,17 @@ pub unsafe fn accumulate_row_simd128(
             };
             // NaN compares false: NaN coordinates are invalid.
             let valid = v128_and(
-                v128_and(f32x4_ge(sx, zero_ps), f32x4_ge(sy, zero_ps)),
-                v128_and(f32x4_le(sx, max_x), f32x4_le(sy, max_y)),
+                v128_and(f32x4_ge(sx, lo), f32x4_ge(sy, lo)),
+                v128_and(f32x4_le(sx, hi_x), f32x4_le(sy, hi_y)),
             );
             if !v128_any_true(valid) {
                 u += 4;
                 continue;
             }
-            // Invalid lanes get coordinate 0 (offset 0 below, always readable).
-            let sxv = v128_and(sx, valid);
-            let syv = v128_and(sy, valid);
+            // Invalid lanes get coordinate 0 (offset 0 below, always readable);
+            // valid ones are clamped onto the frame (edge tolerance).
+            let sxv = f32x4_pmin(f32x4_pmax(v128_and(sx, valid), zero_ps), max_x);
+            let syv = f32x4_pmin(f32x4_pmax(v128_and(sy, valid), zero_ps), max_y);
             // x0 = min(trunc(sx), max_x0) as in the scalar `(sx as usize).min(max_x0)`.
             let x0f = f32x4_pmin(f32x4_trunc(sxv), max_x0);
             let y0f = f32x4_pmin(f32x4_trunc(syv), max_y0);
