@@ -94,7 +94,15 @@ impl RenderParams {
             (None, Some(h)) => (even(h as f64 * crop_w / crop_h), h),
             (Some(w), Some(h)) => (w, h),
         };
-        let (sx, sy) = (w as f64 / crop_w, h as f64 / crop_h);
+        // One scale for both axes, so rounding a size to even pixels crops
+        // (or extends) by a fraction of a pixel instead of stretching the image;
+        // only an explicit width *and* height may change the aspect ratio.
+        let (sx, sy) = match (self.output_width, self.output_height) {
+            (None, None) => (1.0, 1.0),
+            (Some(_), None) => (w as f64 / crop_w, w as f64 / crop_w),
+            (None, Some(_)) => (h as f64 / crop_h, h as f64 / crop_h),
+            (Some(_), Some(_)) => (w as f64 / crop_w, h as f64 / crop_h),
+        };
         Ok(CameraModel::pinhole(
             w,
             h,
@@ -747,6 +755,23 @@ mod tests {
         }
         f.data.extend_from_slice(&[0; crate::simd::FRAME_PADDING]);
         f
+    }
+
+    #[test]
+    fn rounding_the_output_size_never_stretches() {
+        // 320x180 with 12.5% margins crops 240x135, rounded to 240x136.
+        let src = CameraModel::pinhole_hfov(320, 180, 90.0).unwrap();
+        let out = RenderParams::default().output_camera(&src).unwrap();
+        assert_eq!((out.width, out.height), (240, 136));
+        assert_eq!((out.fx, out.fy), (src.fx, src.fy));
+        // One explicit dimension scales both axes alike.
+        let p = RenderParams {
+            output_width: Some(480),
+            ..RenderParams::default()
+        };
+        let out = p.output_camera(&src).unwrap();
+        assert_eq!((out.width, out.height), (480, 270));
+        assert!((out.fx / src.fx - 2.0).abs() < 1e-12 && (out.fy / src.fy - 2.0).abs() < 1e-12);
     }
 
     fn render(src: &CameraModel, vectorized: bool, format: PixelFormat) -> (Vec<u8>, Vec<u8>, f64) {

@@ -259,7 +259,7 @@ async fn create_job(state: &Arc<AppState>, request: Request) -> Result<JobView, 
     let id = new_id();
     let format = options.format;
     let bytes = upload.bytes;
-    let spec = WorkSpec::for_upload(&scratch, upload, options, true);
+    let spec = WorkSpec::for_upload(&scratch, upload, options, &inspection, true);
     let control = work::control(state);
     let job = Arc::new(Job {
         id: id.clone(),

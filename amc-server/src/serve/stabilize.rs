@@ -63,10 +63,10 @@ async fn stabilize(state: &Arc<AppState>, request: Request) -> Result<Response, 
         options,
         scratch,
         upload,
-        inspection: _,
+        inspection,
     } = intake::accept(state, request).await?;
     let format = options.format;
-    let spec = WorkSpec::for_upload(&scratch, upload, options, false);
+    let spec = WorkSpec::for_upload(&scratch, upload, options, &inspection, false);
     let control = work::control(state);
     let guard = CancelOnDrop(Some(control.clone()));
     let permit = state

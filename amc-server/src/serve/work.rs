@@ -20,6 +20,8 @@ pub struct WorkSpec {
     pub telemetry: Option<PathBuf>,
     pub lens_text: Option<String>,
     pub options: JobOptions,
+    /// Frame size found by the inspection (a `fov` lens needs no second probe).
+    pub input_size: (usize, usize),
 }
 
 impl WorkSpec {
@@ -28,6 +30,7 @@ impl WorkSpec {
         scratch: &super::storage::Scratch,
         upload: super::upload::Upload,
         options: JobOptions,
+        inspection: &Inspection,
         with_telemetry: bool,
     ) -> Self {
         Self {
@@ -36,6 +39,7 @@ impl WorkSpec {
             telemetry: with_telemetry.then(|| scratch.file("telemetry.csv")),
             lens_text: upload.lens,
             options,
+            input_size: (inspection.info.width, inspection.info.height),
         }
     }
 }
@@ -92,21 +96,22 @@ pub fn stabilize(
     let lens = match &spec.lens_text {
         Some(text) => amc_core::lens::parse_lens(text)
             .map_err(|e| ApiError::BadOption(format!("invalid lens file: {e}")))?,
-        None => {
-            let choice = match spec.options.lens {
-                LensChoice::File(_) => LensChoice::Auto,
-                ref c => c.clone(),
-            };
-            pipeline::resolve_lens(
-                &choice,
+        None => match spec.options.lens {
+            LensChoice::Fov(deg) => {
+                let (w, h) = spec.input_size;
+                amc_core::CameraModel::pinhole_hfov(w, h, deg)
+                    .map_err(|e| core_error(AmcError::from(e)))?
+            }
+            _ => pipeline::resolve_lens(
+                &LensChoice::Auto,
                 &spec.input,
                 &params,
                 None,
                 limits.ffmpeg_timeout,
                 true,
             )
-            .map_err(|e| cli_error(e, &spec.input))?
-        }
+            .map_err(|e| cli_error(e, &spec.input))?,
+        },
     };
     pipeline::run(&RunConfig {
         input: &spec.input,
