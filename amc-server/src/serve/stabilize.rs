@@ -147,19 +147,24 @@ fn summary_headers(h: &mut HeaderMap, s: &RunSummary) {
         "x-amc-processing-fps",
         format!("{:.1}", s.frames_per_second),
     );
+    let motion = &s.motion;
+    put(
+        "x-amc-valid-fraction",
+        format!("{:.5}", motion.valid_fraction),
+    );
+    put(
+        "x-amc-rms-speed-estimate-dps",
+        format!("{:.3}", motion.rms_speed_est_dps),
+    );
+    put(
+        "x-amc-rms-speed-view-dps",
+        format!("{:.3}", motion.rms_speed_view_dps),
+    );
+    put("x-amc-saccades", motion.saccades.to_string());
+    // The image metrics cost about as much as stabilizing; `metrics=false` skips them.
     if let Some(m) = &s.metrics {
         put("x-amc-rms-normal-flow", format!("{:.5}", m.rms_normal_flow));
         put("x-amc-rms-frame-change", format!("{:.6}", m.rms_change));
         put("x-amc-sharpness", format!("{:.6}", m.sharpness));
-        put("x-amc-valid-fraction", format!("{:.5}", m.valid_fraction));
-        put(
-            "x-amc-rms-speed-estimate-dps",
-            format!("{:.3}", m.rms_speed_est_dps),
-        );
-        put(
-            "x-amc-rms-speed-view-dps",
-            format!("{:.3}", m.rms_speed_view_dps),
-        );
-        put("x-amc-saccades", m.saccades.to_string());
     }
 }
