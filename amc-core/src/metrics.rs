@@ -57,6 +57,78 @@ pub struct ClipMetrics {
     pub saccades: u64,
 }
 
+/// What the telemetry alone says of a clip: no image work, so always affordable.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MotionSummary {
+    pub frames: u64,
+    /// Mean share of pixels covered by every averaged frame.
+    pub valid_fraction: f64,
+    /// Lowest per-frame share of fully covered pixels.
+    pub min_valid_fraction: f64,
+    /// RMS angular speed of the estimated camera orientation, deg/s.
+    pub rms_speed_est_dps: f64,
+    /// RMS angular speed of the view, deg/s.
+    pub rms_speed_view_dps: f64,
+    /// Number of saccades (saccade mode).
+    pub saccades: u64,
+}
+
+/// Accumulates a [`MotionSummary`] over a stream of outputs.
+#[derive(Clone, Debug, Default)]
+pub struct MotionAccumulator {
+    frames: u64,
+    valid_sum: f64,
+    valid_min: f64,
+    est_sq: f64,
+    view_sq: f64,
+    speed_n: u64,
+    saccades: u64,
+}
+
+impl MotionAccumulator {
+    /// Counts one output frame with its valid share and (if known) telemetry.
+    pub fn push(&mut self, valid_fraction: f64, telemetry: Option<&Telemetry>) {
+        self.valid_min = if self.frames == 0 {
+            valid_fraction
+        } else {
+            self.valid_min.min(valid_fraction)
+        };
+        self.frames += 1;
+        self.valid_sum += valid_fraction;
+        if let Some(t) = telemetry {
+            if t.frame > 0 {
+                let sq = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>();
+                self.est_sq += sq(t.rate_est);
+                self.view_sq += sq(t.rate_view);
+                self.speed_n += 1;
+            }
+            self.saccades += t.saccade as u64;
+        }
+    }
+
+    pub fn summary(&self) -> MotionSummary {
+        let rms = |s: f64| {
+            if self.speed_n > 0 {
+                (s / self.speed_n as f64).sqrt().to_degrees()
+            } else {
+                0.0
+            }
+        };
+        MotionSummary {
+            frames: self.frames,
+            valid_fraction: if self.frames > 0 {
+                self.valid_sum / self.frames as f64
+            } else {
+                0.0
+            },
+            min_valid_fraction: if self.frames > 0 { self.valid_min } else { 0.0 },
+            rms_speed_est_dps: rms(self.est_sq),
+            rms_speed_view_dps: rms(self.view_sq),
+            saccades: self.saccades,
+        }
+    }
+}
+
 /// Accumulates per-frame and per-clip metrics over a stream of outputs.
 #[derive(Clone, Debug, Default)]
 pub struct MetricsAccumulator {
@@ -65,19 +137,13 @@ pub struct MetricsAccumulator {
     /// One row of squared gradients (reused).
     row: Vec<f32>,
     has_prev: bool,
-    frames: u64,
     nf_sq: f64,
     nf_n: u64,
     ch_sq: f64,
     ch_n: u64,
     sh_sq: f64,
     sh_n: u64,
-    valid_sum: f64,
-    valid_min: f64,
-    est_sq: f64,
-    view_sq: f64,
-    speed_n: u64,
-    saccades: u64,
+    motion: MotionAccumulator,
 }
 
 /// Luma of `frame` into `dst`, `NaN` where `coverage` is 0.
@@ -174,10 +240,7 @@ fn sharpness_sums(
 impl MetricsAccumulator {
     /// A fresh accumulator.
     pub fn new() -> Self {
-        Self {
-            valid_min: 1.0,
-            ..Default::default()
-        }
+        Self::default()
     }
 
     /// Measures one output frame. `coverage` is the per-pixel count of averaged
@@ -257,38 +320,24 @@ impl MetricsAccumulator {
         }
         std::mem::swap(&mut self.prev, &mut self.cur);
         self.has_prev = true;
-        self.frames += 1;
-        self.valid_sum += valid_fraction;
-        self.valid_min = self.valid_min.min(valid_fraction);
-        if let Some(t) = telemetry {
-            if t.frame > 0 {
-                let sq = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>();
-                self.est_sq += sq(t.rate_est);
-                self.view_sq += sq(t.rate_view);
-                self.speed_n += 1;
-            }
-            self.saccades += t.saccade as u64;
-        }
+        self.motion.push(valid_fraction, telemetry);
         m
     }
 
     /// Metrics of everything pushed so far.
     pub fn summary(&self) -> ClipMetrics {
         let rms = |s: f64, n: u64| if n > 0 { (s / n as f64).sqrt() } else { 0.0 };
+        let motion = self.motion.summary();
         ClipMetrics {
-            frames: self.frames,
+            frames: motion.frames,
             rms_normal_flow: rms(self.nf_sq, self.nf_n),
             rms_change: rms(self.ch_sq, self.ch_n),
             sharpness: rms(self.sh_sq, self.sh_n),
-            valid_fraction: if self.frames > 0 {
-                self.valid_sum / self.frames as f64
-            } else {
-                0.0
-            },
-            min_valid_fraction: if self.frames > 0 { self.valid_min } else { 0.0 },
-            rms_speed_est_dps: rms(self.est_sq, self.speed_n).to_degrees(),
-            rms_speed_view_dps: rms(self.view_sq, self.speed_n).to_degrees(),
-            saccades: self.saccades,
+            valid_fraction: motion.valid_fraction,
+            min_valid_fraction: motion.min_valid_fraction,
+            rms_speed_est_dps: motion.rms_speed_est_dps,
+            rms_speed_view_dps: motion.rms_speed_view_dps,
+            saccades: motion.saccades,
         }
     }
 }

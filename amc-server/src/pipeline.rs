@@ -5,7 +5,7 @@ use crate::cli::LensChoice;
 use crate::error::CliError;
 use crate::measure::MetricsWorker;
 use crate::video::{self, FrameSource, InputOptions, OutputSpec};
-use amc_core::metrics::{ClipMetrics, FrameMetrics};
+use amc_core::metrics::{ClipMetrics, FrameMetrics, MotionAccumulator, MotionSummary};
 use amc_core::selfcal;
 use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams, Telemetry};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -281,63 +281,6 @@ fn telemetry_row(t: &Telemetry) -> String {
     )
 }
 
-/// Clip summary from the per-frame telemetry alone (no image work).
-#[derive(Clone, Debug, Default, Serialize)]
-pub struct MotionSummary {
-    /// Mean share of output pixels covered by every averaged frame.
-    pub valid_fraction: f64,
-    /// Lowest per-frame share of fully covered pixels.
-    pub min_valid_fraction: f64,
-    /// RMS angular speed of the estimated camera orientation, deg/s.
-    pub rms_speed_est_dps: f64,
-    /// RMS angular speed of the view, deg/s.
-    pub rms_speed_view_dps: f64,
-    /// Saccades (saccade mode).
-    pub saccades: u64,
-}
-
-/// Accumulates a [`MotionSummary`].
-#[derive(Default)]
-struct MotionAccumulator {
-    frames: u64,
-    valid_sum: f64,
-    valid_min: f64,
-    est_sq: f64,
-    view_sq: f64,
-    speeds: u64,
-    saccades: u64,
-}
-
-impl MotionAccumulator {
-    fn push(&mut self, t: &Telemetry) {
-        self.valid_min = if self.frames == 0 {
-            t.valid_fraction
-        } else {
-            self.valid_min.min(t.valid_fraction)
-        };
-        self.frames += 1;
-        self.valid_sum += t.valid_fraction;
-        if t.frame > 0 {
-            let sq = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>();
-            self.est_sq += sq(t.rate_est);
-            self.view_sq += sq(t.rate_view);
-            self.speeds += 1;
-        }
-        self.saccades += t.saccade as u64;
-    }
-
-    fn summary(&self) -> MotionSummary {
-        let rms = |s: f64| (s / self.speeds.max(1) as f64).sqrt().to_degrees();
-        MotionSummary {
-            valid_fraction: self.valid_sum / self.frames.max(1) as f64,
-            min_valid_fraction: self.valid_min,
-            rms_speed_est_dps: rms(self.est_sq),
-            rms_speed_view_dps: rms(self.view_sq),
-            saccades: self.saccades,
-        }
-    }
-}
-
 impl RunSummary {
     /// Whether clearly fewer frames were decoded than the container declares:
     /// the file is truncated or damaged (ffmpeg decodes what it can and
@@ -394,7 +337,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, CliError> {
         if let Some(m) = measure.as_mut() {
             m.push(&stab.output(), stab.output_coverage(), &tel);
         }
-        motion.push(&tel);
+        motion.push(tel.valid_fraction, Some(&tel));
         if let Some((w, path)) = telemetry.as_mut() {
             w.write_all(telemetry_row(&tel).as_bytes())
                 .map_err(|e| CliError::io(&*path, e))?;
