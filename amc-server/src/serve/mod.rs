@@ -299,9 +299,7 @@ impl AppState {
             web_dir,
         }))
     }
-}
 
-impl AppState {
     /// Answers a refused request, counting it for `/metrics`.
     pub fn refuse(&self, e: ApiError) -> Response {
         self.metrics.reject(e.status().as_u16());

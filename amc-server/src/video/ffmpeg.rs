@@ -95,20 +95,13 @@ impl FfmpegSource {
         opts: &InputOptions,
     ) -> Result<Self, VideoError> {
         let path = Path::new(source);
-        let probed = if format.is_some() {
+        let probed = match format {
             // A device (`-f v4l2 /dev/video0`) is only known once opened with
-            // its format; ffprobe would not know how to open it.
-            None
-        } else {
-            Some(probe_with(path, opts.timeout, false)?)
+            // its format; a plain probe would not know how to open it.
+            Some(f) => probe_device(path, f, opts.timeout)?,
+            None => probe_with(path, opts.timeout, false)?,
         };
-        match probed {
-            Some(p) => Self::start(path, format, p, opts),
-            None => {
-                let p = probe_device(path, format.unwrap_or_default(), opts.timeout)?;
-                Self::start(path, format, p, opts)
-            }
-        }
+        Self::start(path, format, probed, opts)
     }
 
     fn start(
