@@ -15,7 +15,7 @@ pub enum CliError {
     #[error(transparent)]
     Core(#[from] amc_core::AmcError),
     #[error(transparent)]
-    Video(#[from] crate::video::VideoError),
+    Video(#[from] amc_video::VideoError),
     #[error(transparent)]
     Compare(#[from] crate::compare::CompareError),
     /// Bad command-line usage that clap cannot catch (a message a person can act on).

@@ -11,7 +11,6 @@ mod pipeline;
 mod plot;
 mod serve;
 mod synth_cmd;
-mod video;
 
 use clap::Parser;
 use cli::{Cli, Command, StabilizeArgs};

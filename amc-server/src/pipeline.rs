@@ -4,10 +4,10 @@
 use crate::cli::LensChoice;
 use crate::error::CliError;
 use crate::measure::MetricsWorker;
-use crate::video::{self, FrameSource, InputOptions, OutputSpec};
 use amc_core::metrics::{ClipMetrics, FrameMetrics, MotionAccumulator, MotionSummary};
 use amc_core::selfcal;
 use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams, Telemetry};
+use amc_video::{self as video, FrameSource, InputOptions, OutputSpec};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 use std::io::{BufWriter, IsTerminal, Write};

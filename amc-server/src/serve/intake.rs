@@ -7,7 +7,7 @@ use super::storage::Scratch;
 use super::upload::{self, Upload};
 use super::work;
 use super::AppState;
-use crate::video::Inspection;
+use amc_video::Inspection;
 use axum::body::BodyDataStream;
 use axum::extract::Request;
 use axum::http::request::Parts;

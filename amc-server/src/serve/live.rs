@@ -14,9 +14,9 @@
 use super::metrics::Metrics;
 use super::problem::ApiError;
 use super::AppState;
-use crate::video::{self, InputOptions};
 use amc_core::view::Mode;
 use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams};
+use amc_video::{self as video, InputOptions};
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::extract::State;
 use axum::response::Response;

@@ -341,7 +341,7 @@ pub fn app(state: Arc<AppState>) -> Router {
 async fn healthz(State(state): State<Arc<AppState>>) -> Response {
     let work_dir = state.work_dir.clone();
     let check = tokio::task::spawn_blocking(move || -> Result<(), String> {
-        crate::video::ffmpeg_available().map_err(|e| e.to_string())?;
+        amc_video::ffmpeg_available().map_err(|e| e.to_string())?;
         tempfile::tempfile_in(&work_dir).map_err(|e| format!("work dir not writable: {e}"))?;
         Ok(())
     })
@@ -437,7 +437,7 @@ async fn shutdown_signal() {
 pub fn run(args: &ServeArgs) -> Result<(), CliError> {
     let limits = args.limits()?;
     let live = args.live()?;
-    crate::video::ffmpeg_available()?;
+    amc_video::ffmpeg_available()?;
     let (work_dir, owned_dir) = match &args.work_dir {
         Some(d) => {
             std::fs::create_dir_all(d).map_err(|e| CliError::io(d, e))?;

@@ -9,8 +9,8 @@ use super::Limits;
 use crate::cli::LensChoice;
 use crate::error::CliError;
 use crate::pipeline::{self, RunConfig, RunControl, RunSummary};
-use crate::video::{self, Inspection, VideoError};
 use amc_core::AmcError;
+use amc_video::{self as video, Inspection, VideoError};
 use std::path::{Path, PathBuf};
 
 /// What to process.

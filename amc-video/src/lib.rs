@@ -115,7 +115,7 @@ pub enum VideoError {
 }
 
 impl VideoError {
-    pub(crate) fn io(path: &Path, action: &'static str, source: std::io::Error) -> Self {
+    pub fn io(path: &Path, action: &'static str, source: std::io::Error) -> Self {
         VideoError::Io {
             path: path.to_path_buf(),
             action,
