@@ -43,6 +43,9 @@ pub enum AmcError {
     Camera(#[from] crate::camera::CameraError),
     #[error(transparent)]
     Lens(#[from] crate::lens::LensError),
+    /// An option name that no [`crate::options::OPTIONS`] entry has.
+    #[error("unknown option {name:?} (known: {known})")]
+    UnknownOption { name: String, known: String },
     #[error("focal-length self-calibration needs at least {needed} frames, got {got}")]
     TooFewFrames { needed: usize, got: usize },
 }

@@ -13,6 +13,7 @@ pub mod synth;
 pub use error::AmcError;
 pub mod frontend;
 pub mod metrics;
+pub mod options;
 pub mod pyramid;
 pub mod render;
 pub mod selfcal;
@@ -23,5 +24,6 @@ pub mod view;
 
 pub use camera::CameraModel;
 pub use image::{Frame, FrameRef, PixelFormat};
+pub use options::{LensSpec, StabilizerOptions};
 pub use stabilizer::{Stabilizer, StabilizerParams, Telemetry};
 pub use view::Mode;

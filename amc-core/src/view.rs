@@ -104,7 +104,7 @@ impl ViewParams {
             "0..=10000 per second per radian",
         )?;
         check_range("saccade_coverage", self.saccade_coverage, 0.0, 1.0, "0..=1")?;
-        if self.lookahead > 600 {
+        if self.lookahead > crate::options::MAX_LOOKAHEAD {
             return Err(AmcError::invalid(
                 "lookahead",
                 self.lookahead,

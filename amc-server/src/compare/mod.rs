@@ -22,15 +22,17 @@ pub mod peers;
 pub mod report;
 pub mod synthetic;
 
-use crate::cli::{LensArgs, TuningArgs};
-use crate::error::CliError;
-use crate::gt::{self, GtReport};
-use crate::pipeline;
+use crate::engine::{self, RunError};
+use crate::gt::{self, GtError, GtReport};
+use crate::plot::PlotError;
+use crate::synth::SynthError;
 use amc_core::image::{Frame, GrayImage, PixelFormat};
 use amc_core::metrics::masked_luma_into;
 use amc_core::so3::{self, Tangent};
 use amc_core::view::Mode;
+use amc_core::{AmcError, LensSpec};
 use amc_core::{CameraModel, Stabilizer, StabilizerParams};
+use amc_video::VideoError;
 use amc_video::{self as video, InputOptions};
 use measure::{Measured, Measurer};
 use peers::{FfmpegInput, Method, Usage};
@@ -39,8 +41,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 use thiserror::Error;
 
-/// Largest `--lookahead` accepted.
-pub const MAX_LOOKAHEAD: usize = 300;
+/// Largest `--lookahead` accepted: the stabilizer's own limit.
+pub const MAX_LOOKAHEAD: usize = amc_core::options::MAX_LOOKAHEAD;
 
 /// Errors of `amc compare` that are not video or stabilizer errors.
 #[derive(Debug, Error)]
@@ -73,6 +75,43 @@ pub enum CompareError {
     NoOutput { method: String, clip: String },
     #[error("internal error: {0}")]
     Internal(String),
+    /// A clip decoded to no frames.
+    #[error("{}: no frames could be read", .0.display())]
+    NoFrames(PathBuf),
+    /// A clip's `lens.json` is not a calibration we understand.
+    #[error("{}: {source}", path.display())]
+    Lens {
+        /// The lens file.
+        path: PathBuf,
+        /// What is wrong with it.
+        source: amc_core::lens::LensError,
+    },
+    /// A figure or image could not be encoded.
+    #[error("{}: {detail}", path.display())]
+    Image {
+        /// The file.
+        path: PathBuf,
+        /// What failed.
+        detail: String,
+    },
+    /// A run of ours failed.
+    #[error(transparent)]
+    Run(#[from] RunError),
+    /// Reading a clip or writing a file failed.
+    #[error(transparent)]
+    Video(#[from] VideoError),
+    /// The stabilizer refused a parameter or a frame.
+    #[error(transparent)]
+    Core(#[from] AmcError),
+    /// A synthetic sequence could not be rendered.
+    #[error(transparent)]
+    Synth(#[from] SynthError),
+    /// A plot could not be written.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+    /// A ground truth could not be read.
+    #[error(transparent)]
+    Gt(#[from] GtError),
 }
 
 impl CompareError {
@@ -85,65 +124,38 @@ impl CompareError {
 }
 
 /// Compare our stabilizer with ffmpeg's vid.stab and deshake on the same clips.
-#[derive(clap::Args, Debug)]
-pub struct CompareArgs {
+#[derive(Debug, Clone)]
+pub struct CompareConfig {
     /// Clips: videos, image folders, or folders holding `lens.json` with the images
     /// (directly or in `frames/`) and optionally `gt.csv` (as `amc synth` writes).
     pub clips: Vec<PathBuf>,
     /// Folder for the report (`README.md`, plots, `results.json`); created if missing.
-    #[arg(long, value_name = "DIR")]
     pub report: PathBuf,
     /// Also render and compare the synthetic flapping-wing sequences (12-20 Hz shake,
     /// 100 and 300 deg/s, pinhole and fisheye, with and without rolling shutter).
-    #[arg(long)]
     pub synthetic: bool,
     /// Length of each synthetic sequence, seconds (0.5..=60).
-    #[arg(long, default_value_t = 5.0)]
     pub synthetic_seconds: f64,
     /// Size of the synthetic sequences, WxH.
-    #[arg(long, default_value = "320x180", value_parser = parse_size)]
     pub synthetic_size: (usize, usize),
     /// Equirectangular panorama the synthetic sequences are rendered from.
-    #[arg(long, default_value = "../shared/data/pano/pannellum_examplepano.jpg")]
     pub panorama: PathBuf,
     /// Lens of clips without a `lens.json` (default: --fov auto).
-    #[command(flatten)]
-    pub lens: LensArgs,
+    pub lens: LensSpec,
     /// Future frames of the `stabilize --lookahead` method (1..=300).
-    #[arg(long, default_value_t = 15)]
     pub lookahead: usize,
     /// Frame rate of image folders without `gt.csv` timestamps (default 30).
-    #[arg(long)]
     pub fps: Option<f64>,
     /// Longest any one child process (a method on a clip) may run, seconds.
-    #[arg(long, default_value_t = 1800)]
     pub timeout: u64,
     /// Text describing the machine, added to the detected CPU and memory in the report.
-    #[arg(long)]
     pub machine: Option<String>,
     /// Timed runs per method (1..=10); the fastest counts (least disturbed on a shared machine).
-    #[arg(long, default_value_t = 1)]
     pub repeat: usize,
     /// Also write every method's per-frame measurements (`CLIP-frames.csv`).
-    #[arg(long)]
     pub per_frame: bool,
     /// No progress messages.
-    #[arg(short, long)]
     pub quiet: bool,
-}
-
-fn parse_size(s: &str) -> Result<(usize, usize), String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("'{s}' is not WxH"))?;
-    let p = |v: &str| {
-        v.trim()
-            .parse::<usize>()
-            .ok()
-            .filter(|&n| (32..=4096).contains(&n))
-            .ok_or_else(|| format!("'{v}' in '{s}' is not a size (allowed: 32..=4096 pixels)"))
-    };
-    Ok((p(w)?, p(h)?))
 }
 
 /// A clip ready to compare.
@@ -203,11 +215,11 @@ struct DecodedInput {
     middle: Option<Frame>,
 }
 
-fn timeout(args: &CompareArgs) -> Duration {
+fn timeout(args: &CompareConfig) -> Duration {
     Duration::from_secs(args.timeout.max(1))
 }
 
-fn input_options(clip: &Clip, args: &CompareArgs) -> InputOptions {
+fn input_options(clip: &Clip, args: &CompareConfig) -> InputOptions {
     InputOptions {
         fps_override: clip.fps,
         timeout: timeout(args).min(Duration::from_secs(300)),
@@ -215,7 +227,7 @@ fn input_options(clip: &Clip, args: &CompareArgs) -> InputOptions {
     }
 }
 
-fn decode_input(clip: &Clip, args: &CompareArgs) -> Result<DecodedInput, CliError> {
+fn decode_input(clip: &Clip, args: &CompareConfig) -> Result<DecodedInput, CompareError> {
     let mut src = video::open_input(&clip.input, &input_options(clip, args))?;
     let info = src.info().clone();
     let mid = info.frame_count.map(|n| n / 2);
@@ -237,28 +249,19 @@ fn decode_input(clip: &Clip, args: &CompareArgs) -> Result<DecodedInput, CliErro
         out.times.push(t);
     }
     if out.times.is_empty() {
-        return Err(CliError::Usage(format!(
-            "{}: no frames could be read",
-            clip.input.display()
-        )));
+        return Err(CompareError::NoFrames(clip.input.clone()));
     }
     Ok(out)
 }
 
 /// The stabilizer parameters `amc stabilize` uses by default for `method`.
 fn our_params(method: Method, lookahead: usize) -> StabilizerParams {
-    #[derive(clap::Parser)]
-    struct Defaults {
-        #[command(flatten)]
-        tuning: TuningArgs,
-    }
-    let d = <Defaults as clap::Parser>::parse_from(["amc"]);
     let mode = match method {
         Method::None => Mode::None,
         Method::Saccade => Mode::Saccade,
         _ => Mode::Stabilize,
     };
-    let mut p = d.tuning.params(mode);
+    let mut p = amc_core::StabilizerOptions::with_mode(mode).params;
     if method == Method::StabilizeLookahead {
         p.view.lookahead = lookahead;
     }
@@ -289,8 +292,8 @@ fn measure_ours(
     method: Method,
     clip: &Clip,
     input: &DecodedInput,
-    args: &CompareArgs,
-) -> Result<OursMeasured, CliError> {
+    args: &CompareConfig,
+) -> Result<OursMeasured, CompareError> {
     let params = our_params(method, args.lookahead);
     let mut src = video::open_input(&clip.input, &input_options(clip, args))?;
     let (w, h) = input.size;
@@ -345,8 +348,8 @@ fn measure_peer(
     clip: &Clip,
     input: &DecodedInput,
     outs: &peers::PeerOutputs,
-    args: &CompareArgs,
-) -> Result<(Measured, Option<Frame>), CliError> {
+    args: &CompareConfig,
+) -> Result<(Measured, Option<Frame>), CompareError> {
     let opts = InputOptions {
         fps_override: None,
         timeout: timeout(args).min(Duration::from_secs(300)),
@@ -374,52 +377,28 @@ fn measure_peer(
     Ok((m.finish(), middle))
 }
 
-/// Image files of a folder in natural order.
-fn list_images(dir: &Path) -> Result<Vec<PathBuf>, CompareError> {
-    let rd = std::fs::read_dir(dir).map_err(|e| CompareError::io(dir, e))?;
-    let mut files: Vec<PathBuf> = rd
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            let hidden = p
-                .file_name()
-                .is_some_and(|n| n.to_string_lossy().starts_with('.'));
-            let ext = p
-                .extension()
-                .map(|e| e.to_string_lossy().to_ascii_lowercase())
-                .unwrap_or_default();
-            !hidden && p.is_file() && video::IMAGE_EXTENSIONS.contains(&ext.as_str())
-        })
-        .collect();
-    files.sort_by(|a, b| {
-        let n = |p: &PathBuf| {
-            p.file_name()
-                .unwrap_or_default()
-                .to_string_lossy()
-                .into_owned()
-        };
-        natord::compare(&n(a), &n(b))
-    });
-    Ok(files)
-}
-
 /// Runs every method on `clip`, in a scratch folder under `work`.
-fn compare_clip(clip: &Clip, args: &CompareArgs, work: &Path) -> Result<ClipResult, CliError> {
+fn compare_clip(
+    clip: &Clip,
+    args: &CompareConfig,
+    work: &Path,
+) -> Result<ClipResult, CompareError> {
     let say = |s: String| {
         if !args.quiet {
             eprintln!("[{}] {s}", clip.name);
         }
     };
     let dir = work.join(&clip.name);
-    std::fs::create_dir_all(&dir).map_err(|e| CliError::io(&dir, e))?;
+    std::fs::create_dir_all(&dir).map_err(|e| CompareError::io(&dir, e))?;
     say("decoding the input".into());
     let input = decode_input(clip, args)?;
     let fps = fps_of(&input);
     let lens_json = dir.join("lens.json");
     std::fs::write(&lens_json, amc_core::lens::to_project_json(&clip.lens))
-        .map_err(|e| CliError::io(&lens_json, e))?;
+        .map_err(|e| CompareError::io(&lens_json, e))?;
     let ff_input = if clip.input.is_dir() {
         let list = dir.join("frames.ffconcat");
-        let images = list_images(&clip.input)?;
+        let images = video::list_images(&clip.input)?;
         peers::write_concat_list(&list, &images, clip.fps.unwrap_or(fps))?;
         FfmpegInput::Concat(list)
     } else {
@@ -499,7 +478,7 @@ fn compare_clip(clip: &Clip, args: &CompareArgs, work: &Path) -> Result<ClipResu
 }
 
 /// Resolves a CLIP argument.
-fn resolve_clip(path: &Path, args: &CompareArgs) -> Result<Clip, CliError> {
+fn resolve_clip(path: &Path, args: &CompareConfig) -> Result<Clip, CompareError> {
     let stem = |p: &Path| {
         p.file_stem()
             .map(|s| s.to_string_lossy().into_owned())
@@ -508,9 +487,12 @@ fn resolve_clip(path: &Path, args: &CompareArgs) -> Result<Clip, CliError> {
     let timeout = Duration::from_secs(120);
     if path.is_dir() && path.join("lens.json").is_file() {
         let lens_path = path.join("lens.json");
-        let text = std::fs::read_to_string(&lens_path).map_err(|e| CliError::io(&lens_path, e))?;
-        let lens = amc_core::lens::parse_lens(&text)
-            .map_err(|e| CliError::Usage(format!("{}: {e}", lens_path.display())))?;
+        let text =
+            std::fs::read_to_string(&lens_path).map_err(|e| CompareError::io(&lens_path, e))?;
+        let lens = amc_core::lens::parse_lens(&text).map_err(|source| CompareError::Lens {
+            path: lens_path.clone(),
+            source,
+        })?;
         let frames = if path.join("frames").is_dir() {
             path.join("frames")
         } else {
@@ -536,14 +518,21 @@ fn resolve_clip(path: &Path, args: &CompareArgs) -> Result<Clip, CliError> {
     }
     let fps = if path.is_dir() { args.fps } else { None };
     let params = StabilizerParams::default();
-    let lens = pipeline::resolve_lens(
-        &args.lens.choice()?,
+    let resolved = engine::resolve_lens(
+        &args.lens,
         path,
         &params,
-        fps,
-        timeout,
-        args.quiet,
+        &engine::input_options(fps, timeout),
+        None,
     )?;
+    if resolved.note == engine::LensNote::FellBack && !args.quiet {
+        eprintln!(
+            "warning: {}: the footage does not pin down the focal length; assuming {} deg (pass --fov or --lens)",
+            path.display(),
+            engine::FALLBACK_FOV_DEG
+        );
+    }
+    let lens = resolved.camera;
     Ok(Clip {
         name: stem(path),
         input: path.to_path_buf(),
@@ -559,7 +548,7 @@ fn resolve_clip(path: &Path, args: &CompareArgs) -> Result<Clip, CliError> {
 }
 
 /// Runs `amc compare`.
-pub fn run(args: &CompareArgs) -> Result<(), CliError> {
+pub fn run(args: &CompareConfig) -> Result<(), CompareError> {
     if args.clips.is_empty() && !args.synthetic {
         return Err(CompareError::NoClips.into());
     }
@@ -576,11 +565,11 @@ pub fn run(args: &CompareArgs) -> Result<(), CliError> {
         return Err(CompareError::NoPanorama(args.panorama.clone()).into());
     }
     video::ffmpeg_available()?;
-    std::fs::create_dir_all(&args.report).map_err(|e| CliError::io(&args.report, e))?;
+    std::fs::create_dir_all(&args.report).map_err(|e| CompareError::io(&args.report, e))?;
     let work = tempfile::Builder::new()
         .prefix(".amc-compare-")
         .tempdir_in(&args.report)
-        .map_err(|e| CliError::io(&args.report, e))?;
+        .map_err(|e| CompareError::io(&args.report, e))?;
     let mut clips = Vec::new();
     for p in &args.clips {
         clips.push(resolve_clip(p, args)?);
