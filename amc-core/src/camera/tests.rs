@@ -7,7 +7,6 @@ use super::*;
 use approx::assert_relative_eq;
 use nalgebra::{Vector2, Vector3};
 use proptest::prelude::*;
-use proptest::prelude::*;
 use std::f64::consts::PI;
 
 fn radtan_cam() -> CameraModel {
