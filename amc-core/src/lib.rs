@@ -16,7 +16,6 @@ pub mod metrics;
 pub mod pyramid;
 pub mod render;
 pub mod selfcal;
-pub mod simd;
 pub mod stabilizer;
 pub mod tracker;
 pub mod view;

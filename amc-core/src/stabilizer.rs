@@ -278,7 +278,8 @@ impl Stabilizer {
             .unwrap_or_else(|| Frame::new(0, 0, frame.format));
         buf.copy_from(&frame);
         // Tail padding for the vectorized sampler's dword gathers.
-        buf.data.extend_from_slice(&[0; crate::simd::FRAME_PADDING]);
+        buf.data
+            .extend_from_slice(&[0; crate::render::kernels::FRAME_PADDING]);
         self.ring.push_back(Buffered {
             frame: buf,
             index: self.received,
