@@ -30,8 +30,11 @@ pub struct StabilizerParams {
     /// Width (pixels) of the grayscale image the tracker works on; frames are
     /// box-averaged by `floor(width / track_width)`. Range 32..=8192.
     pub track_width: usize,
+    /// Rotation tracker.
     pub tracker: TrackerParams,
+    /// View path (smoothing, lookahead, saccades).
     pub view: ViewParams,
+    /// Output rendering (averaging, crop, output size).
     pub render: RenderParams,
 }
 

@@ -322,7 +322,7 @@ mod tests {
             };
             let reference = run(Kernel::Scalar);
             // Some pixels are covered by every frame, some by at most one.
-            assert!(reference[3].iter().any(|&c| c <= 1) && reference[3].iter().any(|&c| c == 3));
+            assert!(reference[3].iter().any(|&c| c <= 1) && reference[3].contains(&3));
             assert_eq!(run(Kernel::detect()), reference, "{:?}", Kernel::detect());
         }
     }
