@@ -9,11 +9,17 @@ use crate::image::FrameRef;
 /// Frame geometry, hoisted out of sampling loops.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Geometry {
+    /// Bytes per pixel (3 or 4).
     pub(crate) channels: usize,
+    /// Bytes per row.
     pub(crate) stride: usize,
+    /// Largest column of a top-left tap (`width - 2`).
     pub(crate) max_x0: usize,
+    /// Largest row of a top-left tap (`height - 2`).
     pub(crate) max_y0: usize,
+    /// Largest sample x, pixels (`width - 1`).
     pub(crate) max_x: f32,
+    /// Largest sample y, pixels (`height - 1`).
     pub(crate) max_y: f32,
 }
 
