@@ -3,6 +3,8 @@
 //! Artificial Microsaccade Compensation (AMC): rotation-only video stabilization.
 //! Pure library: no I/O, no threads, no async; builds for `wasm32-unknown-unknown`.
 
+#![deny(missing_docs)]
+
 pub mod camera;
 pub mod error;
 pub mod image;
@@ -17,7 +19,6 @@ pub mod options;
 pub mod pyramid;
 pub mod render;
 pub mod selfcal;
-pub mod simd;
 pub mod stabilizer;
 pub mod tracker;
 pub mod view;
