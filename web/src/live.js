@@ -1,6 +1,8 @@
 // The Live tab: the server's stabilized feed over the `/live` WebSocket (a
-// JPEG then a JSON telemetry message per frame) and a plot of recent speeds.
+// JPEG then a JSON telemetry message per frame) and a plot of recent speeds
+// (axes with units, a legend beside it).
 import { $, state } from './state.js';
+import { drawChart, legend } from './plot.js';
 
 export function connectLive() {
   if (state.ws) return;
@@ -18,7 +20,9 @@ export function connectLive() {
   ws.onmessage = async (ev) => {
     if (typeof ev.data === 'string') {
       let m; try { m = JSON.parse(ev.data); } catch { return; }
-      state.liveHist.push(m); if (state.liveHist.length > 300) state.liveHist.shift();
+      const h = state.liveHist;
+      if (h.length && +m.t < +h[h.length - 1].t) h.length = 0; // the source looped: a new time line
+      h.push(m); if (state.liveHist.length > 300) state.liveHist.shift();
       $('live-telemetry').textContent = `frame ${m.frame}  t ${(+m.t).toFixed(2)} s  estimate ${(+m.speed_est_dps).toFixed(1)} deg/s  ` +
         `view ${(+m.speed_view_dps).toFixed(1)} deg/s  valid ${(100 * m.valid).toFixed(0)}%  ${m.saccade ? 'SACCADE  ' : ''}latency ${(+m.latency_ms).toFixed(0)} ms`;
       drawLivePlot();
@@ -43,15 +47,24 @@ export function disconnectLive() {
   if (state.ws) { state.ws.close(); state.ws = null; }
 }
 
+/** The last ~10 s of the feed's angular speeds, with axes and a legend. */
 function drawLivePlot() {
-  const c = $('live-plot'), g = c.getContext('2d');
   const hist = state.liveHist;
-  g.clearRect(0, 0, c.width, c.height);
-  const max = Math.max(1, ...hist.map((m) => Math.max(m.speed_est_dps, m.speed_view_dps)));
-  const draw = (k, color) => {
-    g.strokeStyle = color; g.beginPath();
-    hist.forEach((m, i) => { const x = (c.width * i) / 300, y = c.height - (c.height * m[k]) / max; i ? g.lineTo(x, y) : g.moveTo(x, y); });
-    g.stroke();
+  if (!hist.length) return;
+  const tEnd = +hist[hist.length - 1].t;
+  const recent = hist.filter((m) => tEnd - m.t <= 10);
+  const pts = (k) => recent.map((m) => [m.t - tEnd, +m[k]]);
+  const spec = {
+    x: { min: -10, max: 0, label: 'time before the latest frame (s)' },
+    axes: [{ label: 'angular speed (deg/s)', side: 'left' }],
+    series: [
+      { key: 'est', label: 'camera (estimate) speed', color: '#ff7043', axis: 0, points: pts('speed_est_dps') },
+      { key: 'view', label: 'view speed', color: '#42a5f5', axis: 0, points: pts('speed_view_dps') },
+    ],
+    marks: recent.filter((m) => m.saccade).map((m) => m.t - tEnd),
+    markLabel: 'saccade',
   };
-  draw('speed_est_dps', '#ff7043'); draw('speed_view_dps', '#42a5f5');
+  drawChart($('live-plot'), spec);
+  const keys = spec.series.map((x) => x.key).join(',') + (spec.marks.length ? ',marks' : '');
+  if ($('live-legend').dataset.keys !== keys) { legend($('live-legend'), spec); $('live-legend').dataset.keys = keys; }
 }

@@ -1,26 +1,35 @@
-// Stabilizes a clip in the browser: starts worker.js, relays its progress,
-// shows its result, and offers the server when the browser cannot decode the clip.
+// Stabilizes a clip in the browser: checks the settings, starts worker.js,
+// relays its progress, shows its result, and offers the server when the
+// browser cannot decode the clip.
 import { $, state, setPageState, showError, reset } from './state.js';
-import { settings, lensArg } from './settings.js';
+import { settings, lensArg, showFieldErrors, refuseSettings } from './settings.js';
 import { showResult } from './result.js';
+import { telemetryCsv, rowsFromWorker } from './telemetry.js';
+import { localSummary } from './summary.js';
 
 export async function runLocal(file) {
   if (!file) return;
   state.file = file;
-  reset();
+  const run = reset();
   $('again').disabled = false;
+  if (state.worker) { state.worker.terminate(); state.worker = null; }
+  const s = settings();
+  if (s.errors.length) return refuseSettings(s.errors);
+  showFieldErrors([]);
   setPageState('processing');
   $('status-text').textContent = `Reading ${file.name}…`;
-  if (state.worker) state.worker.terminate();
   const worker = new Worker('worker.js', { type: 'module' });
   state.worker = worker;
-  const s = settings();
   const lens = await lensArg(s);
   const t0 = performance.now();
-  worker.onerror = (e) => showError(`worker failed: ${e.message || e}`);
+  let start = null;
+  const current = () => state.run === run && state.worker === worker;
+  worker.onerror = (e) => { if (current()) showError(`worker failed: ${e.message || e}`); };
   worker.onmessage = (ev) => {
+    if (!current()) return;
     const m = ev.data;
     if (m.type === 'start') {
+      start = m;
       $('status-text').textContent = `${m.width}x${m.height} ${m.codec} → ${m.outWidth}x${m.outHeight} ${m.outCodec}` +
         (m.simd ? ' (WASM SIMD)' : '') + (m.audioNote ? ` · ${m.audioNote}` : '');
       if (m.total) $('progress').max = m.total;
@@ -36,7 +45,16 @@ export async function runLocal(file) {
       document.body.dataset.frames = m.frames;
       document.body.dataset.fps = m.fps.toFixed(1);
       document.body.dataset.stabFps = m.stabFps.toFixed(1);
-      showResult(new Blob([m.buffer], { type: m.mime }), m.mime, m.telemetry, m.summary, file);
+      worker.terminate();
+      state.worker = null;
+      showResult({
+        blob: new Blob([m.buffer], { type: m.mime }), mime: m.mime, name: file.name,
+        original: file, origCaption: 'Original (full frame)',
+        rows: rowsFromWorker(m.telemetry),
+        csv: new Blob([telemetryCsv(m.telemetry)], { type: 'text/csv' }),
+        summary: localSummary(start, m, s.params.view.mode),
+        inputWidth: start ? start.width : 0,
+      });
       setPageState('done');
     } else if (m.type === 'unsupported') {
       $('unsupported-text').textContent = `This browser cannot decode the ${m.codec.toUpperCase()} video in ${m.fileName}. ` +

@@ -1,10 +1,11 @@
 // The page's wiring: file intake (pick or drop), settings, cancel, the server
-// fallback button, the synced players and the tabs. Each part lives in its own
+// fallback button, the form's checks, the synced players and the tabs. Each part lives in its own
 // module; the shared state is state.js's one object.
 import { $, state } from './state.js';
 import { runLocal } from './local-run.js';
 import { runOnServer } from './server-run.js';
 import { initPlayer } from './player.js';
+import { initSettings } from './settings.js';
 import { connectLive, disconnectLive } from './live.js';
 
 // --- Input: pick or drop ---------------------------------------------------
@@ -20,6 +21,7 @@ document.addEventListener('drop', (e) => { e.preventDefault(); if (e.target !== 
 $('cancel').onclick = () => { if (state.cancel) state.cancel(); state.cancel = null; };
 $('server-btn').onclick = () => runOnServer(state.file);
 
+initSettings();
 initPlayer();
 
 // --- Tabs: the clip, the live feed ------------------------------------------

@@ -10,8 +10,12 @@ export const state = {
   worker: null,
   /** Cancels the running work (worker or server job). */
   cancel: null,
-  /** Per-frame telemetry the clip plot shows. */
-  telemetry: null,
+  /** Counts runs: late answers of an earlier run (a server job, a worker) compare against it. */
+  run: 0,
+  /** Rows the clip plot draws (telemetry.js). */
+  plotRows: null,
+  /** Width of the input clip in pixels (the compare view's crop). */
+  inputWidth: 0,
   /** Object URLs of the shown result, revoked when the next run starts. */
   urls: [],
   /** The Live tab's WebSocket and its recent telemetry messages. */
@@ -26,6 +30,7 @@ export function setPageState(s) {
 
 export function showError(msg) {
   $('error').textContent = msg;
+  delete $('error').dataset.source;
   $('error').hidden = false;
   $('status-text').textContent = 'Failed.';
   setPageState('error');
@@ -37,14 +42,18 @@ export function newUrl(blob) {
   return u;
 }
 
-/** Clears the previous result and messages before a new run. */
+/** Clears the previous result and messages before a new run; returns the new run's number. */
 export function reset() {
+  state.run++;
   for (const u of state.urls) URL.revokeObjectURL(u);
   state.urls = [];
   $('error').hidden = true;
   $('unsupported').hidden = true;
   $('result').hidden = true;
+  $('download-csv').hidden = true;
+  state.plotRows = null;
   $('progress').value = 0;
   $('progress').removeAttribute('max');
   $('progress').max = 1;
+  return state.run;
 }
