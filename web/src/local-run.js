@@ -3,7 +3,7 @@
 // browser cannot decode the clip.
 import { $, state, setPageState, showError, reset } from './state.js';
 import { settings, lensArg, showFieldErrors, refuseSettings } from './settings.js';
-import { showResult } from './result.js';
+import { showResult, setOriginal, playable } from './result.js';
 import { telemetryCsv, rowsFromWorker } from './telemetry.js';
 import { localSummary } from './summary.js';
 
@@ -56,6 +56,10 @@ export async function runLocal(file) {
         inputWidth: start ? start.width : 0,
       });
       setPageState('done');
+      // WebCodecs decoded it, but the <video> element may still not play the container.
+      playable(file).then((ok) => {
+        if (ok === false && state.run === run) setOriginal(null, `Original: this browser's video player cannot show ${file.name} (it was decoded frame by frame for stabilizing)`);
+      });
     } else if (m.type === 'unsupported') {
       $('unsupported-text').textContent = `This browser cannot decode the ${m.codec.toUpperCase()} video in ${m.fileName}. ` +
         'The server can stabilize it instead (the clip is uploaded to this page\'s server).';

@@ -55,3 +55,18 @@ export function setOriginal(blob, caption) {
   $('orig-caption').textContent = caption || 'Original';
   enableCompare(!!blob);
 }
+
+/** Whether this browser's <video> can show `blob`'s picture: true, false, or null (no answer in time). */
+export function playable(blob, timeout = 8000) {
+  return new Promise((resolve) => {
+    const v = document.createElement('video');
+    v.muted = true; v.preload = 'auto';
+    const url = URL.createObjectURL(blob);
+    let timer = null;
+    const done = (ok) => { clearTimeout(timer); v.removeAttribute('src'); v.load(); URL.revokeObjectURL(url); resolve(ok); };
+    timer = setTimeout(() => done(null), timeout);
+    v.onloadeddata = () => done(v.videoWidth > 0);
+    v.onerror = () => done(false);
+    v.src = url;
+  });
+}

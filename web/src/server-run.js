@@ -5,7 +5,7 @@
 // crop) makes a copy it can play for the Original slot and the compare views.
 import { $, state, setPageState, showError, reset } from './state.js';
 import { settings, serverQuery, showFieldErrors, refuseSettings, SERVER_MAX_LOOKAHEAD } from './settings.js';
-import { showResult, setOriginal } from './result.js';
+import { showResult, setOriginal, playable } from './result.js';
 import { rowsFromCsv } from './telemetry.js';
 import { serverSummary } from './summary.js';
 
@@ -50,21 +50,6 @@ async function fetchBlob(url, what) {
   const r = await fetch(url);
   if (!r.ok) throw new JobError(`${what}: ${await problem(r)}`);
   return r.blob();
-}
-
-/** Whether this browser's <video> can show `blob`'s picture. */
-function playable(blob, timeout = 8000) {
-  return new Promise((resolve) => {
-    const v = document.createElement('video');
-    v.muted = true; v.preload = 'auto';
-    const url = URL.createObjectURL(blob);
-    let timer = null;
-    const done = (ok) => { clearTimeout(timer); v.removeAttribute('src'); v.load(); URL.revokeObjectURL(url); resolve(ok); };
-    timer = setTimeout(() => done(false), timeout);
-    v.onloadeddata = () => done(v.videoWidth > 0);
-    v.onerror = () => done(false);
-    v.src = url;
-  });
 }
 
 export async function runOnServer(file) {
