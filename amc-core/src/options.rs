@@ -16,9 +16,7 @@ use std::path::PathBuf;
 /// A pinhole's focal length goes to zero as the field of view approaches 180 deg.
 pub const MAX_PINHOLE_HFOV_DEG: f64 = 179.0;
 
-/// Largest `lookahead`, frames. The stabilizer keeps `lookahead` decoded frames
-/// in memory (about 6 MB each at 1080p RGB), so this bounds its memory.
-pub const MAX_LOOKAHEAD: usize = 600;
+pub use crate::view::MAX_LOOKAHEAD;
 
 /// One user-facing option: its name and what it accepts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
