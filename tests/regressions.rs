@@ -51,7 +51,11 @@ fn an_output_that_is_the_input_is_refused_and_nothing_is_touched() {
         assert_eq!(r.code, Some(1), "{extra:?}: {}", r.stderr);
         assert!(r.stderr.contains("same file"), "{extra:?}: {}", r.stderr);
         assert_eq!(r.stderr.lines().count(), 1, "{extra:?}: {}", r.stderr);
-        assert_eq!(std::fs::read(&x).unwrap(), before, "{extra:?} touched the input");
+        assert_eq!(
+            std::fs::read(&x).unwrap(),
+            before,
+            "{extra:?} touched the input"
+        );
         assert!(!out.exists(), "{extra:?}");
     }
     let mut names = list_dir(d.path());
@@ -68,7 +72,13 @@ fn a_signal_stops_the_run_and_leaves_no_partial_file() {
         ("-HUP", 129, "frames"),
     ] {
         let mut child = Command::new(amc())
-            .args(["stabilize", &s(&data("karma/karma.mp4")), "--fov", "90", "-q"])
+            .args([
+                "stabilize",
+                &s(&data("karma/karma.mp4")),
+                "--fov",
+                "90",
+                "-q",
+            ])
             .arg("-o")
             .arg(d.path().join(out))
             .arg("--telemetry")
@@ -81,7 +91,10 @@ fn a_signal_stops_the_run_and_leaves_no_partial_file() {
         // Wait until the run is writing its partial output.
         let start = Instant::now();
         while !list_dir(d.path()).iter().any(|n| n.contains("partial")) {
-            assert!(start.elapsed() < Duration::from_secs(60), "no partial output appeared");
+            assert!(
+                start.elapsed() < Duration::from_secs(60),
+                "no partial output appeared"
+            );
             std::thread::sleep(Duration::from_millis(50));
         }
         std::thread::sleep(Duration::from_millis(300));
@@ -91,7 +104,11 @@ fn a_signal_stops_the_run_and_leaves_no_partial_file() {
             .unwrap();
         let status = child.wait().unwrap();
         assert_eq!(status.code(), Some(code), "{sig}");
-        assert!(list_dir(d.path()).is_empty(), "{sig}: {:?}", list_dir(d.path()));
+        assert!(
+            list_dir(d.path()).is_empty(),
+            "{sig}: {:?}",
+            list_dir(d.path())
+        );
         // No ffmpeg of ours survives (they read the input clip).
         std::thread::sleep(Duration::from_millis(200));
         assert!(
@@ -104,7 +121,16 @@ fn a_signal_stops_the_run_and_leaves_no_partial_file() {
 /// Presentation times (seconds) of a file's video frames.
 fn frame_times(path: &Path) -> Vec<f64> {
     let out = Command::new("ffprobe")
-        .args(["-v", "error", "-select_streams", "v:0", "-show_entries", "frame=pts_time", "-of", "csv=p=0"])
+        .args([
+            "-v",
+            "error",
+            "-select_streams",
+            "v:0",
+            "-show_entries",
+            "frame=pts_time",
+            "-of",
+            "csv=p=0",
+        ])
         .arg(path)
         .output()
         .unwrap();
@@ -153,9 +179,19 @@ fn variable_frame_rate_input_keeps_each_frame_time() {
 fn synthetic_folders_are_read_at_their_own_rate() {
     let d = tempfile::tempdir().unwrap();
     let clip = d.path().join("s");
-    synth(&clip, &["--seconds", "0.5", "--width", "64", "--height", "36"]);
+    synth(
+        &clip,
+        &["--seconds", "0.5", "--width", "64", "--height", "36"],
+    );
     assert!(clip.join("meta.json").is_file());
-    let r = run_amc(&["stabilize", &s(&clip), "-o", &s(&d.path().join("o.y4m")), "--lens", &s(&clip.join("lens.json"))]);
+    let r = run_amc(&[
+        "stabilize",
+        &s(&clip),
+        "-o",
+        &s(&d.path().join("o.y4m")),
+        "--lens",
+        &s(&clip.join("lens.json")),
+    ]);
     assert_eq!(r.code, Some(0), "{}", r.stderr);
     assert!(!r.stderr.contains("assuming"), "{}", r.stderr);
     let y4m = std::fs::read(d.path().join("o.y4m")).unwrap();
@@ -165,7 +201,14 @@ fn synthetic_folders_are_read_at_their_own_rate() {
     // A folder that states no rate gets a warning.
     std::fs::remove_file(clip.join("meta.json")).unwrap();
     std::fs::remove_file(clip.join("gt.csv")).unwrap();
-    let r = run_amc(&["stabilize", &s(&clip), "-o", &s(&d.path().join("p.y4m")), "--lens", &s(&clip.join("lens.json"))]);
+    let r = run_amc(&[
+        "stabilize",
+        &s(&clip),
+        "-o",
+        &s(&d.path().join("p.y4m")),
+        "--lens",
+        &s(&clip.join("lens.json")),
+    ]);
     assert!(r.stderr.contains("assuming 30 frames/s"), "{}", r.stderr);
 }
 
@@ -188,10 +231,19 @@ fn large_multipart_uploads_are_accepted_in_either_part_order() {
     let lens = br#"{"model": "pinhole", "width": 854, "height": 480, "fx": 427, "fy": 427, "cx": 426.5, "cy": 239.5}"#;
     let server = Server::start(&[]);
     for parts in [
-        vec![("video", "karma.mp4", "video/mp4", &karma[..]), ("lens", "lens.json", "application/json", &lens[..])],
-        vec![("lens", "lens.json", "application/json", &lens[..]), ("video", "karma.mp4", "video/mp4", &karma[..])],
+        vec![
+            ("video", "karma.mp4", "video/mp4", &karma[..]),
+            ("lens", "lens.json", "application/json", &lens[..]),
+        ],
+        vec![
+            ("lens", "lens.json", "application/json", &lens[..]),
+            ("video", "karma.mp4", "video/mp4", &karma[..]),
+        ],
     ] {
-        let r = post_multipart(&server.url("/stabilize?metrics=false&output_width=320"), &parts);
+        let r = post_multipart(
+            &server.url("/stabilize?metrics=false&output_width=320"),
+            &parts,
+        );
         assert_eq!(r.status, 200, "{}", r.text());
         assert_eq!(r.header("x-amc-frames"), Some(frames.as_str()));
     }

@@ -3,7 +3,9 @@
 //! speed and normal flow per frame, every method) and a strip of the middle
 //! frame side by side, and `results.json` with every number.
 
-use super::{ClipResult, CompareConfig, CompareError, MethodResult};
+use super::config::CompareConfig;
+use super::error::CompareError;
+use super::results::{ClipResult, MethodResult};
 use crate::plot::{self, ModeSeries};
 use amc_core::image::Frame;
 use std::fmt::Write as _;

@@ -4,7 +4,8 @@
 //! (150 deg), with a global shutter and with a rolling shutter, by the same
 //! code as `amc synth`.
 
-use super::{CompareConfig, CompareError};
+use super::config::CompareConfig;
+use super::error::CompareError;
 use crate::synth::{self, SynthConfig};
 use std::path::{Path, PathBuf};
 

@@ -19,5 +19,6 @@ pub use error::RunError;
 pub use lens::{
     input_options, resolve_lens, LensNote, ResolvedLens, AUTO_FOV_FRAMES, FALLBACK_FOV_DEG,
 };
+pub use paths::check_distinct;
 pub use run::{run, FrameRecord, Progress, RunConfig, RunSummary, TRUNCATED_SHARE};
 pub use telemetry::TELEMETRY_HEADER;

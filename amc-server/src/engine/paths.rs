@@ -39,8 +39,10 @@ fn identity(path: &Path) -> Identity {
     Identity::Path(dir.join(name))
 }
 
-/// Fails if any two of `paths` (labelled `input`, `output`, ...) are the same file.
-pub(crate) fn check_distinct(paths: &[(&'static str, &Path)]) -> Result<(), RunError> {
+/// Fails if any two of `paths` (labelled `input`, `output`, ...) are the same
+/// file. [`run`](super::run) checks its own paths; callers check earlier to
+/// refuse before any slow work (such as `--fov auto`).
+pub fn check_distinct(paths: &[(&'static str, &Path)]) -> Result<(), RunError> {
     let ids: Vec<Identity> = paths.iter().map(|(_, p)| identity(p)).collect();
     for i in 0..paths.len() {
         for j in i + 1..paths.len() {

@@ -54,6 +54,13 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         .options(amc_core::Mode::Stabilize, args.lens.as_ref())?;
     let timeout = Duration::from_secs(args.input_flags.timeout);
     let fps = args.input_flags.fps;
+    let mut paths = vec![
+        ("input", args.input.as_path()),
+        ("output", args.output.as_path()),
+    ];
+    paths.extend(args.telemetry.iter().map(|p| ("telemetry", p.as_path())));
+    paths.extend(args.metrics.iter().map(|p| ("metrics", p.as_path())));
+    engine::check_distinct(&paths)?;
     say_rate(&args.input, fps, timeout, args.quiet);
     let lens = engine::resolve_lens(
         &options.lens,
