@@ -351,9 +351,17 @@ fn draw_speed_panel(
         .first()
         .into_iter()
         .flat_map(|s| s.est_speed_dps.iter().copied());
-    let view_values = shown
-        .iter()
-        .flat_map(|(_, s)| s.view_speed_dps.iter().copied());
+    // A saccade turns the view by the whole accumulated deviation in one
+    // frame (hundreds of deg/s): scaling the axis to those spikes would
+    // flatten every other curve. The range leaves saccade frames out, the
+    // curves are clipped at its top, and the ticks above mark the saccades.
+    let view_values = shown.iter().flat_map(|(_, s)| {
+        s.view_speed_dps
+            .iter()
+            .zip(s.saccade.iter().chain(std::iter::repeat(&false)))
+            .filter(|(_, &sacc)| !sacc)
+            .map(|(&v, _)| v)
+    });
     let y = value_range(est_values.chain(view_values), 0.0);
     // Room above the curves for one row of saccade ticks per mode with any.
     let tick_modes: Vec<(usize, &ModeSeries)> = series
@@ -394,7 +402,7 @@ fn draw_speed_panel(
         let runs = finite_runs(
             s.t.iter()
                 .zip(&s.view_speed_dps)
-                .map(|(&t, &v)| (t, Some(v))),
+                .map(|(&t, &v)| (t, Some(v.min(y.end)))),
         );
         let style = mode_color(&s.mode, i).stroke_width(2);
         draw_line(&mut chart, runs, style, &format!("view: {}", s.mode), text)?;
