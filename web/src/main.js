@@ -1,6 +1,7 @@
-// The page's wiring: file intake (pick or drop), settings, cancel, the server
-// fallback button, the form's checks, the synced players and the tabs. Each part lives in its own
-// module; the shared state is state.js's one object.
+// The page's wiring: file intake (pick, drop, or Enter on the drop zone),
+// cancel, the server fallback button, the form's checks, the synced players
+// and the tabs. Each part lives in its own module; the shared state is
+// state.js's one object.
 import { $, state } from './state.js';
 import { runLocal } from './local-run.js';
 import { runOnServer } from './server-run.js';
@@ -15,8 +16,10 @@ const drop = $('drop');
 for (const ev of ['dragenter', 'dragover']) drop.addEventListener(ev, (e) => { e.preventDefault(); drop.classList.add('over'); });
 for (const ev of ['dragleave', 'drop']) drop.addEventListener(ev, () => drop.classList.remove('over'));
 drop.addEventListener('drop', (e) => { e.preventDefault(); runLocal(e.dataTransfer.files[0]); });
+drop.addEventListener('keydown', (e) => { if (e.target === drop && (e.key === 'Enter' || e.key === ' ')) { e.preventDefault(); $('file').click(); } });
 document.addEventListener('dragover', (e) => e.preventDefault());
-document.addEventListener('drop', (e) => { e.preventDefault(); if (e.target !== drop) runLocal(e.dataTransfer.files[0]); });
+// A drop elsewhere on the page also counts; the drop zone handles its own.
+document.addEventListener('drop', (e) => { e.preventDefault(); if (!drop.contains(e.target)) runLocal(e.dataTransfer.files[0]); });
 
 $('cancel').onclick = () => { if (state.cancel) state.cancel(); state.cancel = null; };
 $('server-btn').onclick = () => runOnServer(state.file);
