@@ -58,11 +58,8 @@ fn parse_params(json: &str) -> Result<StabilizerParams, JsError> {
 /// string is the text of a lens file (project JSON, OpenCV YAML/JSON, Gyroflow).
 fn parse_camera(lens: &JsValue, width: usize, height: usize) -> Result<CameraModel, JsError> {
     if let Some(deg) = lens.as_f64() {
-        if !(deg.is_finite() && deg > 1.0 && deg < 179.0) {
-            return Err(JsError::new(&format!(
-                "invalid fov: {deg} (allowed: a horizontal field of view in degrees, 1 < DEG < 179)"
-            )));
-        }
+        // The one definition of the `fov` option's range.
+        amc_core::LensSpec::parse_fov(&deg.to_string()).map_err(err)?;
         CameraModel::pinhole_hfov(width, height, deg).map_err(err)
     } else if let Some(text) = lens.as_string() {
         amc_core::lens::parse_lens(&text).map_err(|e| JsError::new(&format!("lens file: {e}")))

@@ -4,7 +4,7 @@
 // play the user's file either, a second job (mode none, no averaging, no
 // crop) makes a copy it can play for the Original slot and the compare views.
 import { $, state, setPageState, showError, reset } from './state.js';
-import { settings, serverQuery, showFieldErrors, refuseSettings, SERVER_MAX_LOOKAHEAD } from './settings.js';
+import { settings, serverQuery, showFieldErrors, refuseSettings } from './settings.js';
 import { showResult, setOriginal, playable } from './result.js';
 import { rowsFromCsv } from './telemetry.js';
 import { serverSummary } from './summary.js';
@@ -56,9 +56,6 @@ export async function runOnServer(file) {
   if (!file) return;
   const run = reset();
   const s = settings();
-  if (!s.errors.length && s.params.view.lookahead > SERVER_MAX_LOOKAHEAD) {
-    s.errors.push({ id: 'lookahead', message: `Lookahead (lookahead): ${s.params.view.lookahead} is more than the server accepts (allowed on the server: 0..=${SERVER_MAX_LOOKAHEAD} frames).` });
-  }
   if (s.errors.length) {
     refuseSettings(s.errors);
     $('unsupported').hidden = false;

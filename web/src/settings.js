@@ -7,9 +7,9 @@ import { $, showError, setPageState } from './state.js';
 
 /**
  * The number fields: input id, label, the parameter's name in amc-core, its
- * default, range (inclusive unless `open`), whole numbers only, unit.
- * Ranges: amc-core RenderParams::validate (n_avg, margin), ViewParams::validate
- * (rate_a, rate_b, lookahead) and amc-wasm's lens check (fov: 1 < DEG < 179).
+ * default, range (inclusive, except the minimum when `openMin`), whole numbers
+ * only, unit. Ranges: amc-core's option table (amc-core/src/options.rs) and the
+ * params' validate(): n_avg, margin, rate_a, rate_b, lookahead, and fov (0 < DEG <= 179).
  */
 export const FIELDS = [
   { id: 'n_avg', label: 'Averaging window', def: 6, min: 1, max: 64, int: true, unit: 'frames' },
@@ -17,13 +17,11 @@ export const FIELDS = [
   { id: 'rate_a', label: 'Smoothing a', def: 2, min: 0, max: 1000, unit: 'per second' },
   { id: 'rate_b', label: 'Smoothing b', def: 40, min: 0, max: 10000, unit: 'per second per radian' },
   { id: 'lookahead', label: 'Lookahead', def: 0, min: 0, max: 600, int: true, unit: 'frames' },
-  { id: 'fov', label: 'Field of view', def: 70, min: 1, max: 179, open: true, unit: 'degrees' },
+  { id: 'fov', label: 'Field of view', def: 70, min: 0, max: 179, openMin: true, unit: 'degrees' },
 ];
 
-/** The server's job API accepts at most this lookahead (amc-server serve/options.rs). */
-export const SERVER_MAX_LOOKAHEAD = 240;
 
-const range = (f) => (f.open ? `${f.min} < value < ${f.max}` : `${f.min}..=${f.max}`) + ` ${f.unit}`;
+const range = (f) => (f.openMin ? `${f.min} < value <= ${f.max}` : `${f.min}..=${f.max}`) + ` ${f.unit}`;
 
 /** Reads one field: its value, or an error message naming it and its range. */
 function readField(f) {
@@ -34,7 +32,7 @@ function readField(f) {
   if (el.validity && el.validity.badInput) return { error: `${name}: not a number (${allowed}).` };
   if (text === '') return { value: f.def };
   const v = Number(text);
-  const inRange = Number.isFinite(v) && (f.open ? v > f.min && v < f.max : v >= f.min && v <= f.max);
+  const inRange = Number.isFinite(v) && (f.openMin ? v > f.min && v <= f.max : v >= f.min && v <= f.max);
   if (!inRange) return { error: `${name}: ${text} is out of range (${allowed}).` };
   if (f.int && !Number.isInteger(v)) return { error: `${name}: ${text} is not a whole number (${allowed}).` };
   return { value: v };

@@ -35,7 +35,7 @@ async function newPage() {
 }
 
 // amc-server's telemetry CSV header (the page's CSV starts with the same columns).
-const TELEMETRY_HEADER = readFileSync(join(root, 'amc-server/src/pipeline.rs'), 'utf8').match(/TELEMETRY_HEADER: &str = "([^"]+)"/)[1];
+const TELEMETRY_HEADER = readFileSync(join(root, 'amc-server/src/engine/telemetry.rs'), 'utf8').match(/TELEMETRY_HEADER: &str = "([^"]+)"/)[1];
 
 /** The summary table as { row label: [original, stabilized, change] }. */
 const summaryTable = (page) => page.evaluate(() => Object.fromEntries([...document.querySelectorAll('#summary tbody tr')]
@@ -180,10 +180,10 @@ test('bad settings and a file that is not a video end in the error state with a 
   assert.match(await page.textContent('#error'), /Not started: Averaging window \(n_avg\) out of range/);
   assert.match(await page.textContent('[data-testid=form-error]'), /Averaging window \(n_avg\): 0 is out of range \(allowed: 1\.\.=64 frames/);
   await page.fill('#margin', '0.6');
-  await page.fill('#fov', '179');
+  await page.fill('#fov', '180');
   const msg = await page.textContent('[data-testid=form-error]');
   assert.match(msg, /Margin \(margin\): 0\.6 is out of range \(allowed: 0\.\.=0\.45/);
-  assert.match(msg, /Field of view \(fov\): 179 is out of range \(allowed: 1 < value < 179 degrees/);
+  assert.match(msg, /Field of view \(fov\): 180 is out of range \(allowed: 0 < value <= 179 degrees/);
   await shot(page, 'error-settings');
   for (const [id, v] of [['margin', '0.125'], ['fov', '70']]) await page.fill(`#${id}`, v);
   await page.fill('#n_avg', ''); // empty: the default

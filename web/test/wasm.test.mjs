@@ -109,7 +109,7 @@ test('bad sizes and parameters are JS Errors naming the value and the allowed ra
   throwsMsg(() => new Stabilizer(W, H, '{"bogus":1}', 70), /unknown field `bogus`/);
   throwsMsg(() => new Stabilizer(W, H, '{"view":{"mode":"wobble"}}', 70), /unknown variant `wobble`/);
   throwsMsg(() => new Stabilizer(W, H, 'not json', 70), /invalid stabilizer parameters/);
-  throwsMsg(() => new Stabilizer(W, H, '{}', 0), /invalid fov: 0 \(allowed: .*1 < DEG < 179\)/);
+  throwsMsg(() => new Stabilizer(W, H, '{}', 0), /invalid fov: "0" \(allowed: .*0 < DEG <= 179/);
   throwsMsg(() => new Stabilizer(W, H, '{}', 400), /invalid fov: 400/);
   throwsMsg(() => new Stabilizer(W, H, '{}', undefined), /invalid lens/);
   throwsMsg(() => new Stabilizer(W, H, '{}', '{"nonsense": true}'), /lens file/);
@@ -150,7 +150,7 @@ const { serverQuery, FIELDS } = await import('../src/settings.js');
 const { niceTicks } = await import('../src/plot.js');
 
 test("the page's telemetry CSV has the CLI's header, column order and number formats", () => {
-  const rust = readFileSync(fileURLToPath(new URL('../../amc-server/src/pipeline.rs', import.meta.url)), 'utf8');
+  const rust = readFileSync(fileURLToPath(new URL('../../amc-server/src/engine/telemetry.rs', import.meta.url)), 'utf8');
   assert.equal(TELEMETRY_HEADER, rust.match(/TELEMETRY_HEADER: &str = "([^"]+)"/)[1]);
   const s = new Stabilizer(W, H, '{}', 70);
   s.setMetrics(true);
