@@ -443,15 +443,15 @@ pub fn write(dir: &Path, results: &[ClipResult], args: &CompareConfig) -> Result
         }
         let b = bars(c);
         if !b.is_empty() {
-            s += "\nBars:\n\n";
+            s += "\nTargets:\n\n";
             for bar in &b {
                 let _ = writeln!(
                     s,
                     "- {} {}: {}",
                     if bar.cleared {
-                        "cleared:"
+                        "met:"
                     } else {
-                        "**NOT cleared:**"
+                        "**NOT met:**"
                     },
                     bar.what,
                     bar.detail
@@ -490,16 +490,16 @@ pub fn write(dir: &Path, results: &[ClipResult], args: &CompareConfig) -> Result
         all_bars.extend(b.into_iter().map(|bar| (c.clip.clone(), bar)));
     }
     let missed: Vec<_> = all_bars.iter().filter(|(_, b)| !b.cleared).collect();
-    s += "\n## Summary of the bars\n\n";
+    s += "\n## Summary of the targets\n\n";
     let _ = writeln!(
         s,
-        "{} of {} bars cleared.{}\n",
+        "{} of {} targets met.{}\n",
         all_bars.len() - missed.len(),
         all_bars.len(),
         if missed.is_empty() {
             ""
         } else {
-            " Not cleared:"
+            " Not met:"
         }
     );
     for (clip, b) in &missed {
