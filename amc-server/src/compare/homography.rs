@@ -56,19 +56,10 @@ pub struct Pyramid {
     scales: Vec<f64>,
 }
 
+/// One pyramid step: the core's 2x2 box average (the tracker's own pyramid step).
 fn half(src: &GrayImage) -> GrayImage {
-    let (w, h) = (src.width / 2, src.height / 2);
-    let mut out = GrayImage::new(w, h);
-    for y in 0..h {
-        for x in 0..w {
-            let i = 2 * y * src.width + 2 * x;
-            let s = src.data[i]
-                + src.data[i + 1]
-                + src.data[i + src.width]
-                + src.data[i + src.width + 1];
-            out.data[y * w + x] = 0.25 * s;
-        }
-    }
+    let mut out = GrayImage::default();
+    amc_core::pyramid::half_into(src, &mut out);
     out
 }
 
