@@ -1,10 +1,23 @@
-//! The scalar reference: the bilinear 8.8 fixed-point sampler every kernel must
-//! match bit for bit, used directly for the pixels the vector kernels leave
-//! (row tails, unpadded frames, CPUs without them), and [`accumulate_row`], the
-//! per-pixel statement of the row kernels' contract.
+//! The contract every row kernel shares, below them all: the edge tolerance and
+//! frame padding, the row coordinates ([`RowCoords`]), the frame geometry, and the
+//! scalar reference sampler ([`Geometry::sample`]): the bilinear 8.8 fixed-point
+//! sample every kernel must match bit for bit, used directly for the pixels the
+//! vector kernels leave (row tails, unpadded frames, CPUs without them).
+//!
+//! A leaf: the kernels (`scalar.rs`, `avx2.rs`, `simd128.rs`) use it and the
+//! dispatcher (`mod.rs`) uses them, never the other way round.
 
-use super::{RowCoords, EDGE_TOLERANCE};
 use crate::image::FrameRef;
+
+/// How far (pixels) outside a frame a sample point may fall and still sample
+/// its edge. An identity warp computes `x = u +- 1e-13` at the borders; without
+/// a tolerance that rounding blanks the first or last row or column. 1/512 px
+/// is half the bilinear weights' resolution, so the clamp changes no weight.
+pub const EDGE_TOLERANCE: f32 = 1.0 / 512.0;
+
+/// Bytes a frame buffer must have past its last pixel for the gathers: the
+/// last tap reads a whole dword starting at the last pixel (3 bytes for RGB).
+pub const FRAME_PADDING: usize = 4;
 
 /// Frame geometry, hoisted out of sampling loops.
 #[derive(Clone, Copy, Debug)]
@@ -67,34 +80,81 @@ impl Geometry {
     }
 }
 
-/// The row kernels' contract, pixel by pixel: for `u in 0..n`,
-/// `acc_{r,g,b}[u] = sum_f sample_f(coords[f] at u)` and `count[u]` = frames whose
-/// coordinate lies inside the frame.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn accumulate_row(
-    datas: &[&[u8]],
-    geom: &Geometry,
-    coords: &[RowCoords<'_>],
-    n: usize,
-    acc_r: &mut [u32],
-    acc_g: &mut [u32],
-    acc_b: &mut [u32],
-    count: &mut [u32],
-) {
-    for u in 0..n {
-        let (mut sum, mut covered) = ([0u32; 3], 0u32);
-        for (data, coord) in datas.iter().zip(coords) {
-            let (sx, sy) = coord.at(u);
-            if let Some(rgb) = geom.sample(data, sx, sy) {
-                sum[0] += rgb[0];
-                sum[1] += rgb[1];
-                sum[2] += rgb[2];
-                covered += 1;
+/// Where a frame's source coordinates along the row come from.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum RowCoords<'a> {
+    /// Precomputed `(xs[u], ys[u])` (NaN: no sample).
+    Table(&'a [f32], &'a [f32]),
+    /// A homography row: `x = (x0 + dx u) / z`, `y = (y0 + dy u) / z`,
+    /// `z = z0 + dz u`, NaN where `z <= 1e-6` (exactly the scalar formula).
+    Homography {
+        x0: f32,
+        y0: f32,
+        z0: f32,
+        dx: f32,
+        dy: f32,
+        dz: f32,
+    },
+}
+
+impl RowCoords<'_> {
+    /// Source coordinates of output pixel `u`: the scalar formula the vector
+    /// kernels reproduce (the warper's `fill_row` computes the same for tables).
+    #[inline]
+    pub(crate) fn at(&self, u: usize) -> (f32, f32) {
+        match *self {
+            RowCoords::Table(xs, ys) => (xs[u], ys[u]),
+            RowCoords::Homography {
+                x0,
+                y0,
+                z0,
+                dx,
+                dy,
+                dz,
+            } => {
+                let uf = u as f32;
+                let z = z0 + dz * uf;
+                let iz = if z > 1e-6 { 1.0 / z } else { f32::NAN };
+                ((x0 + dx * uf) * iz, (y0 + dy * uf) * iz)
             }
         }
-        acc_r[u] = sum[0];
-        acc_g[u] = sum[1];
-        acc_b[u] = sum[2];
-        count[u] = covered;
+    }
+}
+
+/// Frame geometry for the vector kernels, in their 32-bit lanes.
+#[derive(Clone, Copy, Debug)]
+#[cfg_attr(
+    not(any(
+        target_arch = "x86_64",
+        all(target_arch = "wasm32", target_feature = "simd128")
+    )),
+    allow(dead_code)
+)]
+pub(super) struct KernelGeometry {
+    pub(super) channels: i32,
+    pub(super) stride: i32,
+    pub(super) max_x0: i32,
+    pub(super) max_y0: i32,
+    pub(super) max_x: f32,
+    pub(super) max_y: f32,
+}
+
+#[cfg_attr(
+    not(any(
+        target_arch = "x86_64",
+        all(target_arch = "wasm32", target_feature = "simd128")
+    )),
+    allow(dead_code)
+)]
+impl KernelGeometry {
+    pub(super) fn of(geom: &Geometry) -> Self {
+        Self {
+            channels: geom.channels as i32,
+            stride: geom.stride as i32,
+            max_x0: geom.max_x0 as i32,
+            max_y0: geom.max_y0 as i32,
+            max_x: geom.max_x,
+            max_y: geom.max_y,
+        }
     }
 }
