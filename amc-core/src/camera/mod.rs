@@ -12,9 +12,13 @@
 //!
 //! One file per model, each with its equations, forward map, inverse and validity limit:
 //! `pinhole.rs` ([`Distortion::None`]), `radtan.rs` ([`Distortion::RadTan`]) and
-//! `fisheye.rs` ([`Distortion::Fisheye`]). `model.rs` holds [`CameraModel`] and its
-//! model-independent methods; `poly.rs` the polynomial root finder behind the validity
-//! limits and the inverses.
+//! `fisheye.rs` ([`Distortion::Fisheye`]). `model.rs` holds [`CameraModel`], its
+//! parameter checks and model-independent methods; `poly.rs` the polynomial root finder
+//! behind the validity limits and the inverses; `projection.rs` the methods that `match`
+//! on the model ([`CameraModel::project`], [`CameraModel::unproject`], field of view).
+//!
+//! Layers, each using only those below it: `projection.rs` over the per-model files
+//! (`radtan.rs` over `pinhole.rs`), over `model.rs` and `poly.rs`.
 
 // Negated float comparisons (`!(x > 0.0)`) are deliberate throughout: they also reject NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -23,6 +27,7 @@ mod fisheye;
 mod model;
 mod pinhole;
 mod poly;
+mod projection;
 mod radtan;
 #[cfg(test)]
 mod tests;

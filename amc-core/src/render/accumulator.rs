@@ -1,9 +1,8 @@
 //! Integer sums of warped frames: the averaging buffer, and the saccade mode's
 //! per-frame slots that are added to and subtracted from it.
-
-use super::Warper;
-use crate::image::FrameRef;
-use nalgebra::Matrix3;
+//!
+//! Plain buffers, below the warper: the warper fills them (`warper.rs` also holds
+//! [`WarpedFrame::fill`]), nothing here warps.
 
 /// Per-pixel sums of warped frames: the averaging buffer.
 #[derive(Clone, Debug, Default)]
@@ -61,30 +60,6 @@ pub struct WarpedFrame {
 }
 
 impl WarpedFrame {
-    /// Warps `frame` into this slot (reusing its buffers) with the scalar
-    /// sampler: the reference [`Warper::warp_into_slot`] is tested against.
-    pub fn fill(
-        &mut self,
-        warper: &mut Warper,
-        frame: &FrameRef<'_>,
-        m: &Matrix3<f64>,
-        index: u64,
-    ) {
-        let (w, h) = warper.output_size();
-        self.index = index;
-        self.value.clear();
-        self.value.resize(3 * w * h, 0);
-        self.covered.clear();
-        self.covered.resize(w * h, 0);
-        let (value, covered) = (&mut self.value, &mut self.covered);
-        warper.warp(frame, m, |i, rgb| {
-            value[3 * i] = rgb[0] as u16;
-            value[3 * i + 1] = rgb[1] as u16;
-            value[3 * i + 2] = rgb[2] as u16;
-            covered[i] = 1;
-        });
-    }
-
     /// Adds (`add = true`) or removes this slot from an accumulator.
     /// Uncovered pixels hold zeros, so no per-pixel branch is needed.
     pub fn apply(&self, acc: &mut Accumulator, add: bool) {

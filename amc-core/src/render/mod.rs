@@ -21,7 +21,8 @@
 //! `params.rs` sizes the output view, `warper.rs` maps output rows to source
 //! coordinates and samples them, `accumulator.rs` holds the integer sums and the
 //! saccade slots, and `kernels/` the row kernels (scalar reference, AVX2, `simd128`)
-//! behind one dispatcher.
+//! behind one dispatcher. The warper uses the kernels and the accumulator (it
+//! fills the saccade slots); neither uses the warper.
 
 mod accumulator;
 pub mod kernels;

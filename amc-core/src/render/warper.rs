@@ -2,8 +2,8 @@
 //! pinhole sources, an interpolated grid of the exact lens map otherwise) and
 //! samples every frame there, through the row kernels.
 
+use super::accumulator::WarpedFrame;
 use super::kernels::{Geometry, Kernel, RowCoords, FRAME_PADDING};
-use super::WarpedFrame;
 use crate::camera::CameraModel;
 use crate::image::FrameRef;
 use nalgebra::{Matrix3, Vector2, Vector3};
@@ -448,5 +448,33 @@ impl Warper {
             }
         }
         self.maps = maps;
+    }
+}
+
+// The scalar slot fill sits here rather than in `accumulator.rs` so that the
+// accumulator stays a plain buffer below the warper (no warper <-> accumulator cycle).
+impl WarpedFrame {
+    /// Warps `frame` into this slot (reusing its buffers) with the scalar
+    /// sampler: the reference [`Warper::warp_into_slot`] is tested against.
+    pub fn fill(
+        &mut self,
+        warper: &mut Warper,
+        frame: &FrameRef<'_>,
+        m: &Matrix3<f64>,
+        index: u64,
+    ) {
+        let (w, h) = warper.output_size();
+        self.index = index;
+        self.value.clear();
+        self.value.resize(3 * w * h, 0);
+        self.covered.clear();
+        self.covered.resize(w * h, 0);
+        let (value, covered) = (&mut self.value, &mut self.covered);
+        warper.warp(frame, m, |i, rgb| {
+            value[3 * i] = rgb[0] as u16;
+            value[3 * i + 1] = rgb[1] as u16;
+            value[3 * i + 2] = rgb[2] as u16;
+            covered[i] = 1;
+        });
     }
 }

@@ -7,7 +7,7 @@
 //! scalar reference in `scalar.rs`. Lanes whose coordinate falls outside the
 //! frame are masked off and contribute nothing.
 
-use super::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
+use super::common::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
 use std::arch::x86_64::*;
 
 /// Accumulates the samples of several frames along one output row: for

@@ -5,24 +5,20 @@
 //! CPU has AVX2) and `simd128.rs` (wasm32, chosen at compile time with the
 //! `simd128` target feature) are bit-exact with it. [`Kernel`] is the one
 //! dispatcher: [`Kernel::detect`] picks the kernel, its methods run it.
+//!
+//! Layers: this dispatcher uses the kernels, and they all use `common.rs` (the
+//! constants, row coordinates, frame geometry and reference sampler they share);
+//! no kernel uses the dispatcher.
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+mod common;
 mod scalar;
 #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
 mod simd128;
 
-pub(crate) use scalar::Geometry;
-
-/// How far (pixels) outside a frame a sample point may fall and still sample
-/// its edge. An identity warp computes `x = u +- 1e-13` at the borders; without
-/// a tolerance that rounding blanks the first or last row or column. 1/512 px
-/// is half the bilinear weights' resolution, so the clamp changes no weight.
-pub const EDGE_TOLERANCE: f32 = 1.0 / 512.0;
-
-/// Bytes a frame buffer must have past its last pixel for the gathers: the
-/// last tap reads a whole dword starting at the last pixel (3 bytes for RGB).
-pub const FRAME_PADDING: usize = 4;
+pub(crate) use common::{Geometry, RowCoords};
+pub use common::{EDGE_TOLERANCE, FRAME_PADDING};
 
 /// Whether the AVX2 kernel can run on this CPU.
 pub fn avx2_available() -> bool {
@@ -114,7 +110,7 @@ impl Kernel {
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx2 => avx2::accumulate_row(
                 datas,
-                KernelGeometry::of(geom),
+                common::KernelGeometry::of(geom),
                 coords,
                 n,
                 acc_r,
@@ -125,7 +121,7 @@ impl Kernel {
             #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
             Kernel::Simd128 => simd128::accumulate_row(
                 datas,
-                KernelGeometry::of(geom),
+                common::KernelGeometry::of(geom),
                 coords,
                 n,
                 acc_r,
@@ -163,85 +159,6 @@ impl Kernel {
             }
             #[allow(unreachable_patterns)]
             _ => false,
-        }
-    }
-}
-
-/// Where a frame's source coordinates along the row come from.
-#[derive(Clone, Copy, Debug)]
-pub(crate) enum RowCoords<'a> {
-    /// Precomputed `(xs[u], ys[u])` (NaN: no sample).
-    Table(&'a [f32], &'a [f32]),
-    /// A homography row: `x = (x0 + dx u) / z`, `y = (y0 + dy u) / z`,
-    /// `z = z0 + dz u`, NaN where `z <= 1e-6` (exactly the scalar formula).
-    Homography {
-        x0: f32,
-        y0: f32,
-        z0: f32,
-        dx: f32,
-        dy: f32,
-        dz: f32,
-    },
-}
-
-impl RowCoords<'_> {
-    /// Source coordinates of output pixel `u`: the scalar formula the vector
-    /// kernels reproduce (the warper's `fill_row` computes the same for tables).
-    #[inline]
-    pub(crate) fn at(&self, u: usize) -> (f32, f32) {
-        match *self {
-            RowCoords::Table(xs, ys) => (xs[u], ys[u]),
-            RowCoords::Homography {
-                x0,
-                y0,
-                z0,
-                dx,
-                dy,
-                dz,
-            } => {
-                let uf = u as f32;
-                let z = z0 + dz * uf;
-                let iz = if z > 1e-6 { 1.0 / z } else { f32::NAN };
-                ((x0 + dx * uf) * iz, (y0 + dy * uf) * iz)
-            }
-        }
-    }
-}
-
-/// Frame geometry for the vector kernels, in their 32-bit lanes.
-#[derive(Clone, Copy, Debug)]
-#[cfg_attr(
-    not(any(
-        target_arch = "x86_64",
-        all(target_arch = "wasm32", target_feature = "simd128")
-    )),
-    allow(dead_code)
-)]
-struct KernelGeometry {
-    channels: i32,
-    stride: i32,
-    max_x0: i32,
-    max_y0: i32,
-    max_x: f32,
-    max_y: f32,
-}
-
-#[cfg_attr(
-    not(any(
-        target_arch = "x86_64",
-        all(target_arch = "wasm32", target_feature = "simd128")
-    )),
-    allow(dead_code)
-)]
-impl KernelGeometry {
-    fn of(geom: &Geometry) -> Self {
-        Self {
-            channels: geom.channels as i32,
-            stride: geom.stride as i32,
-            max_x0: geom.max_x0 as i32,
-            max_y0: geom.max_y0 as i32,
-            max_x: geom.max_x,
-            max_y: geom.max_y,
         }
     }
 }

@@ -1,7 +1,7 @@
 //! The WebAssembly `simd128` row kernel and RGBA row finisher (used when the
 //! module is built with `+simd128`).
 
-use super::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
+use super::common::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
 use core::arch::wasm32::*;
 
 /// The WebAssembly `simd128` twin of the AVX2 kernel (`avx2.rs`): four output

@@ -1,0 +1,160 @@
+//! The contract every row kernel shares, below them all: the edge tolerance and
+//! frame padding, the row coordinates ([`RowCoords`]), the frame geometry, and the
+//! scalar reference sampler ([`Geometry::sample`]): the bilinear 8.8 fixed-point
+//! sample every kernel must match bit for bit, used directly for the pixels the
+//! vector kernels leave (row tails, unpadded frames, CPUs without them).
+//!
+//! A leaf: the kernels (`scalar.rs`, `avx2.rs`, `simd128.rs`) use it and the
+//! dispatcher (`mod.rs`) uses them, never the other way round.
+
+use crate::image::FrameRef;
+
+/// How far (pixels) outside a frame a sample point may fall and still sample
+/// its edge. An identity warp computes `x = u +- 1e-13` at the borders; without
+/// a tolerance that rounding blanks the first or last row or column. 1/512 px
+/// is half the bilinear weights' resolution, so the clamp changes no weight.
+pub const EDGE_TOLERANCE: f32 = 1.0 / 512.0;
+
+/// Bytes a frame buffer must have past its last pixel for the gathers: the
+/// last tap reads a whole dword starting at the last pixel (3 bytes for RGB).
+pub const FRAME_PADDING: usize = 4;
+
+/// Frame geometry, hoisted out of sampling loops.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Geometry {
+    /// Bytes per pixel (3 or 4).
+    pub(crate) channels: usize,
+    /// Bytes per row.
+    pub(crate) stride: usize,
+    /// Largest column of a top-left tap (`width - 2`).
+    pub(crate) max_x0: usize,
+    /// Largest row of a top-left tap (`height - 2`).
+    pub(crate) max_y0: usize,
+    /// Largest sample x, pixels (`width - 1`).
+    pub(crate) max_x: f32,
+    /// Largest sample y, pixels (`height - 1`).
+    pub(crate) max_y: f32,
+}
+
+impl Geometry {
+    /// The geometry of `frame` (frames narrower or lower than 2 pixels are treated as 2).
+    pub(crate) fn of(frame: &FrameRef<'_>) -> Self {
+        let (sw, sh) = (frame.width.max(2), frame.height.max(2));
+        Self {
+            channels: frame.format.channels(),
+            stride: frame.stride(),
+            max_x0: sw - 2,
+            max_y0: sh - 2,
+            max_x: (sw - 1) as f32,
+            max_y: (sh - 1) as f32,
+        }
+    }
+
+    /// Bilinear 8.8 fixed-point RGB sample of `data` at `(sx, sy)`; `None`
+    /// outside the frame.
+    #[inline(always)]
+    pub(crate) fn sample(&self, data: &[u8], sx: f32, sy: f32) -> Option<[u32; 3]> {
+        let tol = EDGE_TOLERANCE;
+        if !(sx >= -tol && sy >= -tol && sx <= self.max_x + tol && sy <= self.max_y + tol) {
+            return None;
+        }
+        // Points within the tolerance outside the frame sample its edge.
+        let (sx, sy) = (sx.max(0.0).min(self.max_x), sy.max(0.0).min(self.max_y));
+        let c = self.channels;
+        let x0 = (sx as usize).min(self.max_x0);
+        let y0 = (sy as usize).min(self.max_y0);
+        let ax = ((sx - x0 as f32) * 256.0 + 0.5) as u32;
+        let ay = ((sy - y0 as f32) * 256.0 + 0.5) as u32;
+        let (bx, by) = (256 - ax, 256 - ay);
+        let i = y0 * self.stride + x0 * c;
+        // One slice covering both rows: a single bounds check for all 12 taps.
+        let taps = data.get(i..i + self.stride + c + 3)?;
+        let s = self.stride;
+        let mut out = [0u32; 3];
+        for ch in 0..3 {
+            let top = taps[ch] as u32 * bx + taps[c + ch] as u32 * ax;
+            let bot = taps[s + ch] as u32 * bx + taps[s + c + ch] as u32 * ax;
+            out[ch] = (top * by + bot * ay + 128) >> 8;
+        }
+        Some(out)
+    }
+}
+
+/// Where a frame's source coordinates along the row come from.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum RowCoords<'a> {
+    /// Precomputed `(xs[u], ys[u])` (NaN: no sample).
+    Table(&'a [f32], &'a [f32]),
+    /// A homography row: `x = (x0 + dx u) / z`, `y = (y0 + dy u) / z`,
+    /// `z = z0 + dz u`, NaN where `z <= 1e-6` (exactly the scalar formula).
+    Homography {
+        x0: f32,
+        y0: f32,
+        z0: f32,
+        dx: f32,
+        dy: f32,
+        dz: f32,
+    },
+}
+
+impl RowCoords<'_> {
+    /// Source coordinates of output pixel `u`: the scalar formula the vector
+    /// kernels reproduce (the warper's `fill_row` computes the same for tables).
+    #[inline]
+    pub(crate) fn at(&self, u: usize) -> (f32, f32) {
+        match *self {
+            RowCoords::Table(xs, ys) => (xs[u], ys[u]),
+            RowCoords::Homography {
+                x0,
+                y0,
+                z0,
+                dx,
+                dy,
+                dz,
+            } => {
+                let uf = u as f32;
+                let z = z0 + dz * uf;
+                let iz = if z > 1e-6 { 1.0 / z } else { f32::NAN };
+                ((x0 + dx * uf) * iz, (y0 + dy * uf) * iz)
+            }
+        }
+    }
+}
+
+/// Frame geometry for the vector kernels, in their 32-bit lanes.
+#[derive(Clone, Copy, Debug)]
+#[cfg_attr(
+    not(any(
+        target_arch = "x86_64",
+        all(target_arch = "wasm32", target_feature = "simd128")
+    )),
+    allow(dead_code)
+)]
+pub(super) struct KernelGeometry {
+    pub(super) channels: i32,
+    pub(super) stride: i32,
+    pub(super) max_x0: i32,
+    pub(super) max_y0: i32,
+    pub(super) max_x: f32,
+    pub(super) max_y: f32,
+}
+
+#[cfg_attr(
+    not(any(
+        target_arch = "x86_64",
+        all(target_arch = "wasm32", target_feature = "simd128")
+    )),
+    allow(dead_code)
+)]
+impl KernelGeometry {
+    pub(super) fn of(geom: &Geometry) -> Self {
+        Self {
+            channels: geom.channels as i32,
+            stride: geom.stride as i32,
+            max_x0: geom.max_x0 as i32,
+            max_y0: geom.max_y0 as i32,
+            max_x: geom.max_x,
+            max_y: geom.max_y,
+        }
+    }
+}
