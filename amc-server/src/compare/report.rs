@@ -448,11 +448,7 @@ pub fn write(dir: &Path, results: &[ClipResult], args: &CompareConfig) -> Result
                 let _ = writeln!(
                     s,
                     "- {} {}: {}",
-                    if bar.cleared {
-                        "met:"
-                    } else {
-                        "**NOT met:**"
-                    },
+                    if bar.cleared { "met:" } else { "**NOT met:**" },
                     bar.what,
                     bar.detail
                 );
@@ -496,11 +492,7 @@ pub fn write(dir: &Path, results: &[ClipResult], args: &CompareConfig) -> Result
         "{} of {} targets met.{}\n",
         all_bars.len() - missed.len(),
         all_bars.len(),
-        if missed.is_empty() {
-            ""
-        } else {
-            " Not met:"
-        }
+        if missed.is_empty() { "" } else { " Not met:" }
     );
     for (clip, b) in &missed {
         let _ = writeln!(s, "- {clip}: {} ({})", b.what, b.detail);
