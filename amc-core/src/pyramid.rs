@@ -10,7 +10,7 @@ use crate::image::{FrameRef, GrayImage, LUMA_WEIGHTS};
 /// Box-downscales a colour frame by an integer factor `s` while converting it to
 /// `[0, 1]` luma. Output pixel `(u, v)` averages source pixels
 /// `[s u, s u + s) x [s v, s v + s)`, so its centre lies at source coordinate
-/// `s u + (s - 1) / 2` (see [`crate::camera::CameraModel::box_downscaled`]).
+/// `s u + (s - 1) / 2` (see [`crate::frontend::box_downscaled`]).
 pub fn luma_box_downscale_into(src: &FrameRef<'_>, s: usize, dst: &mut GrayImage) {
     let s = s.max(1);
     let (w, h) = (src.width / s, src.height / s);
