@@ -2,6 +2,7 @@
 //! the image motion (normal flow) and the stabilize mode reduces the frame-to-frame change,
 //! while both keep nearly all of the output covered by real pixels.
 
+use amc_e2e::fixtures::{ffprobe_frames, has_audio};
 use amc_e2e::*;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
