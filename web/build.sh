@@ -27,5 +27,6 @@ wasm-bindgen --target web --no-typescript --out-dir "$dist/pkg" \
 
 [ -d node_modules/mediabunny ] && [ -d node_modules/playwright-core ] || npm ci --no-audit --no-fund
 cp node_modules/mediabunny/dist/bundles/mediabunny.min.mjs "$dist/vendor/mediabunny.mjs"
+# The page: index.html, style.css, main.js and the ES modules it imports, worker.js (and the bench page).
 cp src/*.html src/*.js src/*.css "$dist/"
 echo "built $dist ($(du -sh "$dist" | cut -f1))" >&2

@@ -9,42 +9,96 @@ pub enum AmcError {
     /// A numeric parameter is outside its allowed range.
     #[error("invalid {name}: {value} (allowed: {allowed})")]
     InvalidParameter {
+        /// Name of the parameter.
         name: &'static str,
+        /// The offending value, formatted.
         value: String,
+        /// Human-readable allowed range.
         allowed: &'static str,
     },
+    /// A frame has no pixels.
     #[error("frame is empty: {width}x{height}")]
-    EmptyFrame { width: usize, height: usize },
+    EmptyFrame {
+        /// Frame width, pixels.
+        width: usize,
+        /// Frame height, pixels.
+        height: usize,
+    },
+    /// A frame is larger than 16384 pixels on a side.
     #[error("frame {width}x{height} is too large")]
-    FrameTooLarge { width: usize, height: usize },
+    FrameTooLarge {
+        /// Frame width, pixels.
+        width: usize,
+        /// Frame height, pixels.
+        height: usize,
+    },
+    /// A frame buffer's length does not match its size and pixel format.
     #[error("frame buffer has {actual} bytes, expected {expected}")]
-    BufferLength { expected: usize, actual: usize },
+    BufferLength {
+        /// `width * height * channels`, bytes.
+        expected: usize,
+        /// Length of the buffer, bytes.
+        actual: usize,
+    },
+    /// A frame's size differs from the clip's first frame.
     #[error("frame size changed from {expected_w}x{expected_h} to {actual_w}x{actual_h}; every frame of a clip must have the same size")]
     FrameSizeChanged {
+        /// Width of the clip's frames, pixels.
         expected_w: usize,
+        /// Height of the clip's frames, pixels.
         expected_h: usize,
+        /// Width of this frame, pixels.
         actual_w: usize,
+        /// Height of this frame, pixels.
         actual_h: usize,
     },
+    /// A timestamp is not after the previous frame's.
     #[error(
         "timestamp {t} s is not after the previous frame's {prev} s; timestamps must increase"
     )]
-    NonMonotonicTimestamp { t: f64, prev: f64 },
+    NonMonotonicTimestamp {
+        /// This frame's timestamp, seconds.
+        t: f64,
+        /// The previous frame's timestamp, seconds.
+        prev: f64,
+    },
+    /// A timestamp (seconds) is NaN or infinite.
     #[error("timestamp {0} is not a finite number")]
     NonFiniteTimestamp(f64),
+    /// The frames' aspect ratio differs (by more than 1%) from the lens calibration's.
     #[error("frame is {width}x{height} but the lens model is calibrated for a different aspect ratio ({lens_w}x{lens_h})")]
     LensAspectMismatch {
+        /// Frame width, pixels.
         width: usize,
+        /// Frame height, pixels.
         height: usize,
+        /// Width the lens was calibrated at, pixels.
         lens_w: usize,
+        /// Height the lens was calibrated at, pixels.
         lens_h: usize,
     },
+    /// An invalid camera model.
     #[error(transparent)]
     Camera(#[from] crate::camera::CameraError),
+    /// A lens file that could not be loaded.
     #[error(transparent)]
     Lens(#[from] crate::lens::LensError),
+    /// An option name that no [`crate::options::OPTIONS`] entry has.
+    #[error("unknown option {name:?} (known: {known})")]
+    UnknownOption {
+        /// The name given.
+        name: String,
+        /// The names there are.
+        known: String,
+    },
+    /// Focal-length self-calibration got too few frames.
     #[error("focal-length self-calibration needs at least {needed} frames, got {got}")]
-    TooFewFrames { needed: usize, got: usize },
+    TooFewFrames {
+        /// Frames it needs.
+        needed: usize,
+        /// Frames it got.
+        got: usize,
+    },
 }
 
 impl AmcError {

@@ -32,9 +32,13 @@ impl PixelFormat {
 /// A borrowed colour frame.
 #[derive(Clone, Copy, Debug)]
 pub struct FrameRef<'a> {
+    /// Width, pixels.
     pub width: usize,
+    /// Height, pixels.
     pub height: usize,
+    /// Pixel layout of `data`.
     pub format: PixelFormat,
+    /// Interleaved pixels, row by row without row padding (may carry tail padding).
     pub data: &'a [u8],
 }
 
@@ -76,9 +80,13 @@ impl<'a> FrameRef<'a> {
 /// An owned colour frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Frame {
+    /// Width, pixels.
     pub width: usize,
+    /// Height, pixels.
     pub height: usize,
+    /// Pixel layout of `data`.
     pub format: PixelFormat,
+    /// Interleaved pixels, row by row without row padding (may carry tail padding).
     pub data: Vec<u8>,
 }
 
@@ -116,8 +124,11 @@ impl Frame {
 /// A single-channel `f32` image with intensities in `[0, 1]`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct GrayImage {
+    /// Width, pixels.
     pub width: usize,
+    /// Height, pixels.
     pub height: usize,
+    /// Intensities in `[0, 1]`, row by row (`width * height` values).
     pub data: Vec<f32>,
 }
 
@@ -138,6 +149,7 @@ impl GrayImage {
         self.data.resize(width * height, 0.0);
     }
 
+    /// The intensity at pixel `(x, y)`; panics outside the image.
     #[inline]
     pub fn get(&self, x: usize, y: usize) -> f32 {
         self.data[y * self.width + x]

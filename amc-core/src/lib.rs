@@ -3,6 +3,8 @@
 //! Artificial Microsaccade Compensation (AMC): rotation-only video stabilization.
 //! Pure library: no I/O, no threads, no async; builds for `wasm32-unknown-unknown`.
 
+#![deny(missing_docs)]
+
 pub mod camera;
 pub mod error;
 pub mod image;
@@ -13,15 +15,16 @@ pub mod synth;
 pub use error::AmcError;
 pub mod frontend;
 pub mod metrics;
+pub mod options;
 pub mod pyramid;
 pub mod render;
 pub mod selfcal;
-pub mod simd;
 pub mod stabilizer;
 pub mod tracker;
 pub mod view;
 
 pub use camera::CameraModel;
 pub use image::{Frame, FrameRef, PixelFormat};
+pub use options::{LensSpec, StabilizerOptions};
 pub use stabilizer::{Stabilizer, StabilizerParams, Telemetry};
 pub use view::Mode;

@@ -38,6 +38,7 @@ pub struct FrameMetrics {
 /// Metrics of a whole clip.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ClipMetrics {
+    /// Output frames measured.
     pub frames: u64,
     /// RMS normal flow, pixels per frame.
     pub rms_normal_flow: f64,
@@ -60,6 +61,7 @@ pub struct ClipMetrics {
 /// What the telemetry alone says of a clip: no image work, so always affordable.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct MotionSummary {
+    /// Output frames counted.
     pub frames: u64,
     /// Mean share of pixels covered by every averaged frame.
     pub valid_fraction: f64,
@@ -106,6 +108,7 @@ impl MotionAccumulator {
         }
     }
 
+    /// The summary of the frames pushed so far (zeros when none).
     pub fn summary(&self) -> MotionSummary {
         let rms = |s: f64| {
             if self.speed_n > 0 {

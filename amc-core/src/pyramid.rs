@@ -79,6 +79,7 @@ pub fn half_into(src: &GrayImage, dst: &mut GrayImage) {
 /// A coarse-to-fine image pyramid: `levels[0]` is the finest.
 #[derive(Clone, Debug, Default)]
 pub struct Pyramid {
+    /// Level `l` has half the size of level `l - 1` (2x2 box average).
     pub levels: Vec<GrayImage>,
 }
 
@@ -114,8 +115,11 @@ impl Pyramid {
 /// of source coordinates (`NaN` where the lens has no image).
 #[derive(Clone, Debug, Default)]
 pub struct RemapTable {
+    /// Width of the tracking image, pixels.
     pub width: usize,
+    /// Height of the tracking image, pixels.
     pub height: usize,
+    /// Source pixel `(x, y)` of each tracking pixel, row by row (`NaN`: none).
     pub coords: Vec<[f32; 2]>,
 }
 

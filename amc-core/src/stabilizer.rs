@@ -30,8 +30,11 @@ pub struct StabilizerParams {
     /// Width (pixels) of the grayscale image the tracker works on; frames are
     /// box-averaged by `floor(width / track_width)`. Range 32..=8192.
     pub track_width: usize,
+    /// Rotation tracker.
     pub tracker: TrackerParams,
+    /// View path (smoothing, lookahead, saccades).
     pub view: ViewParams,
+    /// Output rendering (averaging, crop, output size).
     pub render: RenderParams,
 }
 
@@ -278,7 +281,8 @@ impl Stabilizer {
             .unwrap_or_else(|| Frame::new(0, 0, frame.format));
         buf.copy_from(&frame);
         // Tail padding for the vectorized sampler's dword gathers.
-        buf.data.extend_from_slice(&[0; crate::simd::FRAME_PADDING]);
+        buf.data
+            .extend_from_slice(&[0; crate::render::kernels::FRAME_PADDING]);
         self.ring.push_back(Buffered {
             frame: buf,
             index: self.received,

@@ -27,6 +27,10 @@ use crate::error::{check_range, AmcError};
 use crate::so3::{self, Rot};
 use serde::{Deserialize, Serialize};
 
+/// Largest `lookahead`, frames. The stabilizer keeps `lookahead` decoded frames
+/// in memory (about 6 MB each at 1080p RGB), so this bounds its memory.
+pub const MAX_LOOKAHEAD: usize = 600;
+
 /// How the viewpoint moves.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -104,7 +108,7 @@ impl ViewParams {
             "0..=10000 per second per radian",
         )?;
         check_range("saccade_coverage", self.saccade_coverage, 0.0, 1.0, "0..=1")?;
-        if self.lookahead > 600 {
+        if self.lookahead > MAX_LOOKAHEAD {
             return Err(AmcError::invalid(
                 "lookahead",
                 self.lookahead,

@@ -2,11 +2,9 @@
 //! Jordan Pond panorama when present, else a built-in procedural scene),
 //! stabilizes it, and says where everything is and how accurate it was.
 
-use crate::cli::DemoArgs;
-use crate::error::CliError;
-use crate::gt;
-use crate::pipeline::{self, RunConfig};
-use crate::synth_cmd::{self, SynthArgs};
+use crate::engine::{self, RunConfig, RunError};
+use crate::gt::{self, GtError};
+use crate::synth::{self, SynthConfig, SynthError};
 use amc_core::so3::{self, Tangent};
 use amc_core::view::Mode;
 use amc_core::{Frame, PixelFormat, StabilizerParams};
@@ -15,12 +13,66 @@ use rand::{rngs::SmallRng, Rng, SeedableRng};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+/// What the demo films.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DemoConfig {
+    /// Folder for the demo's files.
+    pub output: PathBuf,
+    /// Equirectangular panorama to film (default: the shared Jordan Pond
+    /// panorama if present, else a built-in procedural scene).
+    pub panorama: Option<PathBuf>,
+    /// RMS shake, deg/s.
+    pub shake_dps: f64,
+    /// Clip length, seconds.
+    pub seconds: f64,
+}
+
+/// Why the demo stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum DemoError {
+    /// Rendering the shaky clip failed.
+    #[error(transparent)]
+    Synth(#[from] SynthError),
+    /// Stabilizing failed.
+    #[error(transparent)]
+    Run(#[from] RunError),
+    /// Encoding the shaky clip failed.
+    #[error(transparent)]
+    Video(#[from] amc_video::VideoError),
+    /// The clip's ground truth could not be read back.
+    #[error(transparent)]
+    Gt(#[from] GtError),
+    /// A file of the demo's folder could not be written or removed.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The procedural panorama could not be written, or the lens read back.
+    #[error("{}: {detail}", path.display())]
+    File {
+        /// The file.
+        path: PathBuf,
+        /// What failed.
+        detail: String,
+    },
+}
+
+fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> DemoError + '_ {
+    move |source| DemoError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
 /// Where the shared panorama lives relative to the repository root.
 const SHARED_PANO: &str = "../shared/data/pano/pannellum_examplepano.jpg";
 
 /// A 2048x1024 equirectangular scene of random shapes over a textured ground
 /// and sky: enough texture at every scale for a rotation tracker.
-fn procedural_panorama(path: &Path) -> Result<(), CliError> {
+fn procedural_panorama(path: &Path) -> Result<(), DemoError> {
     let (w, h) = (2048u32, 1024u32);
     let mut rng = SmallRng::seed_from_u64(7);
     let mut img = image::RgbImage::new(w, h);
@@ -49,13 +101,13 @@ fn procedural_panorama(path: &Path) -> Result<(), CliError> {
             }
         }
     }
-    img.save(path).map_err(|e| CliError::Image {
+    img.save(path).map_err(|e| DemoError::File {
         path: path.to_path_buf(),
-        msg: e.to_string(),
+        detail: e.to_string(),
     })
 }
 
-fn encode_dir(frames: &Path, out: &Path, fps: f64) -> Result<(), CliError> {
+fn encode_dir(frames: &Path, out: &Path, fps: f64) -> Result<(), DemoError> {
     let mut src = video::open_input(
         frames,
         &InputOptions {
@@ -66,25 +118,27 @@ fn encode_dir(frames: &Path, out: &Path, fps: f64) -> Result<(), CliError> {
     let info = src.info().clone();
     let mut sink = video::create_output(out, &OutputSpec::new(info.width, info.height, fps))?;
     let mut f = Frame::new(info.width, info.height, PixelFormat::Rgb8);
-    while src.next_frame(&mut f)?.is_some() {
-        sink.write_frame(&f.as_ref())?;
+    while let Some(t) = src.next_frame(&mut f)? {
+        sink.write_frame(&f.as_ref(), t)?;
     }
     sink.finish()?;
     Ok(())
 }
 
-pub fn run(args: &DemoArgs) -> Result<(), CliError> {
+/// Runs the demo; `say` receives a line for each step. Returns the report:
+/// where the results are and how accurate the tracking was.
+pub fn run(args: &DemoConfig, say: &dyn Fn(&str)) -> Result<String, DemoError> {
     // Without ffmpeg the demo still runs: frames are PNG (read natively) and
     // results are written as .y4m by our own writer.
     let ext = match video::ffmpeg_available() {
         Ok(()) => "mp4",
         Err(e) => {
-            eprintln!("note: {e}; writing .y4m files instead of .mp4");
+            say(&format!("note: {e}; writing .y4m files instead of .mp4"));
             "y4m"
         }
     };
     let out = &args.output;
-    std::fs::create_dir_all(out).map_err(|e| CliError::io(out, e))?;
+    std::fs::create_dir_all(out).map_err(io_error(out))?;
     let pano: PathBuf = match &args.panorama {
         Some(p) => p.clone(),
         None if Path::new(SHARED_PANO).exists() => PathBuf::from(SHARED_PANO),
@@ -96,45 +150,45 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
     };
     let frames = out.join("shaky-frames");
     if frames.exists() {
-        std::fs::remove_dir_all(&frames).map_err(|e| CliError::io(&frames, e))?;
+        std::fs::remove_dir_all(&frames).map_err(io_error(&frames))?;
     }
     for name in ["shaky", "stabilized", "saccade"] {
         for ext in ["mp4", "y4m"] {
             let p = out.join(format!("{name}.{ext}"));
             if p.exists() {
-                std::fs::remove_file(&p).map_err(|e| CliError::io(&p, e))?;
+                std::fs::remove_file(&p).map_err(io_error(&p))?;
             }
         }
     }
     let fps = 60.0;
-    eprintln!(
+    say(&format!(
         "rendering a {:.0} s shaky clip ({} deg/s RMS, 12-20 Hz) from {}",
         args.seconds,
         args.shake_dps,
         pano.display()
-    );
-    synth_cmd::run(&SynthArgs {
-        panorama: pano,
-        output: frames.clone(),
-        fov: 90.0,
-        fisheye: None,
-        width: 640,
-        height: 360,
-        fps,
-        seconds: args.seconds,
-        shake_dps: args.shake_dps,
-        shake_band: (12.0, 20.0),
-        seed: 1,
-        pan_dps: 10.0,
-        rolling_shutter_ms: 0.0,
-        supersample: 2,
-    })?;
+    ));
+    synth::run(
+        &SynthConfig {
+            width: 640,
+            height: 360,
+            fps,
+            seconds: args.seconds,
+            shake_dps: args.shake_dps,
+            seed: 1,
+            pan_dps: 10.0,
+            ..SynthConfig::new(pano, frames.clone())
+        },
+        &|_, _| {},
+    )?;
     let shaky = out.join(format!("shaky.{ext}"));
     encode_dir(&frames, &shaky, fps)?;
 
-    let lens_text = std::fs::read_to_string(frames.join("lens.json"))
-        .map_err(|e| CliError::io(frames.join("lens.json"), e))?;
-    let lens = amc_core::lens::parse_lens(&lens_text).map_err(amc_core::AmcError::from)?;
+    let lens_path = frames.join("lens.json");
+    let lens_text = std::fs::read_to_string(&lens_path).map_err(io_error(&lens_path))?;
+    let lens = amc_core::lens::parse_lens(&lens_text).map_err(|e| DemoError::File {
+        path: lens_path.clone(),
+        detail: e.to_string(),
+    })?;
     let gt_rot = gt::read_orientations(&frames.join("gt.csv"))?;
     let mut lines = Vec::new();
     for (mode, name) in [(Mode::Stabilize, "stabilized"), (Mode::Saccade, "saccade")] {
@@ -142,20 +196,21 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         params.view.mode = mode;
         let output = out.join(format!("{name}.{ext}"));
         let telemetry = out.join(format!("{name}-telemetry.csv"));
-        let run = pipeline::run(&RunConfig {
+        say(&format!("{name}: {mode} mode"));
+        let run = engine::run(&RunConfig {
             input: &frames,
             output: Some(&output),
             params,
             lens: lens.clone(),
             telemetry: Some(&telemetry),
+            also_writes: &[],
             fps: Some(fps),
             timeout: Duration::from_secs(120),
             crf: None,
-            progress: true,
             keep_per_frame: true,
             measure: true,
-            label: name,
             control: None,
+            progress: None,
         })?;
         let est: Vec<_> = run
             .per_frame
@@ -179,9 +234,10 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
             ));
         }
     }
-    println!("demo done:\n  shaky input {}", shaky.display());
+    let mut report = format!("demo done:\n  shaky input {}", shaky.display());
     for l in lines {
-        println!("{l}");
+        report += "\n";
+        report += &l;
     }
-    Ok(())
+    Ok(report)
 }

@@ -1,13 +1,13 @@
 //! `amc eval`: the paper's table for one clip: none / stabilize / saccade.
 
-use crate::cli::EvalArgs;
-use crate::error::CliError;
-use crate::gt::{self, GtReport};
-use crate::pipeline::{self, RunConfig, RunSummary};
-use crate::plot::{self, ModeSeries};
+use crate::engine::{self, LensNote, Progress, RunConfig, RunError, RunSummary};
+use crate::gt::{self, GtError, GtReport};
+use crate::plot::{self, ModeSeries, PlotError};
 use amc_core::so3::{self, Tangent};
 use amc_core::view::Mode;
+use amc_core::StabilizerOptions;
 use serde::Serialize;
+use std::path::PathBuf;
 use std::time::Duration;
 
 /// One row of the table.
@@ -29,18 +29,56 @@ pub struct EvalReport {
     pub modes: Vec<ModeResult>,
 }
 
-pub fn run(args: &EvalArgs) -> Result<EvalReport, CliError> {
-    let timeout = Duration::from_secs(args.tuning.timeout);
-    let base = args.tuning.params(Mode::Stabilize);
-    base.validate()?;
-    let lens = pipeline::resolve_lens(
-        &args.lens.choice()?,
+/// What `amc eval` measures.
+#[derive(Clone, Debug)]
+pub struct EvalConfig {
+    /// The clip (as for `stabilize`).
+    pub input: PathBuf,
+    /// The stabilizer's options (the mode is set per row) and the lens.
+    pub options: StabilizerOptions,
+    /// Frame rate for image folders, or to override a video's timestamps.
+    pub fps: Option<f64>,
+    /// Longest an ffmpeg child may stall.
+    pub timeout: Duration,
+    /// Ground-truth orientations (`gt.csv` from `amc synth`).
+    pub gt: Option<PathBuf>,
+    /// Where to write the per-frame plot (PNG).
+    pub plot: Option<PathBuf>,
+}
+
+/// Why an evaluation stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    /// A run failed.
+    #[error(transparent)]
+    Run(#[from] RunError),
+    /// The ground truth cannot be read.
+    #[error(transparent)]
+    Gt(#[from] GtError),
+    /// The plot cannot be written.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+}
+
+/// Runs none / stabilize / saccade; `lens_note` hears how the lens was found,
+/// `progress` each run's progress (with its mode).
+pub fn run(
+    args: &EvalConfig,
+    lens_note: &dyn Fn(&LensNote),
+    progress: &(dyn Fn(Mode, Progress) + Sync),
+) -> Result<EvalReport, EvalError> {
+    let timeout = args.timeout;
+    let base = args.options.params.clone();
+    base.validate().map_err(RunError::from)?;
+    let resolved = engine::resolve_lens(
+        &args.options.lens,
         &args.input,
         &base,
-        args.tuning.fps,
-        timeout,
-        args.quiet,
+        &engine::input_options(args.fps, timeout),
+        None,
     )?;
+    lens_note(&resolved.note);
+    let lens = resolved.camera;
     let gt_rot = match &args.gt {
         Some(p) => Some(gt::read_orientations(p)?),
         None => None,
@@ -48,22 +86,25 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport, CliError> {
     let mut modes = Vec::new();
     for mode in [Mode::None, Mode::Stabilize, Mode::Saccade] {
         let label = mode.to_string();
+        let mut params = base.clone();
+        params.view.mode = mode;
+        let report = |p: Progress| progress(mode, p);
         let cfg = RunConfig {
             input: &args.input,
             output: None,
-            params: args.tuning.params(mode),
+            params,
             lens: lens.clone(),
             telemetry: None,
-            fps: args.tuning.fps,
+            also_writes: &[],
+            fps: args.fps,
             timeout,
             crf: None,
-            progress: !args.quiet,
             keep_per_frame: true,
             measure: true,
-            label: &label,
             control: None,
+            progress: Some(&report),
         };
-        let run = pipeline::run(&cfg)?;
+        let run = engine::run(&cfg)?;
         let ground_truth = gt_rot
             .as_ref()
             .filter(|_| mode == Mode::Stabilize)

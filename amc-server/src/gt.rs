@@ -5,23 +5,47 @@
 //!   rotations, `|log((R_{j-1}^T R_j)^T (R^_{j-1}^T R^_j))|`;
 //! * orientation error: `|log(R_{0,j}^T R^_{0,j})|`, which includes drift.
 
-use crate::error::CliError;
 use amc_core::so3::{self, Rot, Tangent};
 use serde::Serialize;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// A ground-truth file that cannot be read.
+#[derive(Debug, Error)]
+pub enum GtError {
+    /// The file cannot be read.
+    #[error("{}: {source}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The file is not a `frame,t,rx,ry,rz` CSV.
+    #[error("{}: {detail}", path.display())]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, with the line.
+        detail: String,
+    },
+}
 
 /// Reads `frame,t,rx,ry,rz` rows (header required; extra columns ignored).
-pub fn read_orientations(path: &Path) -> Result<Vec<Rot>, CliError> {
-    let text = std::fs::read_to_string(path).map_err(|e| CliError::io(path, e))?;
+pub fn read_orientations(path: &Path) -> Result<Vec<Rot>, GtError> {
+    let text = std::fs::read_to_string(path).map_err(|source| GtError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let mut lines = text.lines();
     let header = lines.next().unwrap_or("");
     let cols: Vec<&str> = header.split(',').map(str::trim).collect();
     let idx = |name: &str| cols.iter().position(|c| *c == name);
     let (Some(ix), Some(iy), Some(iz)) = (idx("rx"), idx("ry"), idx("rz")) else {
-        return Err(CliError::Usage(format!(
-            "{}: expected a CSV header with columns rx,ry,rz (got '{header}')",
-            path.display()
-        )));
+        return Err(GtError::Format {
+            path: path.to_path_buf(),
+            detail: format!("expected a CSV header with columns rx,ry,rz (got '{header}')"),
+        });
     };
     let mut out = Vec::new();
     for (n, line) in lines.enumerate() {
@@ -29,17 +53,13 @@ pub fn read_orientations(path: &Path) -> Result<Vec<Rot>, CliError> {
             continue;
         }
         let f: Vec<&str> = line.split(',').collect();
-        let get = |i: usize| -> Result<f64, CliError> {
+        let get = |i: usize| -> Result<f64, GtError> {
             f.get(i)
                 .and_then(|s| s.trim().parse::<f64>().ok())
                 .filter(|v| v.is_finite())
-                .ok_or_else(|| {
-                    CliError::Usage(format!(
-                        "{}: line {}: bad number in column {}",
-                        path.display(),
-                        n + 2,
-                        i + 1
-                    ))
+                .ok_or_else(|| GtError::Format {
+                    path: path.to_path_buf(),
+                    detail: format!("line {}: bad number in column {}", n + 2, i + 1),
                 })
         };
         out.push(so3::exp(&Tangent::new(get(ix)?, get(iy)?, get(iz)?)));

@@ -23,7 +23,6 @@
 //! lines are broken at them rather than drawn through them. Series whose
 //! vectors have different lengths are cut to the shortest.
 
-use std::io::Write;
 use std::path::Path;
 use std::sync::OnceLock;
 
@@ -32,7 +31,23 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
 
-use crate::error::CliError;
+use thiserror::Error;
+
+/// A figure that could not be drawn or written.
+#[derive(Debug, Error)]
+pub enum PlotError {
+    /// Drawing or encoding the figure failed.
+    #[error("{}: cannot draw the plot: {detail}", path.display())]
+    Draw {
+        /// The figure's path.
+        path: std::path::PathBuf,
+        /// What failed.
+        detail: String,
+    },
+    /// Writing the file failed.
+    #[error(transparent)]
+    Write(#[from] amc_video::VideoError),
+}
 
 /// Width of the figure in pixels.
 pub const WIDTH: u32 = 1600;
@@ -79,13 +94,13 @@ pub struct ModeSeries {
 /// axes. If no font from [`FONT_CANDIDATES`] is available, the figure is drawn
 /// without any text rather than failing.
 ///
-/// Errors: drawing or encoding failures become [`CliError::Image`], failures
-/// to create or write the file [`CliError::Io`]. On error `path` is left as it
-/// was.
-pub fn write_plot(path: &Path, title: &str, series: &[ModeSeries]) -> Result<(), CliError> {
-    let image_err = |msg: String| CliError::Image {
+/// Errors: drawing or encoding failures are [`PlotError::Draw`], failures to
+/// write the file [`PlotError::Write`]. The file is written atomically: on
+/// error `path` is left as it was.
+pub fn write_plot(path: &Path, title: &str, series: &[ModeSeries]) -> Result<(), PlotError> {
+    let image_err = |detail: String| PlotError::Draw {
         path: path.to_path_buf(),
-        msg,
+        detail,
     };
     let rgb = render(title, series, font_available()).map_err(image_err)?;
     let img = image::RgbImage::from_raw(WIDTH, HEIGHT, rgb)
@@ -93,29 +108,7 @@ pub fn write_plot(path: &Path, title: &str, series: &[ModeSeries]) -> Result<(),
     let mut png = std::io::Cursor::new(Vec::new());
     img.write_to(&mut png, image::ImageFormat::Png)
         .map_err(|e| image_err(e.to_string()))?;
-
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".amc-plot-")
-        .suffix(".png.tmp")
-        .tempfile_in(dir)
-        .map_err(|e| CliError::io(dir, e))?;
-    tmp.write_all(png.get_ref())
-        .and_then(|()| tmp.flush())
-        .map_err(|e| CliError::io(tmp.path(), e))?;
-    // Temporary files are created private (0600); a figure is an ordinary
-    // output file, readable like the ones `image` or ffmpeg write.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(|e| CliError::io(tmp.path(), e))?;
-    }
-    tmp.persist(path).map_err(|e| CliError::io(path, e.error))?;
+    amc_video::write_atomic(path, png.get_ref())?;
     Ok(())
 }
 
@@ -594,7 +587,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("no/such/dir/fig.png");
         let err = write_plot(&path, "x", &synthetic()).unwrap_err();
-        assert!(matches!(err, CliError::Io { .. }), "{err}");
+        assert!(matches!(err, PlotError::Write(_)), "{err}");
         assert!(!path.exists());
     }
 

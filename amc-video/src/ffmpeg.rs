@@ -13,9 +13,10 @@
 use super::probe::{probe, probe_device, probe_with, Probe};
 use super::process::{run_capture, Proc};
 use super::{
-    as_rgb, check_frame, fps_rational, no_frames, parent_dir, partial_builder, partial_prefix,
-    shape_rgb, FrameSink, FrameSource, InputOptions, OutputSpec, VideoError, VideoInfo,
+    as_rgb, check_frame, no_frames, shape_rgb, FrameSink, FrameSource, InputOptions, OutputSpec,
+    VideoError, VideoInfo,
 };
+use crate::atomic::AtomicFile;
 use amc_core::image::{Frame, FrameRef};
 use std::ffi::OsString;
 use std::io::{Read, Write};
@@ -393,11 +394,13 @@ pub(crate) struct FfmpegSink {
     // Field order matters: `proc` drops (killing ffmpeg) before `temp`
     // deletes the partial file.
     proc: Proc,
-    temp: tempfile::TempPath,
+    temp: AtomicFile,
     path: PathBuf,
     width: usize,
     height: usize,
     scratch: Vec<u8>,
+    /// A frame's Matroska cluster header, reused.
+    block_header: Vec<u8>,
     frames: u64,
     failed: bool,
 }
@@ -409,18 +412,14 @@ impl FfmpegSink {
         spec: &OutputSpec,
         container: Container,
     ) -> Result<Self, VideoError> {
-        let dir = parent_dir(path)?;
         let audio = match &spec.audio_from {
             Some(src) => audio_codec_of(src, spec.timeout)?.map(|c| (src.clone(), c)),
             None => None,
         };
-        let temp = partial_builder(&partial_prefix(path), container.suffix(), false)
-            .tempfile_in(&dir)
-            .map_err(|e| VideoError::io(path, "create output", e))?
-            .into_temp_path();
+        let temp = AtomicFile::create(path, container.suffix())?;
 
-        let (num, den) = fps_rational(spec.fps);
-        let mut args: Vec<String> = [
+        // Frames arrive as Matroska (see `mkv`): each keeps its own timestamp.
+        let args: Vec<String> = [
             "-hide_banner",
             "-nostdin",
             "-nostats",
@@ -428,21 +427,13 @@ impl FfmpegSink {
             "level+error",
             "-y",
             "-f",
-            "rawvideo",
-            "-pix_fmt",
-            "rgb24",
+            "matroska",
+            "-i",
+            "pipe:0",
         ]
         .iter()
         .map(|s| s.to_string())
         .collect();
-        args.extend([
-            "-video_size".into(),
-            format!("{}x{}", spec.width, spec.height),
-            "-framerate".into(),
-            format!("{num}/{den}"),
-            "-i".into(),
-            "pipe:0".into(),
-        ]);
         let mut os: Vec<OsString> = args.into_iter().map(OsString::from).collect();
         let mut more: Vec<String> = Vec::new();
         if let Some((src, _)) = &audio {
@@ -457,19 +448,38 @@ impl FfmpegSink {
             more.extend(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2"].map(String::from));
         }
         more.extend(container.video_args(spec.crf));
-        more.extend(["-pix_fmt", "yuv420p"].map(String::from));
+        // Timestamps pass through unchanged (no frame dropped or duplicated to
+        // a constant rate), on a 90 kHz clock: exact for 24/25/30/50/60 and the
+        // NTSC /1001 rates.
+        more.extend(
+            [
+                "-pix_fmt",
+                "yuv420p",
+                "-fps_mode",
+                "passthrough",
+                "-enc_time_base:v",
+                "1:90000",
+            ]
+            .map(String::from),
+        );
         if let Some((_, codec)) = &audio {
             more.extend(container.audio_args(codec).iter().map(|s| s.to_string()));
         }
         if container == Container::Mp4 {
+            more.extend(["-video_track_timescale", "90000"].map(String::from));
             // Index at the front so players can start before downloading all.
             more.extend(["-movflags", "+faststart"].map(String::from));
         }
         more.extend(["-f", container.muxer()].map(String::from));
         os.extend(more.into_iter().map(OsString::from));
-        os.push(temp.as_os_str().to_owned());
+        os.push(temp.partial_path().as_os_str().to_owned());
 
-        let proc = Proc::spawn("ffmpeg", &os, path, spec.timeout, true, None)?;
+        let mut proc = Proc::spawn("ffmpeg", &os, path, spec.timeout, true, None)?;
+        let header = super::mkv::header(spec.width, spec.height);
+        if let Some(stdin) = proc.stdin.as_mut() {
+            // A failure shows on the first frame, with ffmpeg's own message.
+            let _ = stdin.write_all(&header);
+        }
         Ok(Self {
             proc,
             temp,
@@ -477,6 +487,7 @@ impl FfmpegSink {
             width: spec.width,
             height: spec.height,
             scratch: Vec::new(),
+            block_header: Vec::new(),
             frames: 0,
             failed: false,
         })
@@ -503,7 +514,7 @@ fn audio_codec_of(src: &Path, timeout: Duration) -> Result<Option<String>, Video
 }
 
 impl FrameSink for FfmpegSink {
-    fn write_frame(&mut self, frame: &FrameRef<'_>) -> Result<(), VideoError> {
+    fn write_frame(&mut self, frame: &FrameRef<'_>, t: f64) -> Result<(), VideoError> {
         check_frame(&self.path, self.width, self.height, frame)?;
         if self.failed {
             return Err(self.proc.failure(None));
@@ -511,7 +522,7 @@ impl FrameSink for FfmpegSink {
         let rgb = as_rgb(frame, &mut self.scratch);
         self.proc.arm();
         let written = match self.proc.stdin.as_mut() {
-            Some(stdin) => stdin.write_all(rgb),
+            Some(stdin) => super::mkv::write_frame(stdin, t, rgb, &mut self.block_header),
             None => Err(std::io::ErrorKind::BrokenPipe.into()),
         };
         self.proc.disarm();
@@ -537,8 +548,8 @@ impl FrameSink for FfmpegSink {
         if !status.success() {
             return Err(this.proc.failure(Some(status)));
         }
-        let FfmpegSink { temp, path, .. } = this;
-        temp.persist(&path)
-            .map_err(|e| VideoError::io(&path, "move the finished output into place", e.error))
+        let FfmpegSink { proc, temp, .. } = this;
+        drop(proc);
+        temp.persist()
     }
 }

@@ -3,12 +3,72 @@
 
 use super::process::run_capture;
 use super::{
-    as_rgb, check_frame, no_frames, parent_dir, partial_builder, partial_prefix, shape_rgb,
-    FrameSink, FrameSource, InputOptions, OutputSpec, VideoError, VideoInfo, IMAGE_EXTENSIONS,
+    as_rgb, check_frame, no_frames, shape_rgb, FrameSink, FrameSource, InputOptions, OutputSpec,
+    VideoError, VideoInfo, IMAGE_EXTENSIONS,
 };
+use crate::atomic::AtomicDir;
 use amc_core::image::{Frame, FrameRef};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
+
+/// The image files of `dir` (by extension, case-insensitive; hidden files
+/// skipped), in natural order (`frame-9` before `frame-10`).
+pub fn list_images(dir: &Path) -> Result<Vec<PathBuf>, VideoError> {
+    let entries = std::fs::read_dir(dir).map_err(|e| VideoError::io(dir, "list", e))?;
+    let mut files = Vec::new();
+    for entry in entries {
+        let entry = entry.map_err(|e| VideoError::io(dir, "list", e))?;
+        let path = entry.path();
+        let is_image =
+            super::extension(&path).is_some_and(|ext| IMAGE_EXTENSIONS.contains(&ext.as_str()));
+        // Hidden files are editor/OS litter (`._frame.png` on macOS volumes).
+        let hidden = entry.file_name().to_string_lossy().starts_with('.');
+        if is_image && !hidden && path.is_file() {
+            files.push(path);
+        }
+    }
+    if files.is_empty() {
+        return Err(VideoError::NoImages {
+            path: dir.to_path_buf(),
+        });
+    }
+    files.sort_by(|a, b| {
+        let name = |p: &PathBuf| {
+            p.file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned()
+        };
+        natord::compare(&name(a), &name(b))
+    });
+    Ok(files)
+}
+
+/// The frame rate a folder states about itself: `meta.json`'s `fps` (written
+/// by `amc synth`), else the spacing of the `t` column of a ground-truth
+/// `gt.csv` (`frame,t,...`). `None` when it says nothing usable.
+fn folder_fps(dir: &Path) -> Option<f64> {
+    let valid = |fps: f64| (fps.is_finite() && fps > 0.0 && fps <= 10_000.0).then_some(fps);
+    if let Ok(text) = std::fs::read_to_string(dir.join(super::FOLDER_META)) {
+        if let Some(fps) = serde_json::from_str::<serde_json::Value>(&text)
+            .ok()
+            .and_then(|v| v.get("fps").and_then(|f| f.as_f64()))
+        {
+            return valid(fps);
+        }
+    }
+    let text = std::fs::read_to_string(dir.join("gt.csv")).ok()?;
+    let mut lines = text.lines();
+    let col = lines.next()?.split(',').position(|c| c.trim() == "t")?;
+    let times: Vec<f64> = lines
+        .take(2)
+        .filter_map(|l| l.split(',').nth(col)?.trim().parse().ok())
+        .collect();
+    match times[..] {
+        [t0, t1] if t1 > t0 => valid(1.0 / (t1 - t0)),
+        _ => None,
+    }
+}
 
 /// Frames read from the image files of a directory.
 pub(crate) struct ImageDirSource {
@@ -23,35 +83,17 @@ pub(crate) struct ImageDirSource {
 impl ImageDirSource {
     /// Lists the images of `dir` and decodes the first to learn the frame size.
     pub fn open(dir: &Path, opts: &InputOptions) -> Result<Self, VideoError> {
-        let entries = std::fs::read_dir(dir).map_err(|e| VideoError::io(dir, "list", e))?;
-        let mut files = Vec::new();
-        for entry in entries {
-            let entry = entry.map_err(|e| VideoError::io(dir, "list", e))?;
-            let path = entry.path();
-            let is_image =
-                super::extension(&path).is_some_and(|ext| IMAGE_EXTENSIONS.contains(&ext.as_str()));
-            // Hidden files are editor/OS litter (`._frame.png` on macOS volumes).
-            let hidden = entry.file_name().to_string_lossy().starts_with('.');
-            if is_image && !hidden && path.is_file() {
-                files.push(path);
-            }
-        }
-        if files.is_empty() {
-            return Err(VideoError::NoImages {
-                path: dir.to_path_buf(),
-            });
-        }
-        files.sort_by(|a, b| {
-            let name = |p: &PathBuf| {
-                p.file_name()
-                    .unwrap_or_default()
-                    .to_string_lossy()
-                    .into_owned()
-            };
-            natord::compare(&name(a), &name(b))
-        });
+        let files = list_images(dir)?;
         let (width, height, first) = decode(&files[0], opts.timeout)?;
-        let fps = opts.fps_override.unwrap_or(super::DEFAULT_IMAGE_FPS);
+        let own_fps = if opts.fps_override.is_some() {
+            None
+        } else {
+            folder_fps(dir)
+        };
+        let fps = opts
+            .fps_override
+            .or(own_fps)
+            .unwrap_or(super::DEFAULT_IMAGE_FPS);
         let n = files.len() as u64;
         Ok(Self {
             info: VideoInfo {
@@ -61,6 +103,7 @@ impl ImageDirSource {
                 frame_count: Some(n),
                 duration_s: Some(n as f64 / fps),
                 has_audio: false,
+                fps_assumed: opts.fps_override.is_none() && own_fps.is_none(),
             },
             files,
             first: Some(first),
@@ -200,7 +243,7 @@ fn parse_ppm(data: &[u8]) -> Option<(usize, usize, Vec<u8>)> {
 pub(crate) struct PngDirSink {
     path: PathBuf,
     /// Deleted with its contents on drop unless `finish` moves it into place.
-    temp: tempfile::TempDir,
+    temp: AtomicDir,
     width: usize,
     height: usize,
     scratch: Vec<u8>,
@@ -213,10 +256,7 @@ impl PngDirSink {
         // `out/` names the directory `out`.
         let path: PathBuf = path.components().collect();
         check_replaceable(&path)?;
-        let dir = parent_dir(&path)?;
-        let temp = partial_builder(&partial_prefix(&path), "", true)
-            .tempdir_in(dir)
-            .map_err(|e| VideoError::io(&path, "create output directory", e))?;
+        let temp = AtomicDir::create(&path)?;
         Ok(Self {
             path,
             temp,
@@ -257,12 +297,12 @@ fn check_replaceable(path: &Path) -> Result<(), VideoError> {
 }
 
 impl FrameSink for PngDirSink {
-    fn write_frame(&mut self, frame: &FrameRef<'_>) -> Result<(), VideoError> {
+    fn write_frame(&mut self, frame: &FrameRef<'_>, _t: f64) -> Result<(), VideoError> {
         use image::ImageEncoder;
         check_frame(&self.path, self.width, self.height, frame)?;
         let rgb = as_rgb(frame, &mut self.scratch);
         let name = format!("frame-{:06}.png", self.frames);
-        let file_path = self.temp.path().join(&name);
+        let file_path = self.temp.partial_path().join(&name);
         let file = std::fs::File::create(&file_path)
             .map_err(|e| VideoError::io(&self.path, "write a frame", e))?;
         // Fast compression: default zlib levels make encoding the bottleneck.
@@ -293,15 +333,7 @@ impl FrameSink for PngDirSink {
         let PngDirSink { path, temp, .. } = *self;
         // Checked again: something may have appeared there meanwhile.
         check_replaceable(&path)?;
-        if path.is_dir() {
-            std::fs::remove_dir(&path).map_err(|e| VideoError::io(&path, "replace", e))?;
-        }
-        let temp_path = temp.path().to_path_buf();
-        std::fs::rename(&temp_path, &path)
-            .map_err(|e| VideoError::io(&path, "move the finished output into place", e))?;
-        // The directory now lives at `path`; stop `TempDir` from deleting it.
-        let _ = temp.keep();
-        Ok(())
+        temp.persist()
     }
 }
 

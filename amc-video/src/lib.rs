@@ -12,8 +12,11 @@
 //! final path only by [`FrameSink::finish`], so an error or an interruption
 //! never leaves a half-written file behind.
 
+pub mod atomic;
+pub mod cleanup;
 mod ffmpeg;
 mod images;
+mod mkv;
 mod probe;
 mod process;
 mod y4m;
@@ -22,6 +25,7 @@ mod y4m;
 mod tests;
 
 use amc_core::image::{Frame, FrameRef};
+pub use atomic::{write_atomic, AtomicDir, AtomicFile};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 use thiserror::Error;
@@ -29,7 +33,13 @@ use thiserror::Error;
 /// Image file extensions read from an input directory (compared case-insensitively).
 pub const IMAGE_EXTENSIONS: &[&str] = &["png", "jpg", "jpeg", "bmp", "tif", "tiff"];
 
-/// Frame rate of an image directory when none is given.
+/// The file in an image folder that states its frame rate (`{"fps": 60}`),
+/// written by `amc synth`.
+pub const FOLDER_META: &str = "meta.json";
+
+pub use images::list_images;
+
+/// Frame rate of an image directory when none is given and it states none.
 pub const DEFAULT_IMAGE_FPS: f64 = 30.0;
 
 /// Everything that can go wrong reading or writing video.
@@ -139,6 +149,9 @@ pub struct VideoInfo {
     pub duration_s: Option<f64>,
     /// Whether the input has an audio stream (never for image folders and `.y4m`).
     pub has_audio: bool,
+    /// Whether `fps` is [`DEFAULT_IMAGE_FPS`] assumed for an image folder that
+    /// states no rate (no `--fps`, no `meta.json` or `gt.csv`): worth a warning.
+    pub fps_assumed: bool,
 }
 
 /// How to open an input.
@@ -223,7 +236,8 @@ pub struct OutputSpec {
     pub width: usize,
     /// Height of every frame.
     pub height: usize,
-    /// Frame rate of the output (constant).
+    /// Frame rate of the output: the rate of `.y4m` outputs, which have no
+    /// timestamps (video containers keep each frame's own time).
     pub fps: f64,
     /// Copy the audio of this input into the output if it has audio
     /// (ignored for `.y4m` and PNG outputs, which carry no audio).
@@ -254,8 +268,12 @@ impl OutputSpec {
 /// [`finish`](FrameSink::finish) succeeds; dropping a sink without finishing
 /// it removes what was written and stops the encoder.
 pub trait FrameSink: Send {
-    /// Appends one frame (RGB8 or RGBA8, alpha ignored) of the size given in the spec.
-    fn write_frame(&mut self, frame: &FrameRef<'_>) -> Result<(), VideoError>;
+    /// Appends one frame (RGB8 or RGBA8, alpha ignored) of the size given in
+    /// the spec, shown at `t` seconds (non-decreasing; the first frame's time is
+    /// the output's start). Video containers keep each frame's time, so a
+    /// variable-frame-rate input stays in sync with its audio; `.y4m` and PNG
+    /// folders have no timestamps and play at the spec's constant `fps`.
+    fn write_frame(&mut self, frame: &FrameRef<'_>, t: f64) -> Result<(), VideoError>;
     /// Completes the file and moves it onto the output path.
     fn finish(self: Box<Self>) -> Result<(), VideoError>;
 }
@@ -425,58 +443,6 @@ fn as_rgb<'a>(frame: &'a FrameRef<'_>, scratch: &'a mut Vec<u8>) -> &'a [u8] {
             scratch
         }
     }
-}
-
-/// The directory a temporary sibling of `path` goes in; it must exist.
-fn parent_dir(path: &Path) -> Result<PathBuf, VideoError> {
-    let parent = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    if !parent.is_dir() {
-        return Err(VideoError::io(
-            path,
-            "create output",
-            std::io::Error::new(
-                std::io::ErrorKind::NotFound,
-                format!("directory {} does not exist", parent.display()),
-            ),
-        ));
-    }
-    Ok(parent)
-}
-
-/// `.NAME.partial-` prefix for the temporary sibling of `path`.
-fn partial_prefix(path: &Path) -> String {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "output".into());
-    format!(".{name}.partial-")
-}
-
-/// A `tempfile` builder for the hidden sibling an output is written to.
-/// Temporary files are private (0600) by default; the output should get the
-/// usual permissions (0666/0777 less the umask) since it is renamed into place.
-fn partial_builder<'a>(
-    prefix: &'a str,
-    suffix: &'a str,
-    is_dir: bool,
-) -> tempfile::Builder<'a, 'a> {
-    let mut b = tempfile::Builder::new();
-    b.prefix(prefix).suffix(suffix);
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        b.permissions(std::fs::Permissions::from_mode(if is_dir {
-            0o777
-        } else {
-            0o666
-        }));
-    }
-    #[cfg(not(unix))]
-    let _ = is_dir;
-    b
 }
 
 fn no_frames(path: &Path) -> VideoError {

@@ -159,6 +159,7 @@ fn parse(path: &Path, json: &[u8]) -> Result<Probe, VideoError> {
             frame_count,
             duration_s,
             has_audio: audio_codec.is_some(),
+            fps_assumed: false,
         },
         audio_codec,
         format_name: root["format"]["format_name"]

@@ -32,6 +32,8 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 pub(crate) struct Proc {
     /// Shared with the watchdog thread, which kills it on a stall.
     child: Arc<Mutex<Child>>,
+    /// The child's process id (registered for cleanup until it is reaped).
+    pid: u32,
     pub stdin: Option<ChildStdin>,
     pub stdout: Option<ChildStdout>,
     stderr_lines: Arc<Mutex<Vec<String>>>,
@@ -78,7 +80,14 @@ impl Proc {
         // kills the children and removes partial output).
         #[cfg(unix)]
         std::os::unix::process::CommandExt::process_group(&mut cmd, 0);
-        let mut child = cmd.spawn().map_err(|e| {
+        // Recorded in the same critical section as the spawn, so that an
+        // interrupting signal never misses a child (see `cleanup`).
+        let mut child = crate::cleanup::locked(|registry| {
+            let child = cmd.spawn()?;
+            registry.add_child(child.id());
+            Ok(child)
+        })
+        .map_err(|e: std::io::Error| {
             if e.kind() == std::io::ErrorKind::NotFound {
                 VideoError::ToolMissing {
                     tool,
@@ -96,6 +105,7 @@ impl Proc {
             let lines = Arc::clone(&stderr_lines);
             std::thread::spawn(move || read_stderr(err, &lines, pts_tx))
         });
+        let pid = child.id();
         let child = Arc::new(Mutex::new(child));
         let watchdog = Watchdog::start(Arc::clone(&child));
         Ok(Self {
@@ -106,6 +116,7 @@ impl Proc {
             stderr_thread,
             watchdog,
             status: None,
+            pid,
             tool,
             path: path.to_path_buf(),
             timeout,
@@ -151,6 +162,7 @@ impl Proc {
         if let Some(t) = self.stderr_thread.take() {
             let _ = t.join();
         }
+        crate::cleanup::locked(|r| r.remove_child(self.pid));
         let status = waited?;
         self.status = Some(status);
         Ok(status)
@@ -164,6 +176,7 @@ impl Proc {
             if let Ok(status) = child.wait() {
                 self.status = Some(status);
             }
+            crate::cleanup::locked(|r| r.remove_child(self.pid));
         }
     }
 

@@ -83,8 +83,8 @@ fn synthetic(width: usize, height: usize, n: usize, format: PixelFormat) -> Vec<
 fn write_all(path: &Path, spec: &OutputSpec, frames: &[Frame]) {
     let mut sink =
         create_output(path, spec).unwrap_or_else(|e| panic!("create {}: {e}", path.display()));
-    for f in frames {
-        sink.write_frame(&f.as_ref()).unwrap();
+    for (i, f) in frames.iter().enumerate() {
+        sink.write_frame(&f.as_ref(), i as f64 / spec.fps).unwrap();
     }
     sink.finish().unwrap();
 }
@@ -434,10 +434,13 @@ fn reports_bad_outputs_and_leaves_nothing_behind() {
     }
     for name in &names {
         let mut sink = create_output(&d.join(name), &spec).unwrap();
-        sink.write_frame(&frame.as_ref()).unwrap();
-        let e = sink.write_frame(&wrong.as_ref()).unwrap_err().to_string();
+        sink.write_frame(&frame.as_ref(), 0.0).unwrap();
+        let e = sink
+            .write_frame(&wrong.as_ref(), 0.1)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("8x8") && e.contains("16x8"), "{e}");
-        sink.write_frame(&frame.as_ref()).unwrap();
+        sink.write_frame(&frame.as_ref(), 0.1).unwrap();
         drop(sink);
         // Finishing with no frames is an error too, and leaves nothing.
         let sink = create_output(&d.join(name), &spec).unwrap();

@@ -8,9 +8,10 @@
 //! default (full range when the header says `XCOLORRANGE=FULL`).
 
 use super::{
-    check_frame, fps_rational, no_frames, parent_dir, partial_builder, partial_prefix, shape_rgb,
-    FrameSink, FrameSource, InputOptions, OutputSpec, VideoError, VideoInfo,
+    check_frame, fps_rational, no_frames, shape_rgb, FrameSink, FrameSource, InputOptions,
+    OutputSpec, VideoError, VideoInfo,
 };
+use crate::atomic::AtomicFile;
 use amc_core::image::{Frame, FrameRef};
 use std::fs::File;
 use std::io::{BufRead, BufReader, BufWriter, Read, Write};
@@ -109,6 +110,7 @@ impl Y4mSource {
                 frame_count,
                 duration_s: frame_count.map(|n| n as f64 / fps),
                 has_audio: false,
+                fps_assumed: false,
             },
             planes: vec![0; layout.frame_bytes()],
             line,
@@ -323,7 +325,7 @@ fn rgb_to_yuv420(width: usize, height: usize, channels: usize, rgb: &[u8], out: 
 pub(crate) struct Y4mSink {
     path: PathBuf,
     /// Deleted on drop unless persisted by `finish`.
-    out: BufWriter<tempfile::NamedTempFile>,
+    out: BufWriter<AtomicFile>,
     width: usize,
     height: usize,
     planes: Vec<u8>,
@@ -333,10 +335,7 @@ pub(crate) struct Y4mSink {
 impl Y4mSink {
     /// Creates the temporary file and writes the header.
     pub fn create(path: &Path, spec: &OutputSpec) -> Result<Self, VideoError> {
-        let dir = parent_dir(path)?;
-        let temp = partial_builder(&partial_prefix(path), ".y4m", false)
-            .tempfile_in(dir)
-            .map_err(|e| VideoError::io(path, "create output", e))?;
+        let temp = AtomicFile::create(path, ".y4m")?;
         let mut out = BufWriter::with_capacity(1 << 20, temp);
         let (num, den) = fps_rational(spec.fps);
         writeln!(
@@ -357,7 +356,7 @@ impl Y4mSink {
 }
 
 impl FrameSink for Y4mSink {
-    fn write_frame(&mut self, frame: &FrameRef<'_>) -> Result<(), VideoError> {
+    fn write_frame(&mut self, frame: &FrameRef<'_>, _t: f64) -> Result<(), VideoError> {
         check_frame(&self.path, self.width, self.height, frame)?;
         rgb_to_yuv420(
             self.width,
@@ -383,12 +382,7 @@ impl FrameSink for Y4mSink {
             .out
             .into_inner()
             .map_err(|e| VideoError::io(&path, "write", e.into_error()))?;
-        temp.as_file()
-            .sync_all()
-            .map_err(|e| VideoError::io(&path, "write", e))?;
-        temp.persist(&path)
-            .map_err(|e| VideoError::io(&path, "move the finished output into place", e.error))?;
-        Ok(())
+        temp.persist()
     }
 }
 

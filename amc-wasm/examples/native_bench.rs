@@ -40,7 +40,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!(
         "{{\"width\":{w},\"height\":{h},\"frames\":{n},\"outputs\":{outs},\"seconds\":{secs:.4},\"fps\":{:.1},\"avx2\":{}}}",
         n as f64 / secs,
-        amc_core::simd::avx2_available()
+        amc_core::render::kernels::avx2_available()
     );
     Ok(())
 }

@@ -391,7 +391,7 @@ pub fn simd_matches_scalar(
         let mut s = seed as u64 + 1;
         let frames: Vec<Vec<u8>> = (0..4)
             .map(|_| {
-                let mut f = vec![0u8; w * h * c + amc_core::simd::FRAME_PADDING];
+                let mut f = vec![0u8; w * h * c + amc_core::render::kernels::FRAME_PADDING];
                 for b in f.iter_mut().take(w * h * c) {
                     s = s
                         .wrapping_mul(6364136223846793005)
@@ -430,5 +430,5 @@ pub fn simd_matches_scalar(
 /// Whether this module was built with the WebAssembly `simd128` kernel.
 #[wasm_bindgen(js_name = simdEnabled)]
 pub fn simd_enabled() -> bool {
-    amc_core::simd::vector_kernel_available()
+    amc_core::render::kernels::vector_kernel_available()
 }

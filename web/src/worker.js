@@ -38,8 +38,13 @@ async function pickVideoCodec(format, width, height) {
 
 async function processClip({ file, params, lens, format }) {
   const input = new Input({ source: new BlobSource(file), formats: ALL_FORMATS });
-  const video = await input.getPrimaryVideoTrack();
-  if (!video) throw new Error('no video track in this file');
+  let video;
+  try {
+    video = await input.getPrimaryVideoTrack();
+  } catch (e) {
+    throw new Error(`${file.name} is not a video this page can read (MP4, WebM, MOV or MKV): ${e && e.message ? e.message : e}`);
+  }
+  if (!video) throw new Error(`${file.name} has no video track`);
   const codec = video.codec;
   if (!(await video.canDecode())) {
     post('unsupported', { codec: codec || 'unknown', fileName: file.name });
@@ -51,7 +56,7 @@ async function processClip({ file, params, lens, format }) {
   // rotation in the container is carried over to the output's metadata.
   const samples = new VideoSampleSink(video).samples();
   const first = await samples.next();
-  if (first.done) throw new Error('the video track has no frames');
+  if (first.done) throw new Error(`the video track of ${file.name} has no frames`);
   const width = first.value.visibleRect.width, height = first.value.visibleRect.height;
   let stab;
   try {

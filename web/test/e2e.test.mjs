@@ -8,7 +8,7 @@ import { execFileSync } from 'node:child_process';
 import { mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
-import { startServer, launch, shot, ffprobeFrames, rmsFrameChange, streamTypes, dataDir, artifacts } from './helpers.mjs';
+import { startServer, launch, shot, ffprobeFrames, rmsFrameChange, streamTypes, dataDir, artifacts, root } from './helpers.mjs';
 
 const cup = join(dataDir, 'cup', 'cup.mp4');
 let server, browser, tmp;
@@ -29,16 +29,40 @@ async function newPage() {
   const page = await browser.newPage({ acceptDownloads: true, viewport: { width: 1280, height: 900 } });
   const errors = [];
   page.on('pageerror', (e) => errors.push(e.message));
+  page.on('response', (r) => { if (r.status() === 404) errors.push(`404 ${r.url()}`); });
   await page.goto(server.url + '/');
   return { page, errors };
+}
+
+// amc-server's telemetry CSV header (the page's CSV starts with the same columns).
+const TELEMETRY_HEADER = readFileSync(join(root, 'amc-server/src/pipeline.rs'), 'utf8').match(/TELEMETRY_HEADER: &str = "([^"]+)"/)[1];
+
+/** The summary table as { row label: [original, stabilized, change] }. */
+const summaryTable = (page) => page.evaluate(() => Object.fromEntries([...document.querySelectorAll('#summary tbody tr')]
+  .map((tr) => [tr.cells[0].textContent, [...tr.cells].slice(1).map((c) => c.textContent)])));
+
+/** Mean brightness (0..255) of a canvas. */
+const canvasMean = (page, sel) => page.evaluate((sel) => {
+  const c = document.querySelector(sel);
+  const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+  let s = 0; for (let i = 0; i < d.length; i += 4) s += d[i] + d[i + 1] + d[i + 2];
+  return s / (d.length / 4) / 3;
+}, sel);
+
+/** Switches the compare view and waits until its canvas has been drawn again. */
+async function compareMode(page, testid) {
+  const before = await page.evaluate(() => Number(document.getElementById('compare-canvas').dataset.drawn || 0));
+  await page.click(`[data-testid=${testid}]`);
+  // A few frames drawn: both videos have their current frame.
+  await page.waitForFunction((n) => Number(document.getElementById('compare-canvas').dataset.drawn || 0) > n + 5, before, { timeout: 10000 });
 }
 
 const state = (page) => page.evaluate(() => document.body.dataset.state);
 const waitState = (page, states, timeout = 300000) =>
   page.waitForFunction((s) => s.includes(document.body.dataset.state), states, { timeout });
 
-async function download(page, name) {
-  const [dl] = await Promise.all([page.waitForEvent('download'), page.click('[data-testid=download]')]);
+async function download(page, name, testid = 'download') {
+  const [dl] = await Promise.all([page.waitForEvent('download'), page.click(`[data-testid=${testid}]`)]);
   const file = join(tmp, name);
   await dl.saveAs(file);
   return file;
@@ -47,6 +71,11 @@ async function download(page, name) {
 test('drop cup.mp4: every frame stabilized in the browser; the MP4 download has all frames and changes less', async () => {
   const { page, errors } = await newPage();
   assert.equal(await state(page), 'idle');
+  assert.match(await page.getAttribute('link[rel=icon]', 'href'), /^data:image\/svg\+xml,/);
+  // Every form control has a label.
+  const unlabelled = await page.evaluate(() => [...document.querySelectorAll('input, select')]
+    .filter((e) => !e.labels?.length && !e.getAttribute('aria-label')).map((e) => e.id || e.name));
+  assert.deepEqual(unlabelled, []);
   await shot(page, 'clip-1-idle');
   // A real drop: a DataTransfer holding the file, dispatched on the drop zone.
   const b64 = readFileSync(cup).toString('base64');
@@ -74,9 +103,49 @@ test('drop cup.mp4: every frame stabilized in the browser; the MP4 download has 
   const rin = rmsFrameChange(cup, 0.125), rout = rmsFrameChange(file);
   writeFileSync(join(artifacts, 'clip-rms.json'), JSON.stringify({ input: rin, output: rout }, null, 1));
   assert.ok(rout.rms < rin.rms, `RMS frame change: output ${rout.rms.toFixed(4)} vs input ${rin.rms.toFixed(4)}`);
-  // The plot and the side-by-side players are there.
+  // The plot and the side-by-side players are there, both players the same size.
   assert.equal(await page.isVisible('#plot'), true);
   assert.ok(await page.evaluate(() => document.getElementById('stab').src.startsWith('blob:')));
+  assert.ok(await page.evaluate(() => document.getElementById('orig').src.startsWith('blob:')));
+  const [bo, bs] = [await page.locator('#orig').boundingBox(), await page.locator('#stab').boundingBox()];
+  assert.ok(Math.abs(bo.width - bs.width) < 1 && Math.abs(bo.height - bs.height) < 1, `original ${bo.width}x${bo.height}, stabilized ${bs.width}x${bs.height}`);
+  assert.ok(bo.width > 300, `players ${bo.width} px wide`);
+  // The plot: all four series, axes, a legend outside the canvas naming each.
+  assert.equal(await page.getAttribute('#plot', 'data-series'), 'est,view,nf_in,nf_out');
+  const legendText = await page.textContent('[data-testid=plot-legend]');
+  for (const k of ['camera (estimate) speed', 'view speed', 'normal flow, input', 'normal flow, output']) assert.ok(legendText.includes(k), legendText);
+  // The summary: a table with units and short numbers; the input's angular speed is the camera's (not 0).
+  const sum = await summaryTable(page);
+  assert.ok(!(await page.textContent('#summary')).includes('{'), 'no JSON dump');
+  assert.doesNotMatch(await page.textContent('#summary'), /\d\.\d{5,}/, 'no long decimals');
+  const speed = Object.entries(sum).find(([k]) => k.startsWith('Angular speed'));
+  assert.ok(speed && Number(speed[1][0]) > 0 && Number(speed[1][1]) > 0, JSON.stringify(sum));
+  assert.ok(Number(speed[1][1]) < Number(speed[1][0]), 'the view turns slower than the camera');
+  const nf = sum['RMS normal flow (px/frame)'];
+  assert.ok(Number(nf[1]) < Number(nf[0]), JSON.stringify(nf));
+  assert.match(sum['Size (pixels)'][1], /480 × 360 \(central crop, 1\.33× zoom\)/);
+  assert.match(Object.entries(sum).find(([k]) => k.startsWith('Pixels covered'))[1][1], /^\d+\.\d % \(\d+\.\d %\)$/);
+  // The telemetry CSV: the CLI's columns in the CLI's order, one row per frame.
+  const csv = readFileSync(await download(page, 'cup-telemetry.csv', 'telemetry-download'), 'utf8').trim().split('\n');
+  assert.ok(csv[0].startsWith('frame,t,rx,ry,rz,vx,vy,vz,'), csv[0]);
+  assert.ok(csv[0].startsWith(TELEMETRY_HEADER + ','), csv[0]);
+  assert.equal(csv.length - 1, input.frames);
+  assert.deepEqual(csv.slice(1).map((l) => Number(l.split(',')[0])), [...Array(input.frames).keys()]);
+  assert.ok(csv.slice(1).every((l) => l.split(',').length === csv[0].split(',').length));
+  // The A/B wipe and the difference view: the same frame, original (central crop) vs stabilized.
+  await page.evaluate(() => { const s = document.getElementById('seek'); s.value = '0.5'; s.dispatchEvent(new Event('input')); });
+  await page.waitForFunction(() => ['orig', 'stab'].every((id) => { const v = document.getElementById(id); return !v.seeking && v.readyState >= 2; }), null, { timeout: 10000 });
+  await compareMode(page, 'compare-wipe');
+  assert.equal(await page.isVisible('[data-testid=compare-canvas]'), true);
+  assert.equal(await page.isVisible('#players'), false);
+  assert.deepEqual(await page.evaluate(() => { const c = document.getElementById('compare-canvas'); return [c.width, c.height]; }), [480, 360]);
+  const wipeMean = await canvasMean(page, '#compare-canvas');
+  assert.ok(wipeMean > 20, `wipe mean ${wipeMean}`);
+  await shot(page, 'clip-4-wipe');
+  await compareMode(page, 'compare-diff');
+  const diffMean = await canvasMean(page, '#compare-canvas');
+  assert.ok(diffMean < wipeMean, `difference ${diffMean} vs wipe ${wipeMean}`);
+  await shot(page, 'clip-5-difference');
   assert.deepEqual(errors, []);
   await page.close();
 });
@@ -86,6 +155,7 @@ test('WebM download (VP9) with the same frame count', async () => {
   await page.selectOption('#format', 'webm');
   await page.fill('#n_avg', '3');
   await page.selectOption('#mode', 'saccade');
+  await page.fill('#margin', ''); // empty: the default, 0.125
   await page.setInputFiles('[data-testid=file-input]', cup);
   await waitState(page, ['done', 'error']);
   assert.equal(await state(page), 'done', await page.textContent('#error'));
@@ -93,23 +163,40 @@ test('WebM download (VP9) with the same frame count', async () => {
   const out = ffprobeFrames(file);
   assert.ok(['vp9', 'vp8', 'av1'].includes(out.codec), out.codec);
   assert.equal(out.frames, ffprobeFrames(cup).frames);
+  assert.deepEqual([out.width, out.height], [480, 360], 'an empty margin is the default 0.125');
+  assert.ok('Saccades' in (await summaryTable(page)), 'saccade mode reports its saccades');
   await page.close();
 });
 
 test('bad settings and a file that is not a video end in the error state with a message', async () => {
   const { page } = await newPage();
   await page.fill('#n_avg', '0');
+  // Checked as typed: the field is marked and named with its range.
+  assert.match(await page.textContent('[data-testid=form-error]'), /Averaging window \(n_avg\): 0 is out of range \(allowed: 1\.\.=64 frames/);
+  assert.equal(await page.getAttribute('#n_avg', 'aria-invalid'), 'true');
   await page.setInputFiles('[data-testid=file-input]', cup);
   await waitState(page, ['done', 'error']);
   assert.equal(await state(page), 'error');
-  assert.match(await page.textContent('#error'), /n_avg: 0 \(allowed: 1\.\.=64/);
+  assert.match(await page.textContent('#error'), /Not started: Averaging window \(n_avg\) out of range/);
+  assert.match(await page.textContent('[data-testid=form-error]'), /Averaging window \(n_avg\): 0 is out of range \(allowed: 1\.\.=64 frames/);
+  await page.fill('#margin', '0.6');
+  await page.fill('#fov', '179');
+  const msg = await page.textContent('[data-testid=form-error]');
+  assert.match(msg, /Margin \(margin\): 0\.6 is out of range \(allowed: 0\.\.=0\.45/);
+  assert.match(msg, /Field of view \(fov\): 179 is out of range \(allowed: 1 < value < 179 degrees/);
+  await shot(page, 'error-settings');
+  for (const [id, v] of [['margin', '0.125'], ['fov', '70']]) await page.fill(`#${id}`, v);
+  await page.fill('#n_avg', ''); // empty: the default
+  assert.equal(await page.isVisible('[data-testid=form-error]'), false);
+  assert.equal(await page.isVisible('#error'), false, 'the refusal goes once the settings are fixed');
+  assert.equal(await state(page), 'idle');
+  assert.equal(await page.getAttribute('#n_avg', 'aria-invalid'), 'false');
   const junk = join(tmp, 'junk.mp4');
   writeFileSync(junk, 'this is not a video');
-  await page.fill('#n_avg', '6');
   await page.setInputFiles('[data-testid=file-input]', junk);
   await waitState(page, ['done', 'error']);
   assert.equal(await state(page), 'error');
-  assert.ok((await page.textContent('#error')).length > 5);
+  assert.match(await page.textContent('#error'), /junk\.mp4 is not a video/, 'the message names the file');
   await shot(page, 'error-state');
   // Cancel while processing.
   await page.setInputFiles('[data-testid=file-input]', cup);
@@ -131,14 +218,59 @@ test('HEVC clip: the browser cannot decode it; the page offers the server and ge
   await page.waitForSelector('[data-testid=server-fallback]', { state: 'visible', timeout: 60000 });
   assert.match(await page.textContent('#unsupported-text'), /cannot decode the HEVC/i);
   await shot(page, 'hevc-1-unsupported');
+  const posted = [];
+  page.on('request', (r) => { if (r.method() === 'POST') posted.push(new URL(r.url())); });
   await page.click('[data-testid=server-fallback]');
   await waitState(page, ['processing', 'done', 'error'], 10000);
   await shot(page, 'hevc-2-server-processing');
   await waitState(page, ['done', 'error']);
-  await shot(page, 'hevc-3-done');
   assert.equal(await state(page), 'done', await page.textContent('#error'));
   const file = await download(page, 'cup-hevc-stabilized.mp4');
   assert.equal(ffprobeFrames(file).frames, 48);
+  // The page's settings went along; the smoothing only when not the defaults.
+  const q = posted[0].searchParams;
+  assert.equal(posted[0].pathname, '/jobs');
+  assert.deepEqual([q.get('mode'), q.get('n_avg'), q.get('margin'), q.get('lookahead'), q.get('fov')], ['stabilize', '6', '0.125', '0', '70']);
+  assert.equal(q.has('rate_a') || q.has('rate_b'), false);
+  // The plot (speeds from the job's telemetry.csv), its CSV and the summary.
+  await page.waitForSelector('#plot[data-series="est,view"]', { timeout: 10000 });
+  const csv = readFileSync(await download(page, 'cup-hevc-telemetry.csv', 'telemetry-download'), 'utf8').trim().split('\n');
+  assert.ok(csv[0].startsWith('frame,t,rx,ry,rz,vx,vy,vz,est_speed_dps,view_speed_dps,valid_fraction'), csv[0]);
+  assert.equal(csv.length - 1, 48);
+  const sum = await summaryTable(page);
+  assert.equal(sum['Frames'][1], '48');
+  assert.ok(Number(Object.entries(sum).find(([k]) => k.startsWith('Angular speed'))[1][0]) > 0, JSON.stringify(sum));
+  // The Original slot: Chromium cannot play HEVC, so the server made a playable copy.
+  await page.waitForFunction(() => { const o = document.getElementById('orig'); return !o.hidden && o.readyState >= 2 && o.videoWidth === 320; }, null, { timeout: 60000 });
+  assert.match(await page.textContent('#orig-caption'), /re-encoded to H\.264 by the server/);
+  assert.equal(posted.length, 2);
+  assert.equal(posted[1].searchParams.get('mode'), 'none');
+  await shot(page, 'hevc-3-done');
+  await compareMode(page, 'compare-wipe');
+  assert.ok(await canvasMean(page, '#compare-canvas') > 20);
+  await shot(page, 'hevc-4-wipe');
+  await page.close();
+});
+
+test('server fallback sends rate_a/rate_b when they differ from the defaults, and shows the server\'s refusal', async () => {
+  const hevc = join(tmp, 'cup-hevc-short.mp4');
+  execFileSync('ffmpeg', ['-v', 'error', '-y', '-i', cup, '-frames:v', '8', '-vf', 'scale=160:120', '-c:v', 'libx265', '-preset', 'ultrafast',
+    '-x265-params', 'log-level=error', '-tag:v', 'hvc1', '-an', hevc]);
+  const { page } = await newPage();
+  await page.fill('#rate_a', '1.5');
+  await page.setInputFiles('[data-testid=file-input]', hevc);
+  await page.waitForSelector('[data-testid=server-fallback]', { state: 'visible', timeout: 60000 });
+  let seen = null;
+  await page.route('**/jobs?*', (route) => {
+    seen = new URL(route.request().url());
+    return route.fulfill({ status: 400, contentType: 'application/problem+json', body: JSON.stringify({ title: 'Bad option', detail: 'unknown option "rate_a" (test)' }) });
+  });
+  await page.click('[data-testid=server-fallback]');
+  await page.waitForSelector('#error', { state: 'visible', timeout: 10000 });
+  assert.equal(await state(page), 'error');
+  assert.equal(seen.searchParams.get('rate_a'), '1.5');
+  assert.equal(seen.searchParams.has('rate_b'), false);
+  assert.match(await page.textContent('#error'), /server refused the job: unknown option "rate_a" \(test\)/);
   await page.close();
 });
 
@@ -156,6 +288,10 @@ test('Live tab: frames and telemetry from the looped source', async () => {
     return s / (d.length / 4) / 3;
   });
   assert.ok(lit > 20, `mean brightness ${lit}`);
+  // The speed plot has its series, axes and a legend beside it.
+  await page.waitForFunction(() => document.querySelector('[data-testid=live-plot]').dataset.series === 'est,view', null, { timeout: 10000 });
+  const legendText = await page.textContent('[data-testid=live-legend]');
+  assert.match(legendText, /camera \(estimate\) speed.*view speed/);
   await shot(page, 'live');
   await page.close();
 });

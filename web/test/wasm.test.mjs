@@ -142,3 +142,96 @@ test('a lens file from text (project JSON) is accepted and rescaled', () => {
   assert.ok(s.outputHfovDeg > 10 && s.outputHfovDeg < 170);
   s.free();
 });
+
+// --- The page's pure modules on the API's real output ----------------------
+const { TELEMETRY_HEADER, telemetryCsv, rowsFromCsv, rowsFromWorker } = await import('../src/telemetry.js');
+const { summaryRows, localSummary } = await import('../src/summary.js');
+const { serverQuery, FIELDS } = await import('../src/settings.js');
+const { niceTicks } = await import('../src/plot.js');
+
+test("the page's telemetry CSV has the CLI's header, column order and number formats", () => {
+  const rust = readFileSync(fileURLToPath(new URL('../../amc-server/src/pipeline.rs', import.meta.url)), 'utf8');
+  assert.equal(TELEMETRY_HEADER, rust.match(/TELEMETRY_HEADER: &str = "([^"]+)"/)[1]);
+  const s = new Stabilizer(W, H, '{}', 70);
+  s.setMetrics(true);
+  const tels = [];
+  for (let i = 0; i < 6; i++) {
+    s.inputBuffer().set(frame(W, H, i, i % 2));
+    const im = s.measureInput();
+    const tel = s.pushInput(i / 30);
+    tel.metrics = s.measureOutput();
+    tel.input_metrics = im;
+    tels.push(tel);
+  }
+  const lines = telemetryCsv(tels).trim().split('\n');
+  const head = lines[0].split(',');
+  assert.deepEqual(head.slice(0, 8), ['frame', 't', 'rx', 'ry', 'rz', 'vx', 'vy', 'vz']);
+  assert.equal(lines[0].slice(0, TELEMETRY_HEADER.length), TELEMETRY_HEADER);
+  assert.equal(lines.length, 7);
+  for (const [i, line] of lines.slice(1).entries()) {
+    const c = line.split(',');
+    assert.equal(c.length, head.length);
+    const tel = tels[i];
+    assert.equal(Number(c[0]), tel.frame);
+    assert.equal(c[1], tel.t.toFixed(6));
+    // Rotation vectors in radians, Rust's `{:e}` (no `+` in the exponent), exact.
+    for (let k = 0; k < 3; k++) {
+      assert.equal(Number(c[2 + k]), tel.r_est[k]);
+      assert.equal(Number(c[5 + k]), tel.r_view[k]);
+      assert.match(c[2 + k], /^-?\d(\.\d+)?e-?\d+$/);
+    }
+    assert.equal(Number(c[8]), Number(tel.speed_est_dps.toFixed(4)));
+    assert.equal(c[12], tel.saccade ? '1' : '0');
+  }
+  assert.equal(lines[1].split(',').at(-3), '', 'no normal flow on the first frame');
+  // Read back as the plot reads the job API's CSV.
+  const rows = rowsFromCsv(telemetryCsv(tels));
+  const direct = rowsFromWorker(tels);
+  assert.equal(rows.length, 6);
+  for (const [i, r] of rows.entries()) {
+    assert.ok(Math.abs(r.est - direct[i].est) < 1e-4);
+    assert.ok(r.nfOut === null ? direct[i].nfOut === null : Math.abs(r.nfOut - direct[i].nfOut) < 1e-9);
+  }
+  // The summary table: the input's speed is the camera's (the input accumulator's own is always 0).
+  const sum = s.summary();
+  assert.equal(sum.input.rms_speed_est_dps, 0);
+  const table = summaryRows(localSummary({ width: W, height: H, outWidth: s.outputWidth, outHeight: s.outputHeight },
+    { frames: 6, fps: 100, summary: sum }, 'stabilize'));
+  const speed = table.find((r) => r[0].startsWith('Angular speed'));
+  assert.equal(speed[1], sum.output.rms_speed_est_dps.toFixed(1));
+  assert.ok(Number(speed[1]) > 0);
+  assert.deepEqual(table.find((r) => r[0] === 'Size (pixels)').slice(1, 3), ['160 × 90', '120 × 68 (central crop, 1.33× zoom)']);
+  assert.ok(!table.some((r) => r[0] === 'Saccades'), 'no saccade row outside saccade mode');
+  s.free();
+});
+
+test("the page's form ranges are the core's, and the server query sends smoothing only when changed", () => {
+  // Each field's range, as the WASM API (amc-core's validate) enforces it.
+  const field = Object.fromEntries(FIELDS.map((f) => [f.id, f]));
+  const params = (id, v) => (id === 'n_avg' || id === 'margin' ? { render: { [id]: v } } : { view: { [id]: v } });
+  for (const id of ['n_avg', 'margin', 'rate_a', 'rate_b', 'lookahead']) {
+    const f = field[id];
+    const step = f.int ? 1 : 1e-6;
+    for (const ok of [f.min, f.max]) assert.doesNotThrow(() => new Stabilizer(64, 48, JSON.stringify(params(id, ok)), 70).free(), `${id} ${ok}`);
+    for (const bad of [f.min - step, f.max + step]) throwsMsg(() => new Stabilizer(64, 48, JSON.stringify(params(id, bad)), 70), new RegExp(`invalid ${id}|expected usize`));
+    const def = new Stabilizer(64, 48, '{}', 70);
+    const p = JSON.parse(def.paramsJson());
+    assert.equal((p.render[id] ?? p.view[id]), f.def, `default of ${id}`);
+    def.free();
+  }
+  throwsMsg(() => new Stabilizer(W, H, '{}', field.fov.min), /invalid fov/);
+  throwsMsg(() => new Stabilizer(W, H, '{}', field.fov.max), /invalid fov/);
+  const s = (rate_a, rate_b) => ({ params: { view: { mode: 'stabilize', rate_a, rate_b, lookahead: 0 }, render: { n_avg: 6, margin: 0.125 } }, fov: 70, format: 'mp4', lensFile: null });
+  assert.equal(serverQuery(s(2, 40)).toString(), 'mode=stabilize&n_avg=6&margin=0.125&lookahead=0&format=mp4&fov=70');
+  assert.equal(serverQuery(s(1.5, 40)).get('rate_a'), '1.5');
+  assert.equal(serverQuery(s(1.5, 40)).has('rate_b'), false);
+  assert.equal(serverQuery(s(2, 80)).get('rate_b'), '80');
+  assert.equal(serverQuery({ ...s(2, 40), lensFile: {} }).has('fov'), false);
+});
+
+test('plot ticks are round numbers covering the range', () => {
+  assert.deepEqual(niceTicks(0, 7.2, 5).ticks, [0, 2, 4, 6, 8]);
+  assert.deepEqual(niceTicks(0, 0.37, 4).ticks.map((v) => +v.toFixed(3)), [0, 0.1, 0.2, 0.3, 0.4]);
+  const t = niceTicks(0, 123, 5);
+  assert.ok(t.max >= 123 && t.ticks.length <= 7);
+});

@@ -19,7 +19,7 @@
 //! chance, and pixels interpolated from the border differ, so they count as
 //! invalid too.
 
-use super::CompareError;
+use super::error::CompareError;
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};

@@ -3,8 +3,9 @@
 //! speed and normal flow per frame, every method) and a strip of the middle
 //! frame side by side, and `results.json` with every number.
 
-use super::{ClipResult, CompareArgs, MethodResult};
-use crate::error::CliError;
+use super::config::CompareConfig;
+use super::error::CompareError;
+use super::results::{ClipResult, MethodResult};
 use crate::plot::{self, ModeSeries};
 use amc_core::image::Frame;
 use std::fmt::Write as _;
@@ -22,13 +23,13 @@ const CROP_TOLERANCE: f64 = 0.005;
 const SPEED_BAR: f64 = 5.0;
 
 /// Writes `bytes` to `path` atomically, readable by everyone (0644), like the plots.
-fn write_public(path: &Path, bytes: &[u8]) -> Result<(), CliError> {
-    crate::pipeline::write_atomic(path, bytes)?;
+fn write_public(path: &Path, bytes: &[u8]) -> Result<(), CompareError> {
+    amc_video::write_atomic(path, bytes)?;
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;
         std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o644))
-            .map_err(|e| CliError::io(path, e))?;
+            .map_err(|e| CompareError::io(path, e))?;
     }
     Ok(())
 }
@@ -255,7 +256,7 @@ fn file_stem(clip: &str) -> String {
 }
 
 /// Writes the plot of one clip.
-fn write_clip_plot(dir: &Path, c: &ClipResult) -> Result<String, CliError> {
+fn write_clip_plot(dir: &Path, c: &ClipResult) -> Result<String, CompareError> {
     let name = format!("{}-motion.png", file_stem(&c.clip));
     let none_speed: Vec<f64> = find(c, "none")
         .map(|m| {
@@ -300,7 +301,7 @@ fn write_clip_plot(dir: &Path, c: &ClipResult) -> Result<String, CliError> {
 }
 
 /// Writes the strip of middle frames (input first, then each method, row-major).
-fn write_strip(dir: &Path, c: &ClipResult) -> Result<Option<String>, CliError> {
+fn write_strip(dir: &Path, c: &ClipResult) -> Result<Option<String>, CompareError> {
     let tiles: Vec<&Frame> = c
         .input_middle
         .iter()
@@ -346,16 +347,16 @@ fn write_strip(dir: &Path, c: &ClipResult) -> Result<Option<String>, CliError> {
     let mut png = std::io::Cursor::new(Vec::new());
     canvas
         .write_to(&mut png, image::ImageFormat::Png)
-        .map_err(|e| CliError::Image {
+        .map_err(|e| CompareError::Image {
             path: path.clone(),
-            msg: e.to_string(),
+            detail: e.to_string(),
         })?;
     write_public(&path, png.get_ref())?;
     Ok(Some(name))
 }
 
 /// Writes every method's per-frame measurements of one clip as CSV.
-fn write_frames_csv(dir: &Path, c: &ClipResult) -> Result<(), CliError> {
+fn write_frames_csv(dir: &Path, c: &ClipResult) -> Result<(), CompareError> {
     let f = |v: Option<f64>| {
         v.filter(|x| x.is_finite())
             .map(|x| format!("{x:.6}"))
@@ -388,7 +389,7 @@ fn write_frames_csv(dir: &Path, c: &ClipResult) -> Result<(), CliError> {
 }
 
 /// Writes the report for the clips done so far.
-pub fn write(dir: &Path, results: &[ClipResult], args: &CompareArgs) -> Result<(), CliError> {
+pub fn write(dir: &Path, results: &[ClipResult], args: &CompareConfig) -> Result<(), CompareError> {
     let mut s = String::new();
     s += "# amc compare: our stabilizer against vid.stab and deshake\n\n";
     let _ = writeln!(
@@ -505,7 +506,8 @@ pub fn write(dir: &Path, results: &[ClipResult], args: &CompareArgs) -> Result<(
         let _ = writeln!(s, "- {clip}: {} ({})", b.what, b.detail);
     }
     write_public(&dir.join(REPORT_FILE), s.as_bytes())?;
-    let json = serde_json::to_string_pretty(results).map_err(|e| CliError::Usage(e.to_string()))?;
+    let json =
+        serde_json::to_string_pretty(results).map_err(|e| CompareError::Internal(e.to_string()))?;
     write_public(&dir.join("results.json"), json.as_bytes())?;
     Ok(())
 }

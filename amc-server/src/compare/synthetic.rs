@@ -4,9 +4,9 @@
 //! (150 deg), with a global shutter and with a rolling shutter, by the same
 //! code as `amc synth`.
 
-use super::{CompareArgs, CompareError};
-use crate::error::CliError;
-use crate::synth_cmd::{self, SynthArgs};
+use super::config::CompareConfig;
+use super::error::CompareError;
+use crate::synth::{self, SynthConfig};
 use std::path::{Path, PathBuf};
 
 /// Frame rate of the synthetic sequences.
@@ -53,7 +53,7 @@ pub const SEQUENCES: [Sequence; 8] = {
 
 impl Sequence {
     /// One line for the report.
-    pub fn describe(&self, args: &CompareArgs) -> String {
+    pub fn describe(&self, args: &CompareConfig) -> String {
         format!(
             "synthetic: {} {} deg, {}x{}, {} fps, {} s, {}-{} Hz shake at {} deg/s RMS (seed {}), {}",
             if self.fisheye { "fisheye (Kannala-Brandt)" } else { "pinhole" },
@@ -76,9 +76,9 @@ impl Sequence {
 }
 
 /// Renders `seq` into `work/<name>-src` and returns that folder.
-pub fn render(seq: &Sequence, args: &CompareArgs, work: &Path) -> Result<PathBuf, CliError> {
+pub fn render(seq: &Sequence, args: &CompareConfig, work: &Path) -> Result<PathBuf, CompareError> {
     let out = work.join(format!("{}-src", seq.name));
-    let synth = SynthArgs {
+    let synth = SynthConfig {
         panorama: args.panorama.clone(),
         output: out.clone(),
         fov: if seq.fisheye { 150.0 } else { 90.0 },
@@ -94,7 +94,7 @@ pub fn render(seq: &Sequence, args: &CompareArgs, work: &Path) -> Result<PathBuf
         rolling_shutter_ms: if seq.rolling_shutter { READOUT_MS } else { 0.0 },
         supersample: 2,
     };
-    synth_cmd::run(&synth)?;
+    synth::run(&synth, &|_, _| {})?;
     Ok(out)
 }
 

@@ -12,7 +12,7 @@ use super::problem::ApiError;
 use super::storage::Scratch;
 use super::work::{self, WorkSpec};
 use super::AppState;
-use crate::pipeline::{RunControl, RunSummary};
+use crate::engine::{RunControl, RunSummary};
 use axum::body::Body;
 use axum::extract::{Path as UrlPath, Request, State};
 use axum::http::{header, HeaderValue, StatusCode};

@@ -66,7 +66,7 @@ impl Default for LiveConfig {
             looped: false,
             params,
             lens: None,
-            fov_deg: crate::pipeline::FALLBACK_FOV_DEG,
+            fov_deg: crate::engine::FALLBACK_FOV_DEG,
             jpeg_quality: 80,
             ffmpeg_timeout: Duration::from_secs(20),
         }

@@ -31,8 +31,6 @@ mod work;
 
 pub use live::LiveConfig;
 
-use crate::cli::parse_mode;
-use crate::error::CliError;
 use amc_core::view::Mode;
 use axum::extract::{DefaultBodyLimit, State};
 use axum::handler::HandlerWithoutStateExt;
@@ -40,7 +38,6 @@ use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{Html, IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
-use clap::Args;
 use metrics::Metrics;
 use problem::ApiError;
 use std::net::SocketAddr;
@@ -53,83 +50,59 @@ use tokio_util::task::TaskTracker;
 use tower_http::services::ServeDir;
 use tower_http::trace::TraceLayer;
 
-/// `amc serve` options.
-#[derive(Args, Debug, Clone)]
-pub struct ServeArgs {
+/// `amc serve` settings (the command line's flags, one field each).
+#[derive(Debug, Clone)]
+pub struct ServeConfig {
     /// Address to listen on (port 0 picks a free port; the chosen one is printed).
-    #[arg(long, default_value = "127.0.0.1:8080")]
     pub addr: SocketAddr,
     /// Folder of the web page served at `/` (built by `bash web/build.sh`).
-    #[arg(long, default_value = "web/dist")]
     pub web_dir: PathBuf,
     /// Folder for uploads and results (default: a new folder in the system's temp dir,
     /// removed on exit).
-    #[arg(long)]
     pub work_dir: Option<PathBuf>,
     /// Largest upload, megabytes.
-    #[arg(long, default_value_t = 2000)]
     pub max_upload_mb: u64,
     /// Widest video accepted, pixels.
-    #[arg(long, default_value_t = 3840)]
     pub max_width: usize,
     /// Tallest video accepted, pixels.
-    #[arg(long, default_value_t = 2160)]
     pub max_height: usize,
     /// Longest video accepted, seconds.
-    #[arg(long, default_value_t = 1800.0)]
     pub max_duration: f64,
     /// Clips processed at once (default: the number of CPU cores).
-    #[arg(long)]
     pub workers: Option<usize>,
     /// Clips accepted beyond those being processed (they wait); more get 503.
-    #[arg(long, default_value_t = 8)]
     pub queue: usize,
     /// Longest a clip may take to process, seconds.
-    #[arg(long, default_value_t = 3600)]
     pub job_time_limit: u64,
     /// How long a finished job's results are kept, seconds.
-    #[arg(long, default_value_t = 3600)]
     pub job_ttl: u64,
     /// Disk space uploads and results may use together, megabytes.
-    #[arg(long, default_value_t = 20_000)]
     pub max_disk_mb: u64,
     /// Longest an ffmpeg child may stall before it is killed, seconds.
-    #[arg(long, default_value_t = 60)]
     pub ffmpeg_timeout: u64,
     /// Live feed source: a file, an RTSP/UDP/SRT URL or a device (anything ffmpeg opens).
     /// Without it, the feed comes from a publisher on /live/ingest.
-    #[arg(long, value_name = "SOURCE")]
     pub live_source: Option<String>,
     /// Replay a file --live-source forever.
-    #[arg(long)]
     pub live_loop: bool,
     /// ffmpeg input format of --live-source (e.g. v4l2 for /dev/video0).
-    #[arg(long, value_name = "FMT")]
     pub live_format: Option<String>,
     /// Live feed mode: stabilize or saccade.
-    #[arg(long, default_value = "stabilize", value_parser = parse_mode)]
     pub live_mode: Mode,
     /// Horizontal field of view of the live camera, degrees (a pinhole).
-    #[arg(long, default_value_t = crate::pipeline::FALLBACK_FOV_DEG, conflicts_with = "live_lens")]
     pub live_fov: f64,
     /// Lens file of the live camera (as for `amc stabilize --lens`).
-    #[arg(long, value_name = "FILE")]
     pub live_lens: Option<PathBuf>,
     /// Frames averaged into each live output frame (1..=64).
-    #[arg(long, default_value_t = 6)]
     pub live_n_avg: usize,
     /// Share cropped from each side of the live output (0..=0.45).
-    #[arg(long, default_value_t = 0.125)]
     pub live_margin: f64,
     /// Width of the live output in pixels (default: the cropped input width).
-    #[arg(long)]
     pub live_width: Option<usize>,
     /// JPEG quality of live frames (1..=100).
-    #[arg(long, default_value_t = 80)]
     pub live_jpeg_quality: u8,
     /// Log one JSON object per line (for log collectors) instead of text.
     /// The level is set with RUST_LOG (default: info).
-    #[arg(long)]
     pub log_json: bool,
 }
 
@@ -169,23 +142,59 @@ fn default_workers() -> usize {
     std::thread::available_parallelism().map_or(2, |n| n.get())
 }
 
+/// Why the service could not start or stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// A setting outside its range.
+    #[error("invalid --{flag}: {detail}")]
+    Invalid {
+        /// The setting's flag, without dashes.
+        flag: &'static str,
+        /// The value and what is allowed.
+        detail: String,
+    },
+    /// The live camera's parameters or lens are refused by the core.
+    #[error(transparent)]
+    Core(#[from] amc_core::AmcError),
+    /// ffmpeg is missing.
+    #[error(transparent)]
+    Video(#[from] amc_video::VideoError),
+    /// A file or folder the service needs cannot be used.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The listening socket or the runtime failed.
+    #[error("{what}: {source}")]
+    Network {
+        /// What was being done.
+        what: String,
+        /// Why it failed.
+        source: std::io::Error,
+    },
+}
+
 fn check<T: PartialOrd + std::fmt::Display>(
-    flag: &str,
+    flag: &'static str,
     value: T,
     lo: T,
     hi: T,
-) -> Result<(), CliError> {
+) -> Result<(), ServeError> {
     if value < lo || value > hi {
-        return Err(CliError::Usage(format!(
-            "invalid --{flag}: {value} (allowed: {lo}..={hi})"
-        )));
+        return Err(ServeError::Invalid {
+            flag,
+            detail: format!("{value} (allowed: {lo}..={hi})"),
+        });
     }
     Ok(())
 }
 
-impl ServeArgs {
+impl ServeConfig {
     /// Checks the flags and turns them into limits.
-    pub fn limits(&self) -> Result<Limits, CliError> {
+    pub fn limits(&self) -> Result<Limits, ServeError> {
         let workers = self.workers.unwrap_or_else(default_workers);
         check("max-upload-mb", self.max_upload_mb, 1, 1_000_000)?;
         check("max-width", self.max_width, 16, 16384)?;
@@ -198,10 +207,13 @@ impl ServeArgs {
         check("max-disk-mb", self.max_disk_mb, 1, 1_000_000_000)?;
         check("ffmpeg-timeout", self.ffmpeg_timeout, 1, 86_400)?;
         if self.max_disk_mb < self.max_upload_mb {
-            return Err(CliError::Usage(format!(
-                "--max-disk-mb ({}) must be at least --max-upload-mb ({})",
-                self.max_disk_mb, self.max_upload_mb
-            )));
+            return Err(ServeError::Invalid {
+                flag: "max-disk-mb",
+                detail: format!(
+                    "{} (allowed: at least --max-upload-mb, {})",
+                    self.max_disk_mb, self.max_upload_mb
+                ),
+            });
         }
         Ok(Limits {
             max_upload_bytes: self.max_upload_mb * 1_000_000,
@@ -218,13 +230,14 @@ impl ServeArgs {
     }
 
     /// The live feed's configuration.
-    pub fn live(&self) -> Result<LiveConfig, CliError> {
+    pub fn live(&self) -> Result<LiveConfig, ServeError> {
         check("live-jpeg-quality", self.live_jpeg_quality, 1, 100)?;
-        if !(self.live_fov > 1.0 && self.live_fov < 179.0) {
-            return Err(CliError::Usage(format!(
-                "invalid --live-fov: {} (allowed: 1 < DEG < 179)",
-                self.live_fov
-            )));
+        // The same range as every other field of view (`fov`).
+        if amc_core::LensSpec::parse_fov(&self.live_fov.to_string()).is_err() {
+            return Err(ServeError::Invalid {
+                flag: "live-fov",
+                detail: format!("{} (allowed: 0 < DEG <= 179)", self.live_fov),
+            });
         }
         let mut params = amc_core::StabilizerParams::default();
         params.view.mode = self.live_mode;
@@ -234,11 +247,11 @@ impl ServeArgs {
         params.validate()?;
         let lens = match &self.live_lens {
             Some(p) => {
-                let text = std::fs::read_to_string(p).map_err(|e| CliError::io(p, e))?;
-                Some(
-                    amc_core::lens::parse_lens(&text)
-                        .map_err(|e| CliError::Usage(format!("{}: {e}", p.display())))?,
-                )
+                let text = std::fs::read_to_string(p).map_err(|source| ServeError::Io {
+                    path: p.clone(),
+                    source,
+                })?;
+                Some(amc_core::lens::parse_lens(&text).map_err(amc_core::AmcError::from)?)
             }
             None => None,
         };
@@ -434,24 +447,31 @@ async fn shutdown_signal() {
 }
 
 /// Runs the service until Ctrl-C or SIGTERM.
-pub fn run(args: &ServeArgs) -> Result<(), CliError> {
+pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
     let limits = args.limits()?;
     let live = args.live()?;
     amc_video::ffmpeg_available()?;
     let (work_dir, owned_dir) = match &args.work_dir {
         Some(d) => {
-            std::fs::create_dir_all(d).map_err(|e| CliError::io(d, e))?;
+            let io = |source| ServeError::Io {
+                path: d.clone(),
+                source,
+            };
+            std::fs::create_dir_all(d).map_err(io)?;
             let dir = tempfile::Builder::new()
                 .prefix("amc-serve-")
                 .tempdir_in(d)
-                .map_err(|e| CliError::io(d, e))?;
+                .map_err(io)?;
             (dir.path().to_path_buf(), dir)
         }
         None => {
             let dir = tempfile::Builder::new()
                 .prefix("amc-serve-")
                 .tempdir()
-                .map_err(|e| CliError::io(std::env::temp_dir(), e))?;
+                .map_err(|source| ServeError::Io {
+                    path: std::env::temp_dir(),
+                    source,
+                })?;
             (dir.path().to_path_buf(), dir)
         }
     };
@@ -463,21 +483,36 @@ pub fn run(args: &ServeArgs) -> Result<(), CliError> {
     let _ = if args.log_json {
         logs.json().try_init()
     } else {
-        logs.try_init()
+        logs.with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+            .try_init()
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
-        .map_err(|e| CliError::Usage(format!("cannot start the async runtime: {e}")))?;
-    let state = AppState::new(limits, work_dir.clone(), args.web_dir.clone(), live)
-        .map_err(|e| CliError::io(&work_dir, e))?;
+        .map_err(|source| ServeError::Network {
+            what: "cannot start the async runtime".into(),
+            source,
+        })?;
+    let state =
+        AppState::new(limits, work_dir.clone(), args.web_dir.clone(), live).map_err(|source| {
+            ServeError::Io {
+                path: work_dir.clone(),
+                source,
+            }
+        })?;
     runtime.block_on(async {
         let listener = tokio::net::TcpListener::bind(args.addr)
             .await
-            .map_err(|e| CliError::Usage(format!("cannot listen on {}: {e}", args.addr)))?;
+            .map_err(|source| ServeError::Network {
+                what: format!("cannot listen on {}", args.addr),
+                source,
+            })?;
         let addr = listener
             .local_addr()
-            .map_err(|e| CliError::Usage(format!("cannot listen on {}: {e}", args.addr)))?;
+            .map_err(|source| ServeError::Network {
+                what: format!("cannot listen on {}", args.addr),
+                source,
+            })?;
         // Tests and scripts read this line to find the port.
         println!("listening on http://{addr}");
         tracing::info!(%addr, work_dir = %work_dir.display(), web_dir = %args.web_dir.display(), workers = state.limits.workers, "amc serve started");
@@ -514,7 +549,10 @@ pub fn run(args: &ServeArgs) -> Result<(), CliError> {
         state.tasks.close();
         let _ = tokio::time::timeout(Duration::from_secs(30), state.tasks.wait()).await;
         state.jobs.clear();
-        served.map_err(|e| CliError::Usage(format!("the server failed: {e}")))
+        served.map_err(|source| ServeError::Network {
+            what: "the server failed".into(),
+            source,
+        })
     })?;
     drop(state);
     drop(owned_dir);

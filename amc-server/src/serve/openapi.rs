@@ -1,7 +1,7 @@
 //! `GET /openapi.json`: an OpenAPI 3.1 description of every endpoint.
 //! A test checks that every route of [`super::app`] is described here.
 
-use super::options::OPTIONS;
+use super::options::all_options;
 use super::stabilize::SUMMARY_HEADERS;
 use axum::Json;
 use serde_json::{json, Map, Value};
@@ -14,8 +14,8 @@ fn problem(description: &str) -> Value {
 }
 
 fn query_parameters() -> Vec<Value> {
-    OPTIONS
-        .iter()
+    all_options()
+        .into_iter()
         .map(|(name, allowed)| {
             json!({"name": name, "in": "query", "required": false, "description": allowed,
                    "schema": {"type": "string"}})

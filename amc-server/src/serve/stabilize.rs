@@ -9,7 +9,7 @@ use super::intake::{self, Intake};
 use super::problem::ApiError;
 use super::work::{self, WorkSpec};
 use super::AppState;
-use crate::pipeline::{RunControl, RunSummary};
+use crate::engine::{RunControl, RunSummary};
 use axum::body::Body;
 use axum::extract::{Request, State};
 use axum::http::{header, HeaderMap, HeaderName, HeaderValue};

@@ -5,8 +5,7 @@
 
 use super::problem::ApiError;
 use super::storage::Scratch;
-use axum::body::{Body, BodyDataStream};
-use axum::extract::{FromRequest, Multipart, Request};
+use axum::body::BodyDataStream;
 use axum::http::{header, HeaderMap};
 use futures_util::StreamExt;
 use std::path::{Path, PathBuf};
@@ -203,18 +202,16 @@ async fn receive_multipart(
     video: &Path,
     max_bytes: u64,
 ) -> Result<Upload, ApiError> {
-    let request = Request::builder()
-        .header(header::CONTENT_TYPE, content_type)
-        .body(Body::from_stream(stream))
+    // The form is parsed with `multer` directly: axum's `Multipart` extractor,
+    // used on a request built here, would apply its default 2 MB body limit
+    // (the route's `DefaultBodyLimit::disable()` lives on the original
+    // request). Our own limit is enforced per chunk by `Incoming`.
+    let boundary = multer::parse_boundary(content_type)
         .map_err(|e| ApiError::BadRequest(format!("invalid multipart/form-data: {e}")))?;
-    let mut form = Multipart::from_request(request, &()).await.map_err(|e| {
-        ApiError::BadRequest(format!("invalid multipart/form-data: {}", e.body_text()))
-    })?;
+    let mut form = multer::Multipart::new(stream, boundary);
     let mut got_video = None;
     let mut lens = None;
-    let bad = |e: axum::extract::multipart::MultipartError| {
-        ApiError::BadRequest(format!("invalid multipart/form-data: {}", e.body_text()))
-    };
+    let bad = |e: multer::Error| ApiError::BadRequest(format!("invalid multipart/form-data: {e}"));
     while let Some(mut field) = form.next_field().await.map_err(bad)? {
         match field.name().unwrap_or("") {
             "video" => {

@@ -6,10 +6,8 @@
 use super::options::JobOptions;
 use super::problem::ApiError;
 use super::Limits;
-use crate::cli::LensChoice;
-use crate::error::CliError;
-use crate::pipeline::{self, RunConfig, RunControl, RunSummary};
-use amc_core::AmcError;
+use crate::engine::{self, RunConfig, RunControl, RunError, RunSummary};
+use amc_core::{AmcError, LensSpec};
 use amc_video::{self as video, Inspection, VideoError};
 use std::path::{Path, PathBuf};
 
@@ -92,43 +90,43 @@ pub fn stabilize(
     limits: &Limits,
     control: &RunControl,
 ) -> Result<RunSummary, ApiError> {
-    let params = spec.options.params.clone();
+    let params = spec.options.stabilizer.params.clone();
     let lens = match &spec.lens_text {
         Some(text) => amc_core::lens::parse_lens(text)
             .map_err(|e| ApiError::BadOption(format!("invalid lens file: {e}")))?,
-        None => match spec.options.lens {
-            LensChoice::Fov(deg) => {
-                let (w, h) = spec.input_size;
-                amc_core::CameraModel::pinhole_hfov(w, h, deg)
-                    .map_err(|e| core_error(AmcError::from(e)))?
-            }
-            _ => pipeline::resolve_lens(
-                &LensChoice::Auto,
+        None => {
+            let lens = match &spec.options.stabilizer.lens {
+                // A client never names a server path.
+                LensSpec::File(_) => &LensSpec::Auto,
+                other => other,
+            };
+            engine::resolve_lens(
+                lens,
                 &spec.input,
                 &params,
-                None,
-                limits.ffmpeg_timeout,
-                true,
+                &engine::input_options(None, limits.ffmpeg_timeout),
+                Some(spec.input_size),
             )
-            .map_err(|e| cli_error(e, &spec.input))?,
-        },
+            .map_err(|e| run_error(e, &spec.input))?
+            .camera
+        }
     };
-    pipeline::run(&RunConfig {
+    engine::run(&RunConfig {
         input: &spec.input,
         output: Some(&spec.output),
         params,
         lens,
         telemetry: spec.telemetry.as_deref(),
+        also_writes: &[],
         fps: None,
         timeout: limits.ffmpeg_timeout,
         crf: None,
-        progress: false,
         keep_per_frame: false,
         measure: spec.options.measure,
-        label: "serve",
         control: Some(control),
+        progress: None,
     })
-    .map_err(|e| cli_error(e, &spec.input))
+    .map_err(|e| run_error(e, &spec.input))
     .and_then(|summary| {
         if summary.looks_truncated() {
             return Err(ApiError::Unsupported(format!(
@@ -141,22 +139,26 @@ pub fn stabilize(
     })
 }
 
-/// How a failed run is answered: problems with the upload are the client's
-/// (415/422), anything else is the server's.
-pub fn cli_error(e: CliError, input: &Path) -> ApiError {
+/// How a failed run is answered, by variant: problems with the upload are
+/// the client's (415/422), anything else is the server's.
+pub fn run_error(e: RunError, input: &Path) -> ApiError {
     match e {
-        CliError::Video(v) => video_error(v, input),
-        CliError::Core(c) => core_error(c),
-        CliError::Usage(msg) => ApiError::Unsupported(strip_path(&msg, input)),
-        CliError::Cancelled => ApiError::Conflict("the job was cancelled".into()),
-        CliError::TimeLimit { secs } => ApiError::Unprocessable(format!(
+        RunError::Video(v) => video_error(v, input),
+        RunError::Core(c) => core_error(c),
+        RunError::NoFrames { .. } => {
+            ApiError::Unsupported("the upload has no frames that can be decoded".into())
+        }
+        RunError::LensRead { .. } | RunError::LensParse { .. } => ApiError::BadOption(format!(
+            "invalid lens file: {}",
+            strip_path(&e.to_string(), input)
+        )),
+        RunError::Cancelled => ApiError::Conflict("the job was cancelled".into()),
+        RunError::TimeLimit { secs } => ApiError::Unprocessable(format!(
             "processing took longer than the limit of {secs:.0} s (set by --job-time-limit)"
         )),
-        CliError::Io { path, source } => {
-            ApiError::Internal(format!("{}: {source}", path.display()))
+        RunError::SamePath { .. } | RunError::Write { .. } | RunError::MetricsWorker => {
+            ApiError::Internal(e.to_string())
         }
-        CliError::Image { path, msg } => ApiError::Internal(format!("{}: {msg}", path.display())),
-        CliError::Compare(e) => ApiError::Internal(e.to_string()),
     }
 }
 

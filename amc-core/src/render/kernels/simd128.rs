@@ -1,247 +1,24 @@
-//! Vectorized bilinear sampling: x86-64 AVX2 (used when the CPU has it) and
-//! WebAssembly `simd128` (used when the module is built with `+simd128`).
-//!
-//! Eight output pixels at a time: coordinates, weights and byte offsets are
-//! computed in 32-bit lanes, the four bilinear taps are fetched with masked
-//! 32-bit gathers (one dword holds a pixel's R, G, B), and the 8.8 fixed-point
-//! interpolation is done per channel in integer lanes, bit-exact with the
-//! scalar path in `render.rs`. Lanes whose coordinate falls outside the frame
-//! are masked off and contribute nothing.
+//! The WebAssembly `simd128` row kernel and RGBA row finisher (used when the
+//! module is built with `+simd128`).
 
-#[cfg(target_arch = "x86_64")]
-use std::arch::x86_64::*;
+use super::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
+use core::arch::wasm32::*;
 
-/// How far (pixels) outside a frame a sample point may fall and still sample
-/// its edge. An identity warp computes `x = u +- 1e-13` at the borders; without
-/// a tolerance that rounding blanks the first or last row or column. 1/512 px
-/// is half the bilinear weights' resolution, so the clamp changes no weight.
-pub const EDGE_TOLERANCE: f32 = 1.0 / 512.0;
-
-/// Bytes a frame buffer must have past its last pixel for the gathers: the
-/// last tap reads a whole dword starting at the last pixel (3 bytes for RGB).
-pub const FRAME_PADDING: usize = 4;
-
-/// Whether the AVX2 kernel can run on this CPU.
-pub fn avx2_available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
-/// Whether a vectorized kernel can run here: AVX2 on this x86-64 CPU, or a
-/// wasm32 build with the `simd128` target feature.
-pub fn vector_kernel_available() -> bool {
-    avx2_available() || cfg!(all(target_arch = "wasm32", target_feature = "simd128"))
-}
-
-/// Where a frame's source coordinates along the row come from.
-#[derive(Clone, Copy, Debug)]
-pub enum RowCoords<'a> {
-    /// Precomputed `(xs[u], ys[u])` (NaN: no sample).
-    Table(&'a [f32], &'a [f32]),
-    /// A homography row: `x = (x0 + dx u) / z`, `y = (y0 + dy u) / z`,
-    /// `z = z0 + dz u`, NaN where `z <= 1e-6` (exactly the scalar formula).
-    Homography {
-        x0: f32,
-        y0: f32,
-        z0: f32,
-        dx: f32,
-        dy: f32,
-        dz: f32,
-    },
-}
-
-/// Frame geometry for the kernel.
-#[derive(Clone, Copy, Debug)]
-pub struct KernelGeometry {
-    pub channels: i32,
-    pub stride: i32,
-    pub max_x0: i32,
-    pub max_y0: i32,
-    pub max_x: f32,
-    pub max_y: f32,
-}
-
-/// Accumulates the samples of several frames along one output row: for
-/// `u in 0..n8` (a multiple of 8), `acc_{r,g,b}[u] = sum_f sample_f(xs[f][u], ys[f][u])`
-/// and `count[u]` = frames whose coordinate lies inside the frame. Accumulators
-/// stay in registers across frames; each chunk of 8 pixels is stored once.
-///
-/// # Safety
-/// The CPU must support AVX2 ([`avx2_available`]); every `datas[f]` must hold
-/// the whole frame plus [`FRAME_PADDING`] bytes; coordinate tables and the
-/// outputs must have at least `n8` elements.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[allow(clippy::too_many_arguments)]
-pub unsafe fn accumulate_row_avx2(
-    datas: &[&[u8]],
-    g: KernelGeometry,
-    coords: &[RowCoords<'_>],
-    n8: usize,
-    acc_r: &mut [u32],
-    acc_g: &mut [u32],
-    acc_b: &mut [u32],
-    count: &mut [u32],
-) {
-    debug_assert!(n8 % 8 == 0 && datas.len() == coords.len());
-    debug_assert!(acc_r.len() >= n8 && acc_g.len() >= n8 && acc_b.len() >= n8 && count.len() >= n8);
-    let zero_ps = _mm256_setzero_ps();
-    let max_x = _mm256_set1_ps(g.max_x);
-    let max_y = _mm256_set1_ps(g.max_y);
-    let lo = _mm256_set1_ps(-EDGE_TOLERANCE);
-    let hi_x = _mm256_set1_ps(g.max_x + EDGE_TOLERANCE);
-    let hi_y = _mm256_set1_ps(g.max_y + EDGE_TOLERANCE);
-    let max_x0 = _mm256_set1_epi32(g.max_x0);
-    let max_y0 = _mm256_set1_epi32(g.max_y0);
-    let stride = _mm256_set1_epi32(g.stride);
-    let chans = _mm256_set1_epi32(g.channels);
-    let c256 = _mm256_set1_ps(256.0);
-    let half = _mm256_set1_ps(0.5);
-    let i256 = _mm256_set1_epi32(256);
-    let i128 = _mm256_set1_epi32(128);
-    let byte = _mm256_set1_epi32(0xFF);
-    // Byte 2 of each lane (bits 16..24): where the right-hand tap goes.
-    let hi_byte = _mm256_set1_epi32(0xFF_0000);
-    let one = _mm256_set1_epi32(1);
-    let lane = _mm256_setr_ps(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0);
-    let eps = _mm256_set1_ps(1e-6);
-    let one_ps = _mm256_set1_ps(1.0);
-    let nan = _mm256_set1_ps(f32::NAN);
-    let mut u = 0;
-    while u < n8 {
-        let (mut sum_r, mut sum_g, mut sum_b, mut sum_n) = (
-            _mm256_setzero_si256(),
-            _mm256_setzero_si256(),
-            _mm256_setzero_si256(),
-            _mm256_setzero_si256(),
-        );
-        for f in 0..datas.len() {
-            let base = datas[f].as_ptr() as *const i32;
-            let (sx, sy) = match coords[f] {
-                RowCoords::Table(xs, ys) => (
-                    _mm256_loadu_ps(xs.as_ptr().add(u)),
-                    _mm256_loadu_ps(ys.as_ptr().add(u)),
-                ),
-                RowCoords::Homography {
-                    x0,
-                    y0,
-                    z0,
-                    dx,
-                    dy,
-                    dz,
-                } => {
-                    let uf = _mm256_add_ps(_mm256_set1_ps(u as f32), lane);
-                    // Same operation order as the scalar path (no FMA): bit-exact.
-                    let z =
-                        _mm256_add_ps(_mm256_set1_ps(z0), _mm256_mul_ps(_mm256_set1_ps(dz), uf));
-                    let iz = _mm256_blendv_ps(
-                        nan,
-                        _mm256_div_ps(one_ps, z),
-                        _mm256_cmp_ps(z, eps, _CMP_GT_OQ),
-                    );
-                    let x =
-                        _mm256_add_ps(_mm256_set1_ps(x0), _mm256_mul_ps(_mm256_set1_ps(dx), uf));
-                    let y =
-                        _mm256_add_ps(_mm256_set1_ps(y0), _mm256_mul_ps(_mm256_set1_ps(dy), uf));
-                    (_mm256_mul_ps(x, iz), _mm256_mul_ps(y, iz))
-                }
-            };
-            // NaN compares false: NaN coordinates are invalid.
-            let valid = _mm256_and_ps(
-                _mm256_and_ps(
-                    _mm256_cmp_ps(sx, lo, _CMP_GE_OQ),
-                    _mm256_cmp_ps(sy, lo, _CMP_GE_OQ),
-                ),
-                _mm256_and_ps(
-                    _mm256_cmp_ps(sx, hi_x, _CMP_LE_OQ),
-                    _mm256_cmp_ps(sy, hi_y, _CMP_LE_OQ),
-                ),
-            );
-            let mask = _mm256_castps_si256(valid);
-            if _mm256_testz_si256(mask, mask) != 0 {
-                continue;
-            }
-            // Invalid lanes get coordinate 0 so the integer conversions stay
-            // tame; valid ones are clamped onto the frame (edge tolerance).
-            let sxv = _mm256_min_ps(_mm256_max_ps(_mm256_and_ps(sx, valid), zero_ps), max_x);
-            let syv = _mm256_min_ps(_mm256_max_ps(_mm256_and_ps(sy, valid), zero_ps), max_y);
-            let x0 = _mm256_min_epi32(_mm256_cvttps_epi32(sxv), max_x0);
-            let y0 = _mm256_min_epi32(_mm256_cvttps_epi32(syv), max_y0);
-            let fx = _mm256_sub_ps(sxv, _mm256_cvtepi32_ps(x0));
-            let fy = _mm256_sub_ps(syv, _mm256_cvtepi32_ps(y0));
-            let ax = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(fx, c256), half));
-            let ay = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(fy, c256), half));
-            let bx = _mm256_sub_epi32(i256, ax);
-            let by = _mm256_sub_epi32(i256, ay);
-            let i00 = _mm256_add_epi32(
-                _mm256_mullo_epi32(y0, stride),
-                _mm256_mullo_epi32(x0, chans),
-            );
-            let i01 = _mm256_add_epi32(i00, chans);
-            let i10 = _mm256_add_epi32(i00, stride);
-            let i11 = _mm256_add_epi32(i10, chans);
-            let z = _mm256_setzero_si256();
-            let p00 = _mm256_mask_i32gather_epi32::<1>(z, base, i00, mask);
-            let p01 = _mm256_mask_i32gather_epi32::<1>(z, base, i01, mask);
-            let p10 = _mm256_mask_i32gather_epi32::<1>(z, base, i10, mask);
-            let p11 = _mm256_mask_i32gather_epi32::<1>(z, base, i11, mask);
-            // Horizontal step with one madd per row: lanes hold the 16-bit pairs
-            // (left, right) and (bx, ax), so madd gives left*bx + right*ax.
-            let wx = _mm256_or_si256(bx, _mm256_slli_epi32::<16>(ax));
-            macro_rules! channel {
-                ($shift:expr, $up:expr) => {{
-                    let top = _mm256_or_si256(
-                        _mm256_and_si256(_mm256_srli_epi32::<$shift>(p00), byte),
-                        _mm256_and_si256(_mm256_slli_epi32::<$up>(p01), hi_byte),
-                    );
-                    let bot = _mm256_or_si256(
-                        _mm256_and_si256(_mm256_srli_epi32::<$shift>(p10), byte),
-                        _mm256_and_si256(_mm256_slli_epi32::<$up>(p11), hi_byte),
-                    );
-                    let top = _mm256_madd_epi16(top, wx);
-                    let bot = _mm256_madd_epi16(bot, wx);
-                    let v = _mm256_add_epi32(
-                        _mm256_add_epi32(_mm256_mullo_epi32(top, by), _mm256_mullo_epi32(bot, ay)),
-                        i128,
-                    );
-                    _mm256_and_si256(_mm256_srli_epi32::<8>(v), mask)
-                }};
-            }
-            sum_r = _mm256_add_epi32(sum_r, channel!(0, 16));
-            sum_g = _mm256_add_epi32(sum_g, channel!(8, 8));
-            sum_b = _mm256_add_epi32(sum_b, channel!(16, 0));
-            sum_n = _mm256_add_epi32(sum_n, _mm256_and_si256(mask, one));
-        }
-        _mm256_storeu_si256(acc_r.as_mut_ptr().add(u) as *mut __m256i, sum_r);
-        _mm256_storeu_si256(acc_g.as_mut_ptr().add(u) as *mut __m256i, sum_g);
-        _mm256_storeu_si256(acc_b.as_mut_ptr().add(u) as *mut __m256i, sum_b);
-        _mm256_storeu_si256(count.as_mut_ptr().add(u) as *mut __m256i, sum_n);
-        u += 8;
-    }
-}
-
-/// The WebAssembly `simd128` twin of [`accumulate_row_avx2`]: four output
+/// The WebAssembly `simd128` twin of the AVX2 kernel (`avx2.rs`): four output
 /// pixels at a time, one frame after the other. WebAssembly has no gathers, so each lane's taps are read
 /// with scalar loads (an RGBA pixel and its right neighbour in one 8-byte load;
 /// lanes outside the frame read offset 0 and are masked off). Float-to-int
 /// conversions of the (non-negative, integral) coordinates use the `2^23`
 /// trick instead of the slow saturating conversion; the interpolation is the
 /// same 8.8 fixed-point integer arithmetic (`i32x4.dot_i16x8_s` plays
-/// `vpmaddwd`), bit-exact with the scalar path in `render.rs`.
+/// `vpmaddwd`), bit-exact with the scalar reference in `scalar.rs`.
 ///
 /// # Safety
 /// Every `datas[f]` must be non-empty and hold the whole frame plus
-/// [`FRAME_PADDING`] bytes; coordinate tables and the outputs must have at
+/// [`super::FRAME_PADDING`] bytes; coordinate tables and the outputs must have at
 /// least `n8` elements (`n8` a multiple of 4).
-#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
 #[allow(clippy::too_many_arguments)]
-pub unsafe fn accumulate_row_simd128(
+pub(super) unsafe fn accumulate_row(
     datas: &[&[u8]],
     g: KernelGeometry,
     coords: &[RowCoords<'_>],
@@ -251,7 +28,6 @@ pub unsafe fn accumulate_row_simd128(
     acc_b: &mut [u32],
     count: &mut [u32],
 ) {
-    use core::arch::wasm32::*;
     debug_assert!(n8 % 4 == 0 && datas.len() == coords.len());
     debug_assert!(acc_r.len() >= n8 && acc_g.len() >= n8 && acc_b.len() >= n8 && count.len() >= n8);
     let zero_ps = f32x4_splat(0.0);
@@ -451,8 +227,7 @@ pub unsafe fn accumulate_row_simd128(
 ///
 /// # Safety
 /// The sums must hold at least `n8` values and `out` at least `4 * n8` bytes.
-#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
-pub unsafe fn finish_row_rgba_simd128(
+pub(super) unsafe fn finish_row_rgba(
     acc_r: &[u32],
     acc_g: &[u32],
     acc_b: &[u32],
@@ -460,7 +235,6 @@ pub unsafe fn finish_row_rgba_simd128(
     out: &mut [u8],
     n8: usize,
 ) {
-    use core::arch::wasm32::*;
     debug_assert!(n8 % 4 == 0 && out.len() >= 4 * n8);
     let one = f32x4_splat(1.0);
     let c256 = f32x4_splat(256.0);

@@ -15,184 +15,130 @@
 //! The clip is rendered into a hidden temporary sibling directory that is
 //! renamed to the output at the end, so a failure leaves nothing behind.
 
-use crate::error::CliError;
-use amc_core::camera::{CameraModel, Distortion};
+use amc_core::camera::CameraModel;
 use amc_core::image::{Frame, FrameRef, PixelFormat};
 use amc_core::so3;
 use amc_core::synth::{
     downsample_pano, pano_downsample_factor, EquirectRenderer, Shake, ShakeParams,
 };
+use amc_video::AtomicDir;
+use amc_video::VideoError;
 use std::fs;
-use std::io::{BufWriter, IsTerminal, Write};
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
+use thiserror::Error;
 
 /// Render a shaky synthetic clip (PNG frames, gt.csv, lens.json) from an
 /// equirectangular panorama.
-#[derive(clap::Args, Debug, Clone)]
-pub struct SynthArgs {
+#[derive(Debug, Clone, PartialEq)]
+pub struct SynthConfig {
     /// Equirectangular (2:1, full-sphere) panorama, PNG or JPEG.
     pub panorama: PathBuf,
 
     /// Output directory (must not exist, or be empty).
-    #[arg(short, long, value_name = "DIR")]
     pub output: PathBuf,
 
     /// Horizontal field of view, degrees (of the fisheye with --fisheye).
-    #[arg(
-        long,
-        default_value_t = 90.0,
-        value_name = "DEG",
-        allow_negative_numbers = true
-    )]
     pub fov: f64,
 
     /// Render through a Kannala-Brandt (OpenCV fisheye) lens with these
     /// coefficients instead of a pinhole.
-    #[arg(long, value_name = "K1,K2,K3,K4", value_parser = parse_k4, allow_hyphen_values = true)]
     pub fisheye: Option<[f64; 4]>,
 
     /// Frame width, pixels.
-    #[arg(long, default_value_t = 320)]
     pub width: usize,
 
     /// Frame height, pixels.
-    #[arg(long, default_value_t = 180)]
     pub height: usize,
 
     /// Frames per second.
-    #[arg(long, default_value_t = 60.0, allow_negative_numbers = true)]
     pub fps: f64,
 
     /// Clip length, seconds.
-    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
     pub seconds: f64,
 
     /// RMS angular speed of the shake, deg/s.
-    #[arg(
-        long,
-        default_value_t = 100.0,
-        value_name = "DEG_PER_S",
-        allow_negative_numbers = true
-    )]
     pub shake_dps: f64,
 
     /// Frequency band of the shake, Hz.
-    #[arg(long, default_value = "12,20", value_name = "LO,HI", value_parser = parse_band, allow_hyphen_values = true)]
     pub shake_band: (f64, f64),
 
     /// Seed of the shake trajectory.
-    #[arg(long, default_value_t = 0)]
     pub seed: u64,
 
     /// Constant yaw pan, deg/s (positive turns right).
-    #[arg(
-        long,
-        default_value_t = 0.0,
-        value_name = "DEG_PER_S",
-        allow_negative_numbers = true
-    )]
     pub pan_dps: f64,
 
     /// Rolling-shutter readout time (first to last row), ms; 0 = global
     /// shutter. gt.csv holds the orientation at the first row's exposure.
-    #[arg(
-        long,
-        default_value_t = 0.0,
-        value_name = "MS",
-        allow_negative_numbers = true
-    )]
     pub rolling_shutter_ms: f64,
 
     /// Anti-aliasing: N x N rays per output pixel.
-    #[arg(long, default_value_t = 2, value_name = "N")]
     pub supersample: usize,
 }
 
-fn parse_floats<const N: usize>(s: &str, what: &str) -> Result<[f64; N], String> {
-    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    if parts.len() != N {
-        return Err(format!(
-            "expected {N} comma-separated numbers ({what}), got '{s}'"
-        ));
-    }
-    let mut out = [0.0; N];
-    for (o, p) in out.iter_mut().zip(&parts) {
-        *o = p
-            .parse::<f64>()
-            .ok()
-            .filter(|v| v.is_finite())
-            .ok_or_else(|| format!("'{p}' is not a finite number ({what})"))?;
-    }
-    Ok(out)
+/// Why a clip could not be rendered.
+#[derive(Debug, Error)]
+pub enum SynthError {
+    /// A setting outside its range; `detail` names the flag, the value and the range.
+    #[error("{detail}")]
+    Invalid {
+        /// The setting (its CLI flag without dashes).
+        option: &'static str,
+        /// The value, what is allowed, and why.
+        detail: String,
+    },
+    /// The output location cannot be used.
+    #[error("{}: {detail}", path.display())]
+    Output {
+        /// The output directory.
+        path: PathBuf,
+        /// What is wrong with it.
+        detail: String,
+    },
+    /// A file could not be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The panorama cannot be decoded, or a frame cannot be encoded.
+    #[error("{}: {detail}", path.display())]
+    Image {
+        /// The image.
+        path: PathBuf,
+        /// What failed.
+        detail: String,
+    },
+    /// The core refused the camera or the shake.
+    #[error(transparent)]
+    Core(#[from] amc_core::AmcError),
+    /// Writing an output file failed.
+    #[error(transparent)]
+    Video(#[from] VideoError),
 }
 
-fn parse_band(s: &str) -> Result<(f64, f64), String> {
-    let [lo, hi] = parse_floats::<2>(s, "LO,HI in Hz")?;
-    Ok((lo, hi))
-}
-
-fn parse_k4(s: &str) -> Result<[f64; 4], String> {
-    parse_floats::<4>(s, "K1,K2,K3,K4")
-}
-
-/// Kannala-Brandt distortion `theta_d = theta (1 + k1 theta^2 + ... + k4 theta^8)`.
-fn kb_theta_d(k: &[f64; 4], theta: f64) -> f64 {
-    let t2 = theta * theta;
-    theta * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))))
-}
-
-/// A centred Kannala-Brandt camera whose image edge (`width / 2` from the
-/// centre) sees `hfov / 2` off-axis: `fx = (width / 2) / theta_d(hfov / 2)`.
-fn fisheye_camera(
-    width: usize,
-    height: usize,
-    hfov_deg: f64,
-    k: [f64; 4],
-) -> Result<CameraModel, CliError> {
-    let half = hfov_deg.to_radians() / 2.0;
-    // theta_d must increase monotonically up to the edge, or the lens folds.
-    let steps = 1000;
-    let mut prev = 0.0;
-    for i in 1..=steps {
-        let td = kb_theta_d(&k, half * i as f64 / steps as f64);
-        if td.is_nan() || td <= prev {
-            return Err(CliError::Usage(format!(
-                "--fisheye {},{},{},{}: the lens mapping is not increasing up to half the --fov ({} deg); \
-                 use smaller coefficients or a smaller --fov",
-                k[0], k[1], k[2], k[3], hfov_deg / 2.0
-            )));
+impl SynthError {
+    fn io(path: &Path, source: std::io::Error) -> Self {
+        SynthError::Io {
+            path: path.to_path_buf(),
+            source,
         }
-        prev = td;
     }
-    let fx = (width as f64 / 2.0) / prev;
-    Ok(CameraModel {
-        width,
-        height,
-        fx,
-        fy: fx,
-        cx: (width as f64 - 1.0) / 2.0,
-        cy: (height as f64 - 1.0) / 2.0,
-        skew: 0.0,
-        distortion: Distortion::Fisheye {
-            k1: k[0],
-            k2: k[1],
-            k3: k[2],
-            k4: k[3],
-        },
-    })
 }
 
-fn usage(msg: String) -> CliError {
-    CliError::Usage(msg)
-}
-
-fn check(ok: bool, msg: impl FnOnce() -> String) -> Result<(), CliError> {
+fn check(ok: bool, option: &'static str, msg: impl FnOnce() -> String) -> Result<(), SynthError> {
     if ok {
         Ok(())
     } else {
-        Err(usage(msg()))
+        Err(SynthError::Invalid {
+            option,
+            detail: msg(),
+        })
     }
 }
 
@@ -204,23 +150,25 @@ struct Plan {
     shake: ShakeParams,
 }
 
-fn plan(args: &SynthArgs) -> Result<Plan, CliError> {
-    check((2..=4096).contains(&args.width), || {
+fn plan(args: &SynthConfig) -> Result<Plan, SynthError> {
+    check((2..=4096).contains(&args.width), "width", || {
         format!("--width must be 2 to 4096 pixels, got {}", args.width)
     })?;
-    check((2..=4096).contains(&args.height), || {
+    check((2..=4096).contains(&args.height), "height", || {
         format!("--height must be 2 to 4096 pixels, got {}", args.height)
     })?;
     check(
         args.fps.is_finite() && args.fps > 0.0 && args.fps <= 10_000.0,
+        "fps",
         || format!("--fps must be in (0, 10000], got {}", args.fps),
     )?;
     check(
         args.seconds.is_finite() && args.seconds > 0.0 && args.seconds <= 36_000.0,
+        "seconds",
         || format!("--seconds must be in (0, 36000], got {}", args.seconds),
     )?;
     let frames = (args.seconds * args.fps).round();
-    check((1.0..=1_000_000.0).contains(&frames), || {
+    check((1.0..=1_000_000.0).contains(&frames), "seconds", || {
         format!(
             "--seconds {} at --fps {} gives {frames} frames; allowed: 1 to 1000000",
             args.seconds, args.fps
@@ -228,6 +176,7 @@ fn plan(args: &SynthArgs) -> Result<Plan, CliError> {
     })?;
     check(
         (1..=EquirectRenderer::MAX_SUPERSAMPLE).contains(&args.supersample),
+        "supersample",
         || {
             format!(
                 "--supersample must be 1 to {}, got {}",
@@ -238,6 +187,7 @@ fn plan(args: &SynthArgs) -> Result<Plan, CliError> {
     )?;
     check(
         args.shake_dps.is_finite() && (0.0..=2000.0).contains(&args.shake_dps),
+        "shake-dps",
         || {
             format!(
                 "--shake-dps must be 0 to 2000 deg/s, got {}",
@@ -246,11 +196,12 @@ fn plan(args: &SynthArgs) -> Result<Plan, CliError> {
         },
     )?;
     let (lo, hi) = args.shake_band;
-    check(lo > 0.0 && lo < hi && hi <= 1000.0, || {
+    check(lo > 0.0 && lo < hi && hi <= 1000.0, "shake-band", || {
         format!("--shake-band must be LO,HI with 0 < LO < HI <= 1000 Hz, got {lo},{hi}")
     })?;
     check(
         args.pan_dps.is_finite() && (-720.0..=720.0).contains(&args.pan_dps),
+        "pan-dps",
         || format!("--pan-dps must be -720 to 720 deg/s, got {}", args.pan_dps),
     )?;
     let period_ms = 1000.0 / args.fps;
@@ -258,6 +209,7 @@ fn plan(args: &SynthArgs) -> Result<Plan, CliError> {
         args.rolling_shutter_ms.is_finite()
             && args.rolling_shutter_ms >= 0.0
             && args.rolling_shutter_ms <= period_ms + 1e-9,
+        "rolling-shutter-ms",
         || {
             format!(
                 "--rolling-shutter-ms must be 0 to the frame period ({period_ms:.3} ms at --fps {}), got {}",
@@ -269,6 +221,7 @@ fn plan(args: &SynthArgs) -> Result<Plan, CliError> {
         None => {
             check(
                 args.fov.is_finite() && args.fov >= 1.0 && args.fov <= 170.0,
+                "fov",
                 || {
                     format!(
                         "--fov must be 1 to 170 degrees for a pinhole camera, got {}",
@@ -282,6 +235,7 @@ fn plan(args: &SynthArgs) -> Result<Plan, CliError> {
         Some(k) => {
             check(
                 args.fov.is_finite() && args.fov >= 1.0 && args.fov <= 270.0,
+                "fov",
                 || {
                     format!(
                         "--fov must be 1 to 270 degrees for a fisheye camera, got {}",
@@ -289,10 +243,13 @@ fn plan(args: &SynthArgs) -> Result<Plan, CliError> {
                     )
                 },
             )?;
-            check(k.iter().all(|v| v.is_finite() && v.abs() <= 10.0), || {
-                format!("--fisheye coefficients must be finite and within [-10, 10], got {k:?}")
-            })?;
-            fisheye_camera(args.width, args.height, args.fov, k)?
+            check(
+                k.iter().all(|v| v.is_finite() && v.abs() <= 10.0),
+                "fisheye",
+                || format!("--fisheye coefficients must be finite and within [-10, 10], got {k:?}"),
+            )?;
+            CameraModel::fisheye_hfov(args.width, args.height, args.fov, k)
+                .map_err(amc_core::AmcError::from)?
         }
     };
     camera.validate().map_err(amc_core::AmcError::from)?;
@@ -312,52 +269,56 @@ fn plan(args: &SynthArgs) -> Result<Plan, CliError> {
 }
 
 /// Checks the output location; returns the directory the temporary sibling goes in.
-fn check_output(output: &Path) -> Result<PathBuf, CliError> {
+fn check_output(output: &Path) -> Result<PathBuf, SynthError> {
     match fs::metadata(output) {
         Ok(meta) => {
-            check(meta.is_dir(), || {
-                format!("output {} exists and is not a directory", output.display())
-            })?;
-            let mut entries = fs::read_dir(output).map_err(|e| CliError::io(output, e))?;
-            check(entries.next().is_none(), || {
-                format!(
-                    "output directory {} is not empty; choose a new directory or empty it",
-                    output.display()
-                )
-            })?;
+            if !meta.is_dir() {
+                return Err(SynthError::Output {
+                    path: output.to_path_buf(),
+                    detail: "exists and is not a directory".into(),
+                });
+            }
+            let mut entries = fs::read_dir(output).map_err(|e| SynthError::io(output, e))?;
+            if entries.next().is_some() {
+                return Err(SynthError::Output {
+                    path: output.to_path_buf(),
+                    detail: "the output directory is not empty; choose a new directory or empty it"
+                        .into(),
+                });
+            }
         }
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-        Err(e) => return Err(CliError::io(output, e)),
+        Err(e) => return Err(SynthError::io(output, e)),
     }
     let parent = match output.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    check(parent.is_dir(), || {
-        format!(
-            "the parent of the output directory, {}, does not exist",
-            parent.display()
-        )
-    })?;
+    if !parent.is_dir() {
+        return Err(SynthError::Output {
+            path: output.to_path_buf(),
+            detail: format!("its parent directory {} does not exist", parent.display()),
+        });
+    }
     Ok(parent)
 }
 
-fn load_panorama(path: &Path) -> Result<Frame, CliError> {
+fn load_panorama(path: &Path) -> Result<Frame, SynthError> {
     let img = image::ImageReader::open(path)
-        .map_err(|e| CliError::io(path, e))?
+        .map_err(|e| SynthError::io(path, e))?
         .with_guessed_format()
-        .map_err(|e| CliError::io(path, e))?
+        .map_err(|e| SynthError::io(path, e))?
         .decode()
-        .map_err(|e| CliError::Image {
+        .map_err(|e| SynthError::Image {
             path: path.to_path_buf(),
-            msg: e.to_string(),
+            detail: e.to_string(),
         })?
         .into_rgb8();
     let (w, h) = (img.width() as usize, img.height() as usize);
     if w < 4 || h < 2 || (w as f64 / h as f64 - 2.0).abs() > 0.02 {
-        return Err(CliError::Image {
+        return Err(SynthError::Image {
             path: path.to_path_buf(),
-            msg: format!(
+            detail: format!(
                 "panorama is {w}x{h}; an equirectangular panorama must be 2:1 (width = 2 x height)"
             ),
         });
@@ -370,9 +331,9 @@ fn load_panorama(path: &Path) -> Result<Frame, CliError> {
     })
 }
 
-fn write_png(path: &Path, frame: &Frame) -> Result<(), CliError> {
+fn write_png(path: &Path, frame: &Frame) -> Result<(), SynthError> {
     use image::ImageEncoder;
-    let file = fs::File::create(path).map_err(|e| CliError::io(path, e))?;
+    let file = fs::File::create(path).map_err(|e| SynthError::io(path, e))?;
     let mut w = BufWriter::new(file);
     image::codecs::png::PngEncoder::new(&mut w)
         .write_image(
@@ -381,11 +342,11 @@ fn write_png(path: &Path, frame: &Frame) -> Result<(), CliError> {
             frame.height as u32,
             image::ExtendedColorType::Rgb8,
         )
-        .map_err(|e| CliError::Image {
+        .map_err(|e| SynthError::Image {
             path: path.to_path_buf(),
-            msg: e.to_string(),
+            detail: e.to_string(),
         })?;
-    w.flush().map_err(|e| CliError::io(path, e))
+    w.flush().map_err(|e| SynthError::io(path, e))
 }
 
 /// Frame file name for index `j`.
@@ -401,19 +362,10 @@ fn render_frames(
     shake: &Shake,
     plan: &Plan,
     fps: f64,
-) -> Result<(), CliError> {
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<(), SynthError> {
     let n = plan.frames;
-    let progress = if std::io::stderr().is_terminal() {
-        let pb = indicatif::ProgressBar::new(n as u64);
-        if let Ok(style) = indicatif::ProgressStyle::with_template(
-            "rendering {bar:40} {pos}/{len} frames, eta {eta}",
-        ) {
-            pb.set_style(style);
-        }
-        pb
-    } else {
-        indicatif::ProgressBar::hidden()
-    };
+    let done = AtomicUsize::new(0);
     let threads = std::thread::available_parallelism()
         .map(|n| n.get())
         .unwrap_or(1)
@@ -421,7 +373,7 @@ fn render_frames(
         .min(n);
     let next = AtomicUsize::new(0);
     let failed = AtomicBool::new(false);
-    let first_error: Mutex<Option<CliError>> = Mutex::new(None);
+    let first_error: Mutex<Option<SynthError>> = Mutex::new(None);
     std::thread::scope(|scope| {
         for _ in 0..threads {
             scope.spawn(|| {
@@ -439,7 +391,7 @@ fn render_frames(
                             &|s| shake.orientation_at(t + readout * s),
                             &mut out,
                         )
-                        .map_err(CliError::from)
+                        .map_err(SynthError::from)
                         .and_then(|()| write_png(&dir.join(frame_name(j)), &out));
                     if let Err(e) = result {
                         failed.store(true, Ordering::Relaxed);
@@ -447,12 +399,11 @@ fn render_frames(
                         slot.get_or_insert(e);
                         break;
                     }
-                    progress.inc(1);
+                    progress(done.fetch_add(1, Ordering::Relaxed) + 1, n);
                 }
             });
         }
     });
-    progress.finish_and_clear();
     match first_error.into_inner().unwrap_or_else(|p| p.into_inner()) {
         Some(e) => Err(e),
         None => Ok(()),
@@ -471,10 +422,17 @@ fn ground_truth_csv(shake: &Shake, frames: usize, fps: f64) -> String {
     s
 }
 
-/// Runs `amc synth`.
-pub fn run(args: &SynthArgs) -> Result<(), CliError> {
+/// Renders the clip described by `args` into `args.output` (a new or empty
+/// directory): frames, `gt.csv`, `lens.json` and `meta.json` (`{"fps": ...}`,
+/// read back by image-folder inputs so the clip plays at its own rate).
+/// `progress(done, total)` is called after each frame. Returns a one-line
+/// description of what was written.
+pub fn run(
+    args: &SynthConfig,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<String, SynthError> {
     let plan = plan(args)?;
-    let parent = check_output(&args.output)?;
+    check_output(&args.output)?;
     let pano_full = load_panorama(&args.panorama)?;
     let factor = pano_downsample_factor(pano_full.width, &plan.camera);
     let pano = downsample_pano(&pano_full.as_ref(), factor);
@@ -482,36 +440,28 @@ pub fn run(args: &SynthArgs) -> Result<(), CliError> {
     let renderer = EquirectRenderer::new(&plan.camera, args.supersample)?;
     let shake = Shake::new(&plan.shake)?;
 
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(".amc-synth-");
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        // Like mkdir: 0777 minus the umask (a temp dir is 0700 by default).
-        builder.permissions(fs::Permissions::from_mode(0o777));
-    }
-    let tmp = builder
-        .tempdir_in(&parent)
-        .map_err(|e| CliError::io(&parent, e))?;
-    let dir = tmp.path().to_path_buf();
-
-    render_frames(&dir, &pano.as_ref(), &renderer, &shake, &plan, args.fps)?;
-    let gt_path = dir.join("gt.csv");
-    fs::write(&gt_path, ground_truth_csv(&shake, plan.frames, args.fps))
-        .map_err(|e| CliError::io(&gt_path, e))?;
-    let lens_path = dir.join("lens.json");
-    fs::write(&lens_path, amc_core::lens::to_project_json(&plan.camera))
-        .map_err(|e| CliError::io(&lens_path, e))?;
-
-    // An existing output directory was checked to be empty; rename needs it gone.
-    if args.output.is_dir() {
-        fs::remove_dir(&args.output).map_err(|e| CliError::io(&args.output, e))?;
-    }
-    let kept = tmp.keep();
-    if let Err(e) = fs::rename(&kept, &args.output) {
-        let _ = fs::remove_dir_all(&kept);
-        return Err(CliError::io(&args.output, e));
-    }
+    let out = AtomicDir::create(&args.output)?;
+    let dir = out.partial_path().to_path_buf();
+    render_frames(
+        &dir,
+        &pano.as_ref(),
+        &renderer,
+        &shake,
+        &plan,
+        args.fps,
+        progress,
+    )?;
+    let write = |name: &str, text: String| {
+        let path = dir.join(name);
+        fs::write(&path, text).map_err(|e| SynthError::io(&path, e))
+    };
+    write("gt.csv", ground_truth_csv(&shake, plan.frames, args.fps))?;
+    write("lens.json", amc_core::lens::to_project_json(&plan.camera))?;
+    write(
+        amc_video::FOLDER_META,
+        format!("{{\"fps\": {}}}\n", args.fps),
+    )?;
+    out.persist()?;
 
     let lens = match args.fisheye {
         Some(_) => "fisheye",
@@ -522,8 +472,8 @@ pub fn run(args: &SynthArgs) -> Result<(), CliError> {
     } else {
         String::new()
     };
-    println!(
-        "wrote {} frames of {}x{} ({lens}, {} deg hfov, {} fps, shake {} deg/s in {}-{} Hz{rs}) with gt.csv and lens.json to {}",
+    Ok(format!(
+        "wrote {} frames of {}x{} ({lens}, {} deg hfov, {} fps, shake {} deg/s in {}-{} Hz{rs}) with gt.csv, lens.json and meta.json to {}",
         plan.frames,
         args.width,
         args.height,
@@ -533,24 +483,37 @@ pub fn run(args: &SynthArgs) -> Result<(), CliError> {
         args.shake_band.0,
         args.shake_band.1,
         args.output.display()
-    );
-    Ok(())
+    ))
+}
+
+impl SynthConfig {
+    /// The defaults of `amc synth PANORAMA -o OUTPUT`: 320x180 pinhole 90 deg,
+    /// 60 fps, 10 s, 100 deg/s RMS shake at 12-20 Hz.
+    pub fn new(panorama: PathBuf, output: PathBuf) -> Self {
+        Self {
+            panorama,
+            output,
+            fov: 90.0,
+            fisheye: None,
+            width: 320,
+            height: 180,
+            fps: 60.0,
+            seconds: 10.0,
+            shake_dps: 100.0,
+            shake_band: (12.0, 20.0),
+            seed: 0,
+            pan_dps: 0.0,
+            rolling_shutter_ms: 0.0,
+            supersample: 2,
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use clap::Parser;
 
-    #[derive(Parser, Debug)]
-    struct Cli {
-        #[command(flatten)]
-        synth: SynthArgs,
-    }
-
-    fn parse(args: &[&str]) -> Result<SynthArgs, clap::Error> {
-        Cli::try_parse_from(std::iter::once("synth").chain(args.iter().copied())).map(|c| c.synth)
-    }
+    fn no_progress(_: usize, _: usize) {}
 
     fn write_test_pano(path: &Path) {
         let (w, h) = (256u32, 128u32);
@@ -561,58 +524,99 @@ mod tests {
     }
 
     #[test]
-    fn defaults_and_parsing() {
-        let a = parse(&["p.jpg", "-o", "out"]).unwrap();
-        assert_eq!((a.width, a.height, a.supersample, a.seed), (320, 180, 2, 0));
-        assert_eq!(
-            (a.fov, a.fps, a.seconds, a.shake_dps),
-            (90.0, 60.0, 10.0, 100.0)
-        );
-        assert_eq!(a.shake_band, (12.0, 20.0));
-        assert!(a.fisheye.is_none());
-        let a = parse(&[
-            "p.jpg",
-            "-o",
-            "out",
-            "--fisheye",
-            "-0.01,0.002,0,0",
-            "--pan-dps",
-            "-5",
-            "--shake-band",
-            "5, 9",
-        ])
-        .unwrap();
-        assert_eq!(a.fisheye, Some([-0.01, 0.002, 0.0, 0.0]));
-        assert_eq!((a.pan_dps, a.shake_band), (-5.0, (5.0, 9.0)));
-        assert!(parse(&["p.jpg"]).is_err());
-        assert!(parse(&["p.jpg", "-o", "o", "--shake-band", "12"]).is_err());
-        assert!(parse(&["p.jpg", "-o", "o", "--fisheye", "1,2,x,4"]).is_err());
-    }
-
-    #[test]
-    fn bad_values_are_usage_errors() {
-        for extra in [
-            &["--width", "1"][..],
-            &["--fps", "0"],
-            &["--seconds", "-1"],
-            &["--shake-dps", "3000"],
-            &["--shake-band", "20,12"],
-            &["--shake-band", "-1,12"],
-            &["--shake-dps", "-1"],
-            &["--pan-dps", "-1000"],
-            &["--supersample", "0"],
-            &["--fov", "179"],
-            &["--rolling-shutter-ms", "20"],
-            &["--fisheye", "0,0,0,-10", "--fov", "200"],
-        ] {
-            let mut v = vec!["p.jpg", "-o", "out"];
-            v.extend_from_slice(extra);
-            let a = parse(&v).unwrap();
-            let e = plan(&a)
-                .err()
-                .unwrap_or_else(|| panic!("{extra:?} accepted"));
-            assert!(matches!(e, CliError::Usage(_)), "{extra:?}: {e}");
+    fn bad_values_are_refused() {
+        let base = SynthConfig::new("p.jpg".into(), "out".into());
+        let cases: Vec<(&str, SynthConfig)> = vec![
+            (
+                "width",
+                SynthConfig {
+                    width: 1,
+                    ..base.clone()
+                },
+            ),
+            (
+                "fps",
+                SynthConfig {
+                    fps: 0.0,
+                    ..base.clone()
+                },
+            ),
+            (
+                "seconds",
+                SynthConfig {
+                    seconds: -1.0,
+                    ..base.clone()
+                },
+            ),
+            (
+                "shake-dps",
+                SynthConfig {
+                    shake_dps: 3000.0,
+                    ..base.clone()
+                },
+            ),
+            (
+                "shake-band",
+                SynthConfig {
+                    shake_band: (20.0, 12.0),
+                    ..base.clone()
+                },
+            ),
+            (
+                "shake-band",
+                SynthConfig {
+                    shake_band: (-1.0, 12.0),
+                    ..base.clone()
+                },
+            ),
+            (
+                "shake-dps",
+                SynthConfig {
+                    shake_dps: -1.0,
+                    ..base.clone()
+                },
+            ),
+            (
+                "pan-dps",
+                SynthConfig {
+                    pan_dps: -1000.0,
+                    ..base.clone()
+                },
+            ),
+            (
+                "supersample",
+                SynthConfig {
+                    supersample: 0,
+                    ..base.clone()
+                },
+            ),
+            (
+                "fov",
+                SynthConfig {
+                    fov: 179.0,
+                    ..base.clone()
+                },
+            ),
+            (
+                "rolling-shutter-ms",
+                SynthConfig {
+                    rolling_shutter_ms: 20.0,
+                    ..base.clone()
+                },
+            ),
+        ];
+        for (option, cfg) in cases {
+            match plan(&cfg) {
+                Err(SynthError::Invalid { option: o, .. }) => assert_eq!(o, option),
+                other => panic!("{option}: {:?}", other.err()),
+            }
         }
+        let folded = SynthConfig {
+            fisheye: Some([0.0, 0.0, 0.0, -10.0]),
+            fov: 200.0,
+            ..base
+        };
+        assert!(plan(&folded).is_err());
     }
 
     #[test]
@@ -621,22 +625,14 @@ mod tests {
         let pano = tmp.path().join("pano.png");
         write_test_pano(&pano);
         let out = tmp.path().join("clip");
-        let s = |p: &Path| p.to_str().unwrap().to_string();
-        let argv = [
-            s(&pano),
-            "-o".into(),
-            s(&out),
-            "--width".into(),
-            "32".into(),
-            "--height".into(),
-            "18".into(),
-            "--seconds".into(),
-            "0.1".into(),
-            "--rolling-shutter-ms".into(),
-            "5".into(),
-        ];
-        let a = parse(&argv.iter().map(String::as_str).collect::<Vec<_>>()).unwrap();
-        run(&a).unwrap();
+        let a = SynthConfig {
+            width: 32,
+            height: 18,
+            seconds: 0.1,
+            rolling_shutter_ms: 5.0,
+            ..SynthConfig::new(pano.clone(), out.clone())
+        };
+        run(&a, &no_progress).unwrap();
         let gt = fs::read_to_string(out.join("gt.csv")).unwrap();
         let lines: Vec<&str> = gt.lines().collect();
         assert_eq!(lines[0], "frame,t,rx,ry,rz");
@@ -652,18 +648,21 @@ mod tests {
         assert_eq!(img.dimensions(), (32, 18));
         assert!(!out.join(frame_name(6)).exists());
         // Only our outputs, and no temporary directory left beside it.
-        assert_eq!(fs::read_dir(&out).unwrap().count(), 8);
+        assert_eq!(fs::read_dir(&out).unwrap().count(), 9);
         assert_eq!(fs::read_dir(tmp.path()).unwrap().count(), 2);
         // A second run into the same (now non-empty) directory is refused.
-        assert!(matches!(run(&a), Err(CliError::Usage(_))));
+        assert!(matches!(
+            run(&a, &no_progress),
+            Err(SynthError::Output { .. })
+        ));
         // A missing panorama fails and leaves nothing behind.
         let out2 = tmp.path().join("clip2");
-        let b = SynthArgs {
+        let b = SynthConfig {
             panorama: tmp.path().join("missing.png"),
             output: out2.clone(),
             ..a
         };
-        assert!(run(&b).is_err());
+        assert!(run(&b, &no_progress).is_err());
         assert!(!out2.exists());
         assert_eq!(fs::read_dir(tmp.path()).unwrap().count(), 2);
     }

@@ -1,0 +1,288 @@
+//! The stabilizer's user-facing options, each defined once.
+//!
+//! The command line (`--n-avg 4`), the REST API (`?n_avg=4`), `amc compare` and
+//! the WASM binding all set the stabilizer through this table and
+//! [`StabilizerOptions::set`], so every option has one name, one parser, one
+//! default and one allowed range (the range is checked by the parameter
+//! structs' `validate()`, which this module calls). The CLI flag of an option is
+//! its name in kebab-case.
+
+use crate::error::AmcError;
+use crate::stabilizer::StabilizerParams;
+use crate::view::Mode;
+use std::path::PathBuf;
+
+/// Largest horizontal field of view of a pinhole lens, degrees (exclusive of 0).
+/// A pinhole's focal length goes to zero as the field of view approaches 180 deg.
+pub const MAX_PINHOLE_HFOV_DEG: f64 = 179.0;
+
+pub use crate::view::MAX_LOOKAHEAD;
+
+/// One user-facing option: its name and what it accepts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct OptionSpec {
+    /// The REST / WASM name (snake_case).
+    pub name: &'static str,
+    /// The command-line flag without its dashes: the name in kebab-case.
+    pub flag: &'static str,
+    /// Placeholder for the value in help texts.
+    pub value_name: &'static str,
+    /// What the option does, with its allowed values and default.
+    pub help: &'static str,
+}
+
+/// Every option a user can set on a run, in the order help texts list them.
+pub const OPTIONS: &[OptionSpec] = &[
+    OptionSpec {
+        name: "mode",
+        flag: "mode",
+        value_name: "stabilize|saccade|none",
+        help: "stabilize (smooth view), saccade (fixed view, re-centred when needed) or none (default stabilize)",
+    },
+    OptionSpec {
+        name: "fov",
+        flag: "fov",
+        value_name: "DEG|auto",
+        help: "horizontal field of view of a pinhole lens in degrees, 0 < DEG <= 179, or auto to estimate it from the footage (default auto)",
+    },
+    OptionSpec {
+        name: "n_avg",
+        flag: "n-avg",
+        value_name: "N",
+        help: "frames averaged into each output frame, 1..=64 (default 6)",
+    },
+    OptionSpec {
+        name: "n_track",
+        flag: "n-track",
+        value_name: "N",
+        help: "template reset period in frames, 1..=1000 (default 5)",
+    },
+    OptionSpec {
+        name: "margin",
+        flag: "margin",
+        value_name: "FRAC",
+        help: "share cropped from each side of the output, 0..=0.45 (default 0.125)",
+    },
+    OptionSpec {
+        name: "track_width",
+        flag: "track-width",
+        value_name: "PX",
+        help: "width of the grayscale image the tracker works on, 32..=8192 pixels (default 320)",
+    },
+    OptionSpec {
+        name: "lookahead",
+        flag: "lookahead",
+        value_name: "N",
+        help: "future frames used to smooth the view, 0..=600 (default 0 = online); adds N frames of latency",
+    },
+    OptionSpec {
+        name: "rate_a",
+        flag: "rate-a",
+        value_name: "PER_S",
+        help: "smoothing: constant part of the view filter's gain, 0..=1000 per second (default 2; lower is smoother)",
+    },
+    OptionSpec {
+        name: "rate_b",
+        flag: "rate-b",
+        value_name: "PER_S_RAD",
+        help: "smoothing: gain growing with the view's lag behind the camera, 0..=10000 per second per radian (default 40)",
+    },
+    OptionSpec {
+        name: "output_width",
+        flag: "output-width",
+        value_name: "PX",
+        help: "output width, 16..=16384 pixels (default: the cropped input width)",
+    },
+    OptionSpec {
+        name: "output_height",
+        flag: "output-height",
+        value_name: "PX",
+        help: "output height, 16..=16384 pixels (default: keeps the aspect ratio)",
+    },
+];
+
+/// How the lens of the footage is known.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum LensSpec {
+    /// Estimate the focal length of a pinhole from the footage (`fov=auto`).
+    #[default]
+    Auto,
+    /// A pinhole with this horizontal field of view, degrees, in `(0, 179]`.
+    Fov(f64),
+    /// A lens file (the project's JSON, an OpenCV calibration or a Gyroflow
+    /// profile, see [`crate::lens::parse_lens`]) at this path, read by the caller.
+    File(PathBuf),
+}
+
+impl LensSpec {
+    /// Parses a `fov` value: `auto` or degrees in `(0, 179]`.
+    pub fn parse_fov(value: &str) -> Result<Self, AmcError> {
+        let v = value.trim();
+        if v.eq_ignore_ascii_case("auto") {
+            return Ok(LensSpec::Auto);
+        }
+        match v.parse::<f64>() {
+            Ok(deg) if deg.is_finite() && deg > 0.0 && deg <= MAX_PINHOLE_HFOV_DEG => {
+                Ok(LensSpec::Fov(deg))
+            }
+            _ => Err(AmcError::invalid(
+                "fov",
+                format!("{value:?}"),
+                "a horizontal field of view in degrees, 0 < DEG <= 179, or auto",
+            )),
+        }
+    }
+}
+
+/// The stabilizer's parameters and the lens, as a user sets them option by option.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StabilizerOptions {
+    /// The stabilizer's parameters.
+    pub params: StabilizerParams,
+    /// How the lens is known.
+    pub lens: LensSpec,
+}
+
+impl StabilizerOptions {
+    /// The defaults with the view in `mode`.
+    pub fn with_mode(mode: Mode) -> Self {
+        let mut o = Self::default();
+        o.params.view.mode = mode;
+        o
+    }
+
+    /// Sets the option `name` (an [`OPTIONS`] name) from its text `value`.
+    /// Ranges are checked by [`validate`](Self::validate), once all options are set.
+    pub fn set(&mut self, name: &str, value: &str) -> Result<(), AmcError> {
+        let spec =
+            OPTIONS
+                .iter()
+                .find(|o| o.name == name)
+                .ok_or_else(|| AmcError::UnknownOption {
+                    name: name.to_string(),
+                    known: OPTIONS
+                        .iter()
+                        .map(|o| o.name)
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                })?;
+        let p = &mut self.params;
+        match spec.name {
+            "mode" => p.view.mode = value.trim().parse()?,
+            "fov" => self.lens = LensSpec::parse_fov(value)?,
+            "n_avg" => p.render.n_avg = parse_value(spec, value)?,
+            "n_track" => p.tracker.n_track = parse_value(spec, value)?,
+            "margin" => p.render.margin = parse_value(spec, value)?,
+            "track_width" => p.track_width = parse_value(spec, value)?,
+            "lookahead" => p.view.lookahead = parse_value(spec, value)?,
+            "rate_a" => p.view.rate_a = parse_value(spec, value)?,
+            "rate_b" => p.view.rate_b = parse_value(spec, value)?,
+            "output_width" => p.render.output_width = Some(parse_value(spec, value)?),
+            "output_height" => p.render.output_height = Some(parse_value(spec, value)?),
+            other => unreachable!("option {other} is in OPTIONS but has no setter"),
+        }
+        Ok(())
+    }
+
+    /// Checks every parameter against its range.
+    pub fn validate(&self) -> Result<(), AmcError> {
+        self.params.validate()
+    }
+}
+
+/// Parses one option's text as a `T`; the error names the option and what it accepts.
+fn parse_value<T: std::str::FromStr>(spec: &OptionSpec, value: &str) -> Result<T, AmcError> {
+    value
+        .trim()
+        .parse::<T>()
+        .map_err(|_| AmcError::InvalidParameter {
+            name: spec.name,
+            value: format!("{value:?}"),
+            allowed: spec.help,
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_option_has_a_setter_and_a_flag() {
+        for spec in OPTIONS {
+            let value = match spec.name {
+                "mode" => "saccade",
+                "fov" => "90",
+                _ => "20",
+            };
+            let mut o = StabilizerOptions::default();
+            o.set(spec.name, value).unwrap();
+            assert_ne!(
+                o,
+                StabilizerOptions::default(),
+                "{} changed nothing",
+                spec.name
+            );
+            assert_eq!(spec.flag, spec.name.replace('_', "-"));
+        }
+    }
+
+    #[test]
+    fn values_land_in_their_fields() {
+        let mut o = StabilizerOptions::default();
+        for (k, v) in [
+            ("mode", "saccade"),
+            ("n_avg", "4"),
+            ("margin", "0.1"),
+            ("fov", "90"),
+            ("lookahead", "3"),
+            ("rate_a", "0.5"),
+            ("rate_b", "10"),
+        ] {
+            o.set(k, v).unwrap();
+        }
+        o.validate().unwrap();
+        assert_eq!(o.params.view.mode, Mode::Saccade);
+        assert_eq!(o.params.render.n_avg, 4);
+        assert_eq!(o.params.view.lookahead, 3);
+        assert_eq!(o.params.view.rate_a, 0.5);
+        assert_eq!(o.params.view.rate_b, 10.0);
+        assert_eq!(o.lens, LensSpec::Fov(90.0));
+    }
+
+    #[test]
+    fn bad_values_name_the_option_and_its_range() {
+        for (k, v) in [
+            ("n_avg", "0"),
+            ("n_avg", "abc"),
+            ("margin", "0.9"),
+            ("fov", "500"),
+            ("fov", "0"),
+            ("fov", "nan"),
+            ("mode", "wobble"),
+            ("lookahead", "100000"),
+            ("n_track", "-3"),
+            ("rate_a", "-1"),
+        ] {
+            let mut o = StabilizerOptions::default();
+            let msg = match o.set(k, v) {
+                Err(e) => e.to_string(),
+                Ok(()) => o.validate().unwrap_err().to_string(),
+            };
+            assert!(msg.contains(k), "{k}={v}: {msg}");
+            assert!(msg.contains("allowed"), "{k}={v}: {msg}");
+        }
+        let e = StabilizerOptions::default().set("bogus", "1").unwrap_err();
+        assert!(e.to_string().contains("n_avg"), "{e}");
+    }
+
+    #[test]
+    fn fov_range_is_the_pinhole_cameras() {
+        assert_eq!(LensSpec::parse_fov("AUTO").unwrap(), LensSpec::Auto);
+        assert_eq!(LensSpec::parse_fov("179").unwrap(), LensSpec::Fov(179.0));
+        assert_eq!(LensSpec::parse_fov("0.5").unwrap(), LensSpec::Fov(0.5));
+        assert!(LensSpec::parse_fov("179.5").is_err());
+        for deg in [0.5, 179.0] {
+            crate::CameraModel::pinhole_hfov(64, 48, deg).unwrap();
+        }
+    }
+}

@@ -1,0 +1,495 @@
+//! Command-line arguments: the only place clap lives. Each subcommand's
+//! struct converts into the library's plain settings; the stabilizer's own
+//! options come from [`crate::options::StabilizerFlags`], generated from the
+//! core's one definition of each option.
+
+use crate::error::CliError;
+use crate::options::StabilizerFlags;
+use amc_core::view::Mode;
+use amc_core::LensSpec;
+use clap::{Args, Parser, Subcommand};
+use std::net::SocketAddr;
+use std::path::PathBuf;
+
+/// Artificial Microsaccade Compensation: stable video from shaking cameras.
+#[derive(Parser, Debug)]
+#[command(name = "amc", version, about, long_about = None)]
+pub struct Cli {
+    /// The command.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The commands.
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Stabilize a video, a folder of images, or a .y4m file.
+    Stabilize(StabilizeArgs),
+    /// Run none / stabilize / saccade on a clip and print the paper's metrics.
+    Eval(EvalArgs),
+    /// Render a rotation-only shaking sequence from an equirectangular panorama.
+    Synth(SynthArgs),
+    /// Render a built-in shaky clip, stabilize it and say where the results are.
+    Demo(DemoArgs),
+    /// Run the HTTP service: REST stabilization, batch jobs, a live WebSocket feed, the web page.
+    Serve(ServeArgs),
+    /// Compare our modes with ffmpeg's vid.stab and deshake: speed and quality, one report.
+    Compare(CompareArgs),
+}
+
+/// How the input is read.
+#[derive(Args, Debug, Clone)]
+pub struct InputFlags {
+    /// Frame rate of an image folder (default: its meta.json or gt.csv, else 30),
+    /// or to override a video's timestamps.
+    #[arg(long)]
+    pub fps: Option<f64>,
+    /// Longest time (seconds) an ffmpeg child may stall before it is killed.
+    #[arg(long, default_value_t = 120)]
+    pub timeout: u64,
+}
+
+/// `amc stabilize`.
+#[derive(Args, Debug)]
+pub struct StabilizeArgs {
+    /// Input: any video ffmpeg reads, a folder of images (natural order), or .y4m.
+    pub input: PathBuf,
+    /// Output: .mp4 (H.264) / .webm / .mkv (audio copied), .y4m, or a folder for PNGs.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Lens file: the project's JSON, an OpenCV calibration (JSON/YAML) or a Gyroflow profile.
+    #[arg(long, value_name = "FILE", conflicts_with = "fov")]
+    pub lens: Option<PathBuf>,
+    /// The stabilizer's options.
+    #[command(flatten)]
+    pub stabilizer: StabilizerFlags,
+    /// How the input is read.
+    #[command(flatten)]
+    pub input_flags: InputFlags,
+    /// Write per-frame telemetry (CSV: frame,t,rx,ry,rz,vx,vy,vz,...).
+    #[arg(long, value_name = "FILE.csv")]
+    pub telemetry: Option<PathBuf>,
+    /// Write the clip's metrics (JSON).
+    #[arg(long, value_name = "FILE.json")]
+    pub metrics: Option<PathBuf>,
+    /// Video quality: x264 CRF 0..=51 for .mp4/.mkv (default 20), VP9 CRF 0..=63
+    /// for .webm (default 32); lower is better and larger.
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..=63))]
+    pub crf: Option<u8>,
+    /// No progress bar or summary.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// `amc eval`.
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// Input clip (as for `stabilize`).
+    pub input: PathBuf,
+    /// Lens file (as for `stabilize`).
+    #[arg(long, value_name = "FILE", conflicts_with = "fov")]
+    pub lens: Option<PathBuf>,
+    /// The stabilizer's options (`--mode` is ignored: every mode is run).
+    #[command(flatten)]
+    pub stabilizer: StabilizerFlags,
+    /// How the input is read.
+    #[command(flatten)]
+    pub input_flags: InputFlags,
+    /// Print JSON instead of a Markdown table.
+    #[arg(long)]
+    pub json: bool,
+    /// Ground-truth orientations (`gt.csv` from `amc synth`): adds rotation errors.
+    #[arg(long, value_name = "GT.csv")]
+    pub gt: Option<PathBuf>,
+    /// Write a per-frame plot (PNG) of angular speed and normal flow, like the paper's Figure 2.
+    #[arg(long, value_name = "FILE.png")]
+    pub plot: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// `amc demo`.
+#[derive(Args, Debug)]
+pub struct DemoArgs {
+    /// Folder for the demo's files.
+    #[arg(short, long, default_value = "out/demo")]
+    pub output: PathBuf,
+    /// Equirectangular panorama to film (default: the shared Jordan Pond panorama
+    /// if present, else a built-in procedural scene).
+    #[arg(long)]
+    pub panorama: Option<PathBuf>,
+    /// RMS shake, deg/s.
+    #[arg(long, default_value_t = 100.0)]
+    pub shake_dps: f64,
+    /// Clip length, seconds.
+    #[arg(long, default_value_t = 5.0)]
+    pub seconds: f64,
+}
+
+impl DemoArgs {
+    /// The library's settings.
+    pub fn config(self) -> amc_server::demo::DemoConfig {
+        amc_server::demo::DemoConfig {
+            output: self.output,
+            panorama: self.panorama,
+            shake_dps: self.shake_dps,
+            seconds: self.seconds,
+        }
+    }
+}
+
+/// How the lens of clips is known, for commands without the stabilizer's flags.
+#[derive(Args, Debug, Clone, Default)]
+pub struct LensFlags {
+    /// Lens file: the project's JSON, an OpenCV calibration (JSON/YAML) or a Gyroflow profile.
+    #[arg(long, value_name = "FILE", conflicts_with = "fov")]
+    pub lens: Option<PathBuf>,
+    /// Horizontal field of view of a pinhole lens in degrees (0 < DEG <= 179), or
+    /// `auto` to estimate it from the footage. Default without --lens: auto.
+    #[arg(long, value_name = "DEG|auto")]
+    pub fov: Option<String>,
+}
+
+impl LensFlags {
+    /// The lens these flags name.
+    pub fn spec(&self) -> Result<LensSpec, CliError> {
+        match (&self.lens, &self.fov) {
+            (Some(p), _) => Ok(LensSpec::File(p.clone())),
+            (None, Some(v)) => Ok(LensSpec::parse_fov(v)?),
+            (None, None) => Ok(LensSpec::Auto),
+        }
+    }
+}
+
+/// Parses `stabilize`, `saccade` or `none`.
+pub fn parse_mode(s: &str) -> Result<Mode, String> {
+    s.parse::<Mode>().map_err(|e| e.to_string())
+}
+
+fn parse_floats<const N: usize>(s: &str, what: &str) -> Result<[f64; N], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != N {
+        return Err(format!(
+            "expected {N} comma-separated numbers ({what}), got '{s}'"
+        ));
+    }
+    let mut out = [0.0; N];
+    for (o, p) in out.iter_mut().zip(&parts) {
+        *o = p
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("'{p}' is not a finite number ({what})"))?;
+    }
+    Ok(out)
+}
+
+fn parse_band(s: &str) -> Result<(f64, f64), String> {
+    let [lo, hi] = parse_floats::<2>(s, "LO,HI in Hz")?;
+    Ok((lo, hi))
+}
+
+fn parse_k4(s: &str) -> Result<[f64; 4], String> {
+    parse_floats::<4>(s, "K1,K2,K3,K4")
+}
+
+fn parse_size(s: &str) -> Result<(usize, usize), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("'{s}' is not WxH"))?;
+    let p = |v: &str| {
+        v.trim()
+            .parse::<usize>()
+            .ok()
+            .filter(|&n| (32..=4096).contains(&n))
+            .ok_or_else(|| format!("'{v}' in '{s}' is not a size (allowed: 32..=4096 pixels)"))
+    };
+    Ok((p(w)?, p(h)?))
+}
+
+/// `amc serve` options.
+#[derive(Args, Debug, Clone)]
+pub struct ServeArgs {
+    /// Address to listen on (port 0 picks a free port; the chosen one is printed).
+    #[arg(long, default_value = "127.0.0.1:8080")]
+    pub addr: SocketAddr,
+    /// Folder of the web page served at `/` (built by `bash web/build.sh`).
+    #[arg(long, default_value = "web/dist")]
+    pub web_dir: PathBuf,
+    /// Folder for uploads and results (default: a new folder in the system's temp dir,
+    /// removed on exit).
+    #[arg(long)]
+    pub work_dir: Option<PathBuf>,
+    /// Largest upload, megabytes.
+    #[arg(long, default_value_t = 2000)]
+    pub max_upload_mb: u64,
+    /// Widest video accepted, pixels.
+    #[arg(long, default_value_t = 3840)]
+    pub max_width: usize,
+    /// Tallest video accepted, pixels.
+    #[arg(long, default_value_t = 2160)]
+    pub max_height: usize,
+    /// Longest video accepted, seconds.
+    #[arg(long, default_value_t = 1800.0)]
+    pub max_duration: f64,
+    /// Clips processed at once (default: the number of CPU cores).
+    #[arg(long)]
+    pub workers: Option<usize>,
+    /// Clips accepted beyond those being processed (they wait); more get 503.
+    #[arg(long, default_value_t = 8)]
+    pub queue: usize,
+    /// Longest a clip may take to process, seconds.
+    #[arg(long, default_value_t = 3600)]
+    pub job_time_limit: u64,
+    /// How long a finished job's results are kept, seconds.
+    #[arg(long, default_value_t = 3600)]
+    pub job_ttl: u64,
+    /// Disk space uploads and results may use together, megabytes.
+    #[arg(long, default_value_t = 20_000)]
+    pub max_disk_mb: u64,
+    /// Longest an ffmpeg child may stall before it is killed, seconds.
+    #[arg(long, default_value_t = 60)]
+    pub ffmpeg_timeout: u64,
+    /// Live feed source: a file, an RTSP/UDP/SRT URL or a device (anything ffmpeg opens).
+    /// Without it, the feed comes from a publisher on /live/ingest.
+    #[arg(long, value_name = "SOURCE")]
+    pub live_source: Option<String>,
+    /// Replay a file --live-source forever.
+    #[arg(long)]
+    pub live_loop: bool,
+    /// ffmpeg input format of --live-source (e.g. v4l2 for /dev/video0).
+    #[arg(long, value_name = "FMT")]
+    pub live_format: Option<String>,
+    /// Live feed mode: stabilize or saccade.
+    #[arg(long, default_value = "stabilize", value_parser = parse_mode)]
+    pub live_mode: Mode,
+    /// Horizontal field of view of the live camera, degrees (a pinhole).
+    #[arg(long, default_value_t = amc_server::engine::FALLBACK_FOV_DEG, conflicts_with = "live_lens")]
+    pub live_fov: f64,
+    /// Lens file of the live camera (as for `amc stabilize --lens`).
+    #[arg(long, value_name = "FILE")]
+    pub live_lens: Option<PathBuf>,
+    /// Frames averaged into each live output frame (1..=64).
+    #[arg(long, default_value_t = 6)]
+    pub live_n_avg: usize,
+    /// Share cropped from each side of the live output (0..=0.45).
+    #[arg(long, default_value_t = 0.125)]
+    pub live_margin: f64,
+    /// Width of the live output in pixels (default: the cropped input width).
+    #[arg(long)]
+    pub live_width: Option<usize>,
+    /// JPEG quality of live frames (1..=100).
+    #[arg(long, default_value_t = 80)]
+    pub live_jpeg_quality: u8,
+    /// Log one JSON object per line (for log collectors) instead of text.
+    /// The level is set with RUST_LOG (default: info).
+    #[arg(long)]
+    pub log_json: bool,
+}
+
+impl ServeArgs {
+    /// The library's settings.
+    pub fn config(self) -> amc_server::serve::ServeConfig {
+        amc_server::serve::ServeConfig {
+            addr: self.addr,
+            web_dir: self.web_dir,
+            work_dir: self.work_dir,
+            max_upload_mb: self.max_upload_mb,
+            max_width: self.max_width,
+            max_height: self.max_height,
+            max_duration: self.max_duration,
+            workers: self.workers,
+            queue: self.queue,
+            job_time_limit: self.job_time_limit,
+            job_ttl: self.job_ttl,
+            max_disk_mb: self.max_disk_mb,
+            ffmpeg_timeout: self.ffmpeg_timeout,
+            live_source: self.live_source,
+            live_loop: self.live_loop,
+            live_format: self.live_format,
+            live_mode: self.live_mode,
+            live_fov: self.live_fov,
+            live_lens: self.live_lens,
+            live_n_avg: self.live_n_avg,
+            live_margin: self.live_margin,
+            live_width: self.live_width,
+            live_jpeg_quality: self.live_jpeg_quality,
+            log_json: self.log_json,
+        }
+    }
+}
+
+/// Render a shaky synthetic clip (PNG frames, gt.csv, lens.json) from an
+/// equirectangular panorama.
+#[derive(Args, Debug, Clone)]
+pub struct SynthArgs {
+    /// Equirectangular (2:1, full-sphere) panorama, PNG or JPEG.
+    pub panorama: PathBuf,
+
+    /// Output directory (must not exist, or be empty).
+    #[arg(short, long, value_name = "DIR")]
+    pub output: PathBuf,
+
+    /// Horizontal field of view, degrees (of the fisheye with --fisheye).
+    #[arg(
+        long,
+        default_value_t = 90.0,
+        value_name = "DEG",
+        allow_negative_numbers = true
+    )]
+    pub fov: f64,
+
+    /// Render through a Kannala-Brandt (OpenCV fisheye) lens with these
+    /// coefficients instead of a pinhole.
+    #[arg(long, value_name = "K1,K2,K3,K4", value_parser = parse_k4, allow_hyphen_values = true)]
+    pub fisheye: Option<[f64; 4]>,
+
+    /// Frame width, pixels.
+    #[arg(long, default_value_t = 320)]
+    pub width: usize,
+
+    /// Frame height, pixels.
+    #[arg(long, default_value_t = 180)]
+    pub height: usize,
+
+    /// Frames per second.
+    #[arg(long, default_value_t = 60.0, allow_negative_numbers = true)]
+    pub fps: f64,
+
+    /// Clip length, seconds.
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
+    pub seconds: f64,
+
+    /// RMS angular speed of the shake, deg/s.
+    #[arg(
+        long,
+        default_value_t = 100.0,
+        value_name = "DEG_PER_S",
+        allow_negative_numbers = true
+    )]
+    pub shake_dps: f64,
+
+    /// Frequency band of the shake, Hz.
+    #[arg(long, default_value = "12,20", value_name = "LO,HI", value_parser = parse_band, allow_hyphen_values = true)]
+    pub shake_band: (f64, f64),
+
+    /// Seed of the shake trajectory.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+
+    /// Constant yaw pan, deg/s (positive turns right).
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        value_name = "DEG_PER_S",
+        allow_negative_numbers = true
+    )]
+    pub pan_dps: f64,
+
+    /// Rolling-shutter readout time (first to last row), ms; 0 = global
+    /// shutter. gt.csv holds the orientation at the first row's exposure.
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        value_name = "MS",
+        allow_negative_numbers = true
+    )]
+    pub rolling_shutter_ms: f64,
+
+    /// Anti-aliasing: N x N rays per output pixel.
+    #[arg(long, default_value_t = 2, value_name = "N")]
+    pub supersample: usize,
+}
+
+impl SynthArgs {
+    /// The library's settings.
+    pub fn config(self) -> amc_server::synth::SynthConfig {
+        amc_server::synth::SynthConfig {
+            panorama: self.panorama,
+            output: self.output,
+            fov: self.fov,
+            fisheye: self.fisheye,
+            width: self.width,
+            height: self.height,
+            fps: self.fps,
+            seconds: self.seconds,
+            shake_dps: self.shake_dps,
+            shake_band: self.shake_band,
+            seed: self.seed,
+            pan_dps: self.pan_dps,
+            rolling_shutter_ms: self.rolling_shutter_ms,
+            supersample: self.supersample,
+        }
+    }
+}
+
+/// Compare our stabilizer with ffmpeg's vid.stab and deshake on the same clips.
+#[derive(Args, Debug)]
+pub struct CompareArgs {
+    /// Clips: videos, image folders, or folders holding `lens.json` with the images
+    /// (directly or in `frames/`) and optionally `gt.csv` (as `amc synth` writes).
+    pub clips: Vec<PathBuf>,
+    /// Folder for the report (`README.md`, plots, `results.json`); created if missing.
+    #[arg(long, value_name = "DIR")]
+    pub report: PathBuf,
+    /// Also render and compare the synthetic flapping-wing sequences (12-20 Hz shake,
+    /// 100 and 300 deg/s, pinhole and fisheye, with and without rolling shutter).
+    #[arg(long)]
+    pub synthetic: bool,
+    /// Length of each synthetic sequence, seconds (0.5..=60).
+    #[arg(long, default_value_t = 5.0)]
+    pub synthetic_seconds: f64,
+    /// Size of the synthetic sequences, WxH.
+    #[arg(long, default_value = "320x180", value_parser = parse_size)]
+    pub synthetic_size: (usize, usize),
+    /// Equirectangular panorama the synthetic sequences are rendered from.
+    #[arg(long, default_value = "../shared/data/pano/pannellum_examplepano.jpg")]
+    pub panorama: PathBuf,
+    /// Lens of clips without a `lens.json` (default: --fov auto).
+    #[command(flatten)]
+    pub lens: LensFlags,
+    /// Future frames of the `stabilize --lookahead` method (1..=300).
+    #[arg(long, default_value_t = 15)]
+    pub lookahead: usize,
+    /// Frame rate of image folders without `gt.csv` timestamps (default 30).
+    #[arg(long)]
+    pub fps: Option<f64>,
+    /// Longest any one child process (a method on a clip) may run, seconds.
+    #[arg(long, default_value_t = 1800)]
+    pub timeout: u64,
+    /// Text describing the machine, added to the detected CPU and memory in the report.
+    #[arg(long)]
+    pub machine: Option<String>,
+    /// Timed runs per method (1..=10); the fastest counts (least disturbed on a shared machine).
+    #[arg(long, default_value_t = 1)]
+    pub repeat: usize,
+    /// Also write every method's per-frame measurements (`CLIP-frames.csv`).
+    #[arg(long)]
+    pub per_frame: bool,
+    /// No progress messages.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+impl CompareArgs {
+    /// The library's settings.
+    pub fn config(self) -> Result<amc_server::compare::CompareConfig, CliError> {
+        Ok(amc_server::compare::CompareConfig {
+            clips: self.clips,
+            report: self.report,
+            synthetic: self.synthetic,
+            synthetic_seconds: self.synthetic_seconds,
+            synthetic_size: self.synthetic_size,
+            panorama: self.panorama,
+            lens: self.lens.spec()?,
+            lookahead: self.lookahead,
+            fps: self.fps,
+            timeout: self.timeout,
+            machine: self.machine,
+            repeat: self.repeat,
+            per_frame: self.per_frame,
+            quiet: self.quiet,
+        })
+    }
+}

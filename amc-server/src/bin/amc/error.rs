@@ -1,0 +1,38 @@
+//! The command line's error: every subsystem's error, wrapped. `main` prints
+//! it as one `error:` line and exits 1 (argument-syntax errors found by clap
+//! exit 2, as clap does; an interrupting signal exits 128 + its number).
+
+use amc_server::{compare, demo, engine, eval, gt, serve, synth};
+use thiserror::Error;
+
+/// Anything a command can fail with.
+#[derive(Debug, Error)]
+pub enum CliError {
+    /// A run over a clip.
+    #[error(transparent)]
+    Run(#[from] engine::RunError),
+    /// Video input or output outside a run (writing `--metrics`).
+    #[error(transparent)]
+    Video(#[from] amc_video::VideoError),
+    /// An option refused by the core.
+    #[error(transparent)]
+    Core(#[from] amc_core::AmcError),
+    /// `amc eval`.
+    #[error(transparent)]
+    Eval(#[from] eval::EvalError),
+    /// `amc synth`.
+    #[error(transparent)]
+    Synth(#[from] synth::SynthError),
+    /// `amc demo`.
+    #[error(transparent)]
+    Demo(#[from] demo::DemoError),
+    /// `amc serve`.
+    #[error(transparent)]
+    Serve(#[from] serve::ServeError),
+    /// `amc compare`.
+    #[error(transparent)]
+    Compare(#[from] compare::CompareError),
+    /// A ground-truth file.
+    #[error(transparent)]
+    Gt(#[from] gt::GtError),
+}

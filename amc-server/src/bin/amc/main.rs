@@ -1,0 +1,210 @@
+//! `amc`: the command line of Artificial Microsaccade Compensation. Thin:
+//! parse, convert, call the library, print, map the error to an exit code.
+
+mod args;
+mod error;
+mod options;
+mod progress;
+mod signals;
+
+use amc_server::engine::{self, LensNote, RunConfig, FALLBACK_FOV_DEG};
+use amc_server::{compare, demo, eval, serve, synth};
+use args::{Cli, Command, StabilizeArgs};
+use clap::Parser;
+use error::CliError;
+use std::process::ExitCode;
+use std::time::Duration;
+
+/// Tells the user how `--fov auto` went.
+fn say_lens(note: &LensNote, quiet: bool) {
+    if quiet {
+        return;
+    }
+    match note {
+        LensNote::Given => {}
+        LensNote::Estimated { hfov_deg, frames } => eprintln!(
+            "estimated horizontal field of view: {hfov_deg:.1} deg (from {frames} frames; pass --fov or --lens to set it)"
+        ),
+        LensNote::FellBack => eprintln!(
+            "warning: the footage does not pin down the focal length (translation or little rotation); \
+             assuming a {FALLBACK_FOV_DEG} deg horizontal field of view: pass --fov DEG or --lens FILE for best results"
+        ),
+    }
+}
+
+/// Warns when an image folder's frame rate was assumed.
+fn say_rate(input: &std::path::Path, fps: Option<f64>, timeout: Duration, quiet: bool) {
+    if quiet || fps.is_some() || !input.is_dir() {
+        return;
+    }
+    if let Ok(src) = amc_video::open_input(input, &engine::input_options(None, timeout)) {
+        if src.info().fps_assumed {
+            eprintln!(
+                "warning: {} states no frame rate (no meta.json or gt.csv): assuming {} frames/s; pass --fps to set it",
+                input.display(),
+                amc_video::DEFAULT_IMAGE_FPS
+            );
+        }
+    }
+}
+
+fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), CliError> {
+    let options = args
+        .stabilizer
+        .options(amc_core::Mode::Stabilize, args.lens.as_ref())?;
+    let timeout = Duration::from_secs(args.input_flags.timeout);
+    let fps = args.input_flags.fps;
+    let mut paths = vec![
+        ("input", args.input.as_path()),
+        ("output", args.output.as_path()),
+    ];
+    paths.extend(args.telemetry.iter().map(|p| ("telemetry", p.as_path())));
+    paths.extend(args.metrics.iter().map(|p| ("metrics", p.as_path())));
+    engine::check_distinct(&paths)?;
+    say_rate(&args.input, fps, timeout, args.quiet);
+    let lens = engine::resolve_lens(
+        &options.lens,
+        &args.input,
+        &options.params,
+        &engine::input_options(fps, timeout),
+        None,
+    )?;
+    say_lens(&lens.note, args.quiet);
+    let also: Vec<(&'static str, &std::path::Path)> = args
+        .metrics
+        .iter()
+        .map(|p| ("metrics", p.as_path()))
+        .collect();
+    let bar = progress::Bar::new("stabilize", !args.quiet);
+    let report = |p| bar.update(p);
+    let run = engine::run(&RunConfig {
+        input: &args.input,
+        output: Some(&args.output),
+        params: options.params,
+        lens: lens.camera,
+        telemetry: args.telemetry.as_deref(),
+        also_writes: &also,
+        fps,
+        timeout,
+        crf: args.crf,
+        keep_per_frame: false,
+        measure: args.metrics.is_some(),
+        control: Some(control),
+        progress: Some(&report),
+    })?;
+    bar.finish();
+    if run.looks_truncated() {
+        eprintln!(
+            "warning: {} declares {} frames but only {} could be decoded: the file looks truncated or damaged",
+            args.input.display(),
+            run.frames_declared.unwrap_or(0),
+            run.frames
+        );
+    }
+    if let Some(p) = &args.metrics {
+        let json = serde_json::to_string_pretty(&run).expect("a run summary is plain data");
+        amc_video::write_atomic(p, json.as_bytes())?;
+    }
+    if !args.quiet {
+        let mut line = format!(
+            "wrote {} ({} frames, {}x{}, {:.0} frames/s)",
+            args.output.display(),
+            run.frames,
+            run.output_size.0,
+            run.output_size.1,
+            run.frames_per_second
+        );
+        if let Some(m) = &run.metrics {
+            line += &format!(
+                ": normal flow {:.3} px, frame change {:.4}, valid {:.1}%, view {:.1} deg/s vs camera {:.1} deg/s",
+                m.rms_normal_flow,
+                m.rms_change,
+                100.0 * m.valid_fraction,
+                m.rms_speed_view_dps,
+                m.rms_speed_est_dps
+            );
+        }
+        if let Some(p) = &args.telemetry {
+            line += &format!("; telemetry in {}", p.display());
+        }
+        if let Some(p) = &args.metrics {
+            line += &format!("; metrics in {}", p.display());
+        }
+        eprintln!("{line}");
+    }
+    Ok(())
+}
+
+fn evaluate(a: args::EvalArgs) -> Result<(), CliError> {
+    let quiet = a.quiet;
+    let timeout = Duration::from_secs(a.input_flags.timeout);
+    say_rate(&a.input, a.input_flags.fps, timeout, quiet);
+    let cfg = eval::EvalConfig {
+        options: a
+            .stabilizer
+            .options(amc_core::Mode::Stabilize, a.lens.as_ref())?,
+        input: a.input,
+        fps: a.input_flags.fps,
+        timeout,
+        gt: a.gt,
+        plot: a.plot.clone(),
+    };
+    let bars = progress::Bars::new(!quiet);
+    let report = eval::run(&cfg, &|n| say_lens(n, quiet), &|mode, p| {
+        bars.update(mode, p)
+    })?;
+    bars.finish();
+    if a.json {
+        let s = serde_json::to_string_pretty(&report).expect("a report is plain data");
+        println!("{s}");
+    } else {
+        print!("{}", eval::markdown(&report));
+    }
+    if let Some(p) = &a.plot {
+        if !quiet {
+            eprintln!("wrote the plot to {}", p.display());
+        }
+    }
+    Ok(())
+}
+
+fn run(cli: Cli, control: &engine::RunControl) -> Result<(), CliError> {
+    match cli.command {
+        Command::Stabilize(a) => stabilize(a, control),
+        Command::Eval(a) => evaluate(a),
+        Command::Synth(a) => {
+            let bar = progress::Bar::new("rendering", true);
+            let line = synth::run(&a.config(), &|done, total| {
+                bar.count(done as u64, total as u64)
+            })?;
+            bar.finish();
+            println!("{line}");
+            Ok(())
+        }
+        Command::Demo(a) => {
+            let report = demo::run(&a.config(), &|line| eprintln!("{line}"))?;
+            println!("{report}");
+            Ok(())
+        }
+        Command::Serve(a) => Ok(serve::run(&a.config())?),
+        Command::Compare(a) => Ok(compare::run(&a.config()?)?),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let serving = matches!(cli.command, Command::Serve(_));
+    let control = std::sync::Arc::new(engine::RunControl::new(None));
+    if !serving {
+        // The service handles its own signals (graceful shutdown).
+        signals::on_interrupt(control.clone());
+    }
+    match run(cli, &control) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(CliError::Run(engine::RunError::Cancelled)) => ExitCode::from(signals::exit_code()),
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

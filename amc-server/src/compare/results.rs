@@ -1,0 +1,59 @@
+//! What `amc compare` finds: the clips and each method's measurements.
+
+use super::measure::Measured;
+use super::peers::Usage;
+use crate::gt::GtReport;
+use amc_core::image::Frame;
+use amc_core::so3;
+use amc_core::CameraModel;
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// A clip ready to compare.
+#[derive(Clone, Debug)]
+pub struct Clip {
+    /// Short name (file stem or folder name).
+    pub name: String,
+    /// What `amc stabilize` reads: a video file or an image folder.
+    pub input: PathBuf,
+    pub lens: CameraModel,
+    /// Frame rate of image folders.
+    pub fps: Option<f64>,
+    /// Ground-truth orientations (synthetic clips).
+    pub gt: Option<Vec<so3::Rot>>,
+    /// One line on where the clip comes from.
+    pub description: String,
+}
+
+/// One method's result on one clip.
+#[derive(Serialize)]
+pub struct MethodResult {
+    pub method: &'static str,
+    pub frames: usize,
+    pub usage: Usage,
+    pub frames_per_second: f64,
+    pub measured: Measured,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ground_truth: Option<GtReport>,
+    /// The middle output frame, for the strip.
+    #[serde(skip)]
+    pub middle: Option<Frame>,
+    #[serde(skip)]
+    pub saccades: Vec<bool>,
+}
+
+/// All methods on one clip.
+#[derive(Serialize)]
+pub struct ClipResult {
+    pub clip: String,
+    pub description: String,
+    pub input_size: (usize, usize),
+    pub frames: usize,
+    pub fps: f64,
+    pub hfov_deg: f64,
+    /// Whether the bars apply (synthetic clips and `cup`).
+    pub has_bars: bool,
+    pub methods: Vec<MethodResult>,
+    #[serde(skip)]
+    pub input_middle: Option<Frame>,
+}

@@ -1,0 +1,411 @@
+//! The comparison itself: per clip, decode once, run every method as a
+//! timed child, measure ours in-process and the peers from their output.
+
+use super::config::{CompareConfig, MAX_LOOKAHEAD};
+use super::error::CompareError;
+use super::results::{Clip, ClipResult, MethodResult};
+use super::{homography, measure, peers, report, synthetic};
+use crate::engine;
+use crate::gt::{self, GtReport};
+use amc_core::image::{Frame, GrayImage, PixelFormat};
+use amc_core::metrics::masked_luma_into;
+use amc_core::so3::{self, Tangent};
+use amc_core::view::Mode;
+use amc_core::{Stabilizer, StabilizerParams};
+use amc_video::{self as video, InputOptions};
+use measure::{Measured, Measurer};
+use peers::{FfmpegInput, Method};
+use std::path::Path;
+use std::time::Duration;
+
+/// The input decoded once: luma pyramids, timestamps and the middle frame.
+struct DecodedInput {
+    pyramids: Vec<homography::Pyramid>,
+    times: Vec<f64>,
+    size: (usize, usize),
+    middle: Option<Frame>,
+}
+
+fn timeout(args: &CompareConfig) -> Duration {
+    Duration::from_secs(args.timeout.max(1))
+}
+
+fn input_options(clip: &Clip, args: &CompareConfig) -> InputOptions {
+    InputOptions {
+        fps_override: clip.fps,
+        timeout: timeout(args).min(Duration::from_secs(300)),
+        ..InputOptions::default()
+    }
+}
+
+fn decode_input(clip: &Clip, args: &CompareConfig) -> Result<DecodedInput, CompareError> {
+    let mut src = video::open_input(&clip.input, &input_options(clip, args))?;
+    let info = src.info().clone();
+    let mid = info.frame_count.map(|n| n / 2);
+    let mut frame = Frame::new(info.width, info.height, PixelFormat::Rgb8);
+    let mut luma = GrayImage::default();
+    let all = vec![1u8; info.width * info.height];
+    let mut out = DecodedInput {
+        pyramids: Vec::new(),
+        times: Vec::new(),
+        size: (info.width, info.height),
+        middle: None,
+    };
+    while let Some(t) = src.next_frame(&mut frame)? {
+        if Some(out.times.len() as u64) == mid {
+            out.middle = Some(frame.clone());
+        }
+        masked_luma_into(&frame.as_ref(), &all, &mut luma);
+        out.pyramids.push(homography::Pyramid::new(&luma));
+        out.times.push(t);
+    }
+    if out.times.is_empty() {
+        return Err(CompareError::NoFrames(clip.input.clone()));
+    }
+    Ok(out)
+}
+
+/// The stabilizer parameters `amc stabilize` uses by default for `method`.
+fn our_params(method: Method, lookahead: usize) -> StabilizerParams {
+    let mode = match method {
+        Method::None => Mode::None,
+        Method::Saccade => Mode::Saccade,
+        _ => Mode::Stabilize,
+    };
+    let mut p = amc_core::StabilizerOptions::with_mode(mode).params;
+    if method == Method::StabilizeLookahead {
+        p.view.lookahead = lookahead;
+    }
+    p
+}
+
+fn fps_of(input: &DecodedInput) -> f64 {
+    let n = input.times.len();
+    if n >= 2 {
+        let span = input.times[n - 1] - input.times[0];
+        if span > 0.0 {
+            return (n - 1) as f64 / span;
+        }
+    }
+    30.0
+}
+
+/// What the in-process run of one of our modes gives besides the measurements.
+struct OursMeasured {
+    measured: Measured,
+    ground_truth: Option<GtReport>,
+    middle: Option<Frame>,
+    saccades: Vec<bool>,
+}
+
+/// Measures one of our modes in-process (same output as the timed child).
+fn measure_ours(
+    method: Method,
+    clip: &Clip,
+    input: &DecodedInput,
+    args: &CompareConfig,
+) -> Result<OursMeasured, CompareError> {
+    let params = our_params(method, args.lookahead);
+    let mut src = video::open_input(&clip.input, &input_options(clip, args))?;
+    let (w, h) = input.size;
+    let mut stab = Stabilizer::new(&clip.lens, w, h, params)?;
+    let mut m = Measurer::new(fps_of(input), w, clip.lens.fx);
+    let mut frame = Frame::new(w, h, PixelFormat::Rgb8);
+    let mut est = Vec::new();
+    let mut saccades = Vec::new();
+    let mut middle = None;
+    let mid = input.times.len() / 2;
+    let mut handle = |stab: &Stabilizer, tel: amc_core::Telemetry| {
+        let j = tel.frame as usize;
+        let Some(pyr) = input.pyramids.get(j) else {
+            return;
+        };
+        let out = stab.output();
+        m.push(
+            tel.t,
+            pyr,
+            &out,
+            stab.output_coverage(),
+            tel.valid_fraction,
+            Some(&tel),
+        );
+        if j == mid {
+            let mut f = Frame::new(out.width, out.height, out.format);
+            f.copy_from(&out);
+            middle = Some(f);
+        }
+        est.push(so3::exp(&Tangent::from(tel.r_est)));
+        saccades.push(tel.saccade);
+    };
+    while let Some(t) = src.next_frame(&mut frame)? {
+        if let Some(tel) = stab.push(frame.as_ref(), t)? {
+            handle(&stab, tel);
+        }
+    }
+    while let Some(tel) = stab.finish() {
+        handle(&stab, tel);
+    }
+    let ground_truth = clip.gt.as_ref().map(|g| gt::compare(g, &est));
+    Ok(OursMeasured {
+        measured: m.finish(),
+        ground_truth,
+        middle,
+        saccades,
+    })
+}
+
+/// Measures a peer's output `.y4m` (validity from the alternative-fill run).
+fn measure_peer(
+    clip: &Clip,
+    input: &DecodedInput,
+    outs: &peers::PeerOutputs,
+    args: &CompareConfig,
+) -> Result<(Measured, Option<Frame>), CompareError> {
+    let opts = InputOptions {
+        fps_override: None,
+        timeout: timeout(args).min(Duration::from_secs(300)),
+        ..InputOptions::default()
+    };
+    let mut a_src = video::open_input(&outs.main, &opts)?;
+    let mut b_src = video::open_input(&outs.alt, &opts)?;
+    let (w, h) = (a_src.info().width, a_src.info().height);
+    let mut a = Frame::new(w, h, PixelFormat::Rgb8);
+    let mut b = Frame::new(w, h, PixelFormat::Rgb8);
+    let mut m = Measurer::new(fps_of(input), input.size.0, clip.lens.fx);
+    let mut mask = Vec::new();
+    let mut middle = None;
+    let mid = input.times.len() / 2;
+    for (j, pyr) in input.pyramids.iter().enumerate() {
+        let (Some(_), Some(_)) = (a_src.next_frame(&mut a)?, b_src.next_frame(&mut b)?) else {
+            break;
+        };
+        let valid = measure::agreement_mask(&a.as_ref(), &b.as_ref(), &mut mask);
+        m.push(input.times[j], pyr, &a.as_ref(), &mask, valid, None);
+        if j == mid {
+            middle = Some(a.clone());
+        }
+    }
+    Ok((m.finish(), middle))
+}
+
+/// Runs every method on `clip`, in a scratch folder under `work`.
+fn compare_clip(
+    clip: &Clip,
+    args: &CompareConfig,
+    work: &Path,
+) -> Result<ClipResult, CompareError> {
+    let say = |s: String| {
+        if !args.quiet {
+            eprintln!("[{}] {s}", clip.name);
+        }
+    };
+    let dir = work.join(&clip.name);
+    std::fs::create_dir_all(&dir).map_err(|e| CompareError::io(&dir, e))?;
+    say("decoding the input".into());
+    let input = decode_input(clip, args)?;
+    let fps = fps_of(&input);
+    let lens_json = dir.join("lens.json");
+    std::fs::write(&lens_json, amc_core::lens::to_project_json(&clip.lens))
+        .map_err(|e| CompareError::io(&lens_json, e))?;
+    let ff_input = if clip.input.is_dir() {
+        let list = dir.join("frames.ffconcat");
+        let images = video::list_images(&clip.input)?;
+        peers::write_concat_list(&list, &images, clip.fps.unwrap_or(fps))?;
+        FfmpegInput::Concat(list)
+    } else {
+        FfmpegInput::File(clip.input.clone())
+    };
+    let mut methods = Vec::new();
+    for method in Method::ALL {
+        say(format!("{}: timed run", method.label()));
+        let r = if method.is_ours() {
+            let (usage, out) = peers::run_ours(
+                method,
+                &clip.input,
+                &lens_json,
+                clip.fps,
+                args.lookahead,
+                &dir,
+                timeout(args),
+                args.repeat,
+            )?;
+            let _ = std::fs::remove_file(&out);
+            say(format!("{}: measuring", method.label()));
+            let OursMeasured {
+                measured,
+                ground_truth,
+                middle,
+                saccades,
+            } = measure_ours(method, clip, &input, args)?;
+            MethodResult {
+                method: method.label(),
+                frames: measured.frames.len(),
+                frames_per_second: input.times.len() as f64 / usage.seconds.max(1e-9),
+                usage,
+                measured,
+                ground_truth,
+                middle,
+                saccades,
+            }
+        } else {
+            let (usage, outs) =
+                peers::run_peer(method, &ff_input, &dir, timeout(args), args.repeat)?;
+            say(format!("{}: measuring", method.label()));
+            let measured = measure_peer(clip, &input, &outs, args);
+            let _ = std::fs::remove_file(&outs.main);
+            let _ = std::fs::remove_file(&outs.alt);
+            let (measured, middle) = measured?;
+            MethodResult {
+                method: method.label(),
+                frames: measured.frames.len(),
+                frames_per_second: input.times.len() as f64 / usage.seconds.max(1e-9),
+                usage,
+                measured,
+                ground_truth: None,
+                middle,
+                saccades: Vec::new(),
+            }
+        };
+        if r.frames == 0 {
+            return Err(CompareError::NoOutput {
+                method: method.label().into(),
+                clip: clip.name.clone(),
+            }
+            .into());
+        }
+        methods.push(r);
+    }
+    Ok(ClipResult {
+        clip: clip.name.clone(),
+        description: clip.description.clone(),
+        input_size: input.size,
+        frames: input.times.len(),
+        fps,
+        hfov_deg: clip.lens.hfov_deg(),
+        has_bars: clip.gt.is_some() || clip.name == "cup",
+        methods,
+        input_middle: input.middle,
+    })
+}
+
+/// Resolves a CLIP argument.
+fn resolve_clip(path: &Path, args: &CompareConfig) -> Result<Clip, CompareError> {
+    let stem = |p: &Path| {
+        p.file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "clip".into())
+    };
+    let timeout = Duration::from_secs(120);
+    if path.is_dir() && path.join("lens.json").is_file() {
+        let lens_path = path.join("lens.json");
+        let text =
+            std::fs::read_to_string(&lens_path).map_err(|e| CompareError::io(&lens_path, e))?;
+        let lens = amc_core::lens::parse_lens(&text).map_err(|source| CompareError::Lens {
+            path: lens_path.clone(),
+            source,
+        })?;
+        let frames = if path.join("frames").is_dir() {
+            path.join("frames")
+        } else {
+            path.to_path_buf()
+        };
+        let gt_path = path.join("gt.csv");
+        let (gt, fps) = if gt_path.is_file() {
+            (
+                Some(gt::read_orientations(&gt_path)?),
+                synthetic::fps_from_gt(&gt_path)?,
+            )
+        } else {
+            (None, None)
+        };
+        return Ok(Clip {
+            name: stem(path),
+            input: frames,
+            lens,
+            fps: fps.or(args.fps),
+            gt,
+            description: format!("`{}` (lens from lens.json)", path.display()),
+        });
+    }
+    let fps = if path.is_dir() { args.fps } else { None };
+    let params = StabilizerParams::default();
+    let resolved = engine::resolve_lens(
+        &args.lens,
+        path,
+        &params,
+        &engine::input_options(fps, timeout),
+        None,
+    )?;
+    if resolved.note == engine::LensNote::FellBack && !args.quiet {
+        eprintln!(
+            "warning: {}: the footage does not pin down the focal length; assuming {} deg (pass --fov or --lens)",
+            path.display(),
+            engine::FALLBACK_FOV_DEG
+        );
+    }
+    let lens = resolved.camera;
+    Ok(Clip {
+        name: stem(path),
+        input: path.to_path_buf(),
+        lens: lens.clone(),
+        fps,
+        gt: None,
+        description: format!(
+            "`{}` (pinhole, hfov {:.1} deg)",
+            path.display(),
+            lens.hfov_deg()
+        ),
+    })
+}
+
+/// Runs `amc compare`.
+pub fn run(args: &CompareConfig) -> Result<(), CompareError> {
+    if args.clips.is_empty() && !args.synthetic {
+        return Err(CompareError::NoClips.into());
+    }
+    if !(0.5..=60.0).contains(&args.synthetic_seconds) {
+        return Err(CompareError::SyntheticSeconds(args.synthetic_seconds).into());
+    }
+    if !(1..=MAX_LOOKAHEAD).contains(&args.lookahead) {
+        return Err(CompareError::Lookahead(args.lookahead).into());
+    }
+    if !(1..=10).contains(&args.repeat) {
+        return Err(CompareError::Repeat(args.repeat).into());
+    }
+    if args.synthetic && !args.panorama.is_file() {
+        return Err(CompareError::NoPanorama(args.panorama.clone()).into());
+    }
+    video::ffmpeg_available()?;
+    std::fs::create_dir_all(&args.report).map_err(|e| CompareError::io(&args.report, e))?;
+    let work = tempfile::Builder::new()
+        .prefix(".amc-compare-")
+        .tempdir_in(&args.report)
+        .map_err(|e| CompareError::io(&args.report, e))?;
+    let mut clips = Vec::new();
+    for p in &args.clips {
+        clips.push(resolve_clip(p, args)?);
+    }
+    if args.synthetic {
+        for spec in &synthetic::SEQUENCES {
+            if !args.quiet {
+                eprintln!("rendering synthetic sequence {}", spec.name);
+            }
+            let dir = synthetic::render(spec, args, work.path())?;
+            let mut clip = resolve_clip(&dir, args)?;
+            clip.name = spec.name.to_string();
+            clip.description = spec.describe(args);
+            clips.push(clip);
+        }
+    }
+    let mut results = Vec::new();
+    for clip in &clips {
+        let r = compare_clip(clip, args, work.path())?;
+        // Write as we go, so a long run leaves a report of what finished.
+        results.push(r);
+        report::write(&args.report, &results, args)?;
+    }
+    if !args.quiet {
+        eprintln!("wrote {}", args.report.join(report::REPORT_FILE).display());
+    }
+    Ok(())
+}

@@ -1,0 +1,124 @@
+//! Turning a [`LensSpec`] (`--lens FILE`, `--fov DEG`, `--fov auto`) into a camera.
+
+use super::RunError;
+use amc_core::{selfcal, CameraModel, Frame, LensSpec, PixelFormat, StabilizerParams};
+use amc_video::{self as video, InputOptions};
+use std::path::Path;
+use std::time::Duration;
+
+/// Horizontal field of view assumed when `--fov auto` cannot pin the focal
+/// length down: a typical phone / action-camera main lens.
+pub const FALLBACK_FOV_DEG: f64 = 70.0;
+
+/// Frames read for `--fov auto` (about 3 s at 30 fps).
+pub const AUTO_FOV_FRAMES: usize = 90;
+
+/// Where a camera came from, for the caller to tell the user.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LensNote {
+    /// A lens file or a field of view was given.
+    Given,
+    /// `auto` estimated this horizontal field of view (degrees) from `frames` frames.
+    Estimated {
+        /// The estimate, degrees.
+        hfov_deg: f64,
+        /// Frames it was estimated from.
+        frames: usize,
+    },
+    /// `auto` could not pin the focal length down (translation, little
+    /// rotation) and fell back to [`FALLBACK_FOV_DEG`].
+    FellBack,
+}
+
+/// A camera for the input's frames, and how it was found.
+#[derive(Clone, Debug)]
+pub struct ResolvedLens {
+    /// The camera model.
+    pub camera: CameraModel,
+    /// How it was found.
+    pub note: LensNote,
+}
+
+/// Resolves `spec` to a camera for frames of `input`; `size` is the frame size
+/// when the caller already knows it (saves opening the input for a `fov`).
+pub fn resolve_lens(
+    spec: &LensSpec,
+    input: &Path,
+    params: &StabilizerParams,
+    opts: &InputOptions,
+    size: Option<(usize, usize)>,
+) -> Result<ResolvedLens, RunError> {
+    let given = |camera| {
+        Ok(ResolvedLens {
+            camera,
+            note: LensNote::Given,
+        })
+    };
+    match spec {
+        LensSpec::File(p) => {
+            let text = std::fs::read_to_string(p).map_err(|source| RunError::LensRead {
+                path: p.clone(),
+                source,
+            })?;
+            let camera =
+                amc_core::lens::parse_lens(&text).map_err(|source| RunError::LensParse {
+                    path: p.clone(),
+                    source,
+                })?;
+            given(camera)
+        }
+        LensSpec::Fov(deg) => {
+            let (w, h) = match size {
+                Some(s) => s,
+                None => {
+                    let src = video::open_input(input, opts)?;
+                    (src.info().width, src.info().height)
+                }
+            };
+            given(CameraModel::pinhole_hfov(w, h, *deg).map_err(amc_core::AmcError::from)?)
+        }
+        LensSpec::Auto => {
+            let mut src = video::open_input(input, opts)?;
+            let mut frames = Vec::new();
+            let mut buf = Frame::new(0, 0, PixelFormat::Rgb8);
+            while frames.len() < AUTO_FOV_FRAMES {
+                match src.next_frame(&mut buf)? {
+                    Some(t) => frames.push((buf.clone(), t)),
+                    None => break,
+                }
+            }
+            if frames.is_empty() {
+                return Err(RunError::NoFrames {
+                    path: input.to_path_buf(),
+                });
+            }
+            let refs: Vec<_> = frames.iter().map(|(f, t)| (f.as_ref(), *t)).collect();
+            let est = selfcal::estimate_hfov(&refs, params.track_width, &params.tracker)?;
+            if !est.confident {
+                let (w, h) = (frames[0].0.width, frames[0].0.height);
+                return Ok(ResolvedLens {
+                    camera: CameraModel::pinhole_hfov(w, h, FALLBACK_FOV_DEG)
+                        .map_err(amc_core::AmcError::from)?,
+                    note: LensNote::FellBack,
+                });
+            }
+            Ok(ResolvedLens {
+                camera: est.camera,
+                note: LensNote::Estimated {
+                    hfov_deg: est.hfov_deg,
+                    frames: frames.len(),
+                },
+            })
+        }
+    }
+}
+
+/// Options to open an input with: `fps` overrides its timestamps (image folders
+/// default to 30 fps), `timeout` bounds each ffmpeg stall.
+pub fn input_options(fps: Option<f64>, timeout: Duration) -> InputOptions {
+    InputOptions {
+        fps_override: fps,
+        timeout,
+        ..InputOptions::default()
+    }
+}

@@ -1,0 +1,24 @@
+//! The run engine: one stabilization run over a whole input (decode ->
+//! track -> view -> render -> encode), with telemetry, metrics and progress.
+//!
+//! Config in, [`RunSummary`] or a typed [`RunError`] out. It decides nothing
+//! about presentation: progress goes to a callback, notes about the lens come
+//! back as values, so the command line, `eval`, `demo`, `compare` and the
+//! service all drive the same engine.
+
+mod control;
+mod error;
+mod lens;
+mod measure;
+mod paths;
+mod run;
+mod telemetry;
+
+pub use control::RunControl;
+pub use error::RunError;
+pub use lens::{
+    input_options, resolve_lens, LensNote, ResolvedLens, AUTO_FOV_FRAMES, FALLBACK_FOV_DEG,
+};
+pub use paths::check_distinct;
+pub use run::{run, FrameRecord, Progress, RunConfig, RunSummary, TRUNCATED_SHARE};
+pub use telemetry::TELEMETRY_HEADER;

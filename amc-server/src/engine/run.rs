@@ -1,0 +1,225 @@
+//! One stabilization run over a whole input: decode -> stabilize -> encode,
+//! with telemetry, metrics and progress. Shared by `stabilize`, `eval` and `demo`.
+
+//! One run: decode -> stabilize -> encode, with telemetry, metrics and progress.
+
+use super::control::RunControl;
+use super::measure::MetricsWorker;
+use super::{paths, telemetry, RunError};
+use amc_core::metrics::{ClipMetrics, FrameMetrics, MotionAccumulator, MotionSummary};
+use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams, Telemetry};
+use amc_video::{self as video, AtomicFile, FrameSource, OutputSpec};
+use serde::Serialize;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+/// What a run needs.
+pub struct RunConfig<'a> {
+    /// A video, a folder of images or a `.y4m` file.
+    pub input: &'a Path,
+    /// Where the stabilized video goes (none: measure only).
+    pub output: Option<&'a Path>,
+    /// The stabilizer's parameters (already validated or not: `run` validates).
+    pub params: StabilizerParams,
+    /// The camera of the input's frames.
+    pub lens: CameraModel,
+    /// Where the telemetry CSV goes.
+    pub telemetry: Option<&'a Path>,
+    /// Other files the caller will write after the run (e.g. `--metrics`),
+    /// checked not to clash with the input or the outputs before anything starts.
+    pub also_writes: &'a [(&'static str, &'a Path)],
+    /// Frame rate for image folders, or to override a video's timestamps.
+    pub fps: Option<f64>,
+    /// Longest an ffmpeg child may stall.
+    pub timeout: Duration,
+    /// Encoder quality (x264/VP9 CRF), when not the default.
+    pub crf: Option<u8>,
+    /// Keep per-frame records (for plots); memory grows with clip length.
+    pub keep_per_frame: bool,
+    /// Measure the quality metrics (costs about as much as stabilizing at 720p).
+    pub measure: bool,
+    /// Cancellation, a time limit and a progress counter.
+    pub control: Option<&'a RunControl>,
+    /// Called after every output frame.
+    pub progress: Option<&'a (dyn Fn(Progress) + Sync)>,
+}
+
+/// How far a run is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Progress {
+    /// Output frames written.
+    pub done: u64,
+    /// Frames the input declares, when it does.
+    pub total: Option<u64>,
+    /// Seconds since the run started.
+    pub elapsed_s: f64,
+}
+
+/// One output frame's record.
+#[derive(Clone, Debug, Serialize)]
+pub struct FrameRecord {
+    pub telemetry: Telemetry,
+    pub metrics: FrameMetrics,
+}
+
+/// What a run produced.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunSummary {
+    pub frames: u64,
+    /// Frames the input's container declares (when it does).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frames_declared: Option<u64>,
+    pub input_size: (usize, usize),
+    pub output_size: (usize, usize),
+    pub seconds: f64,
+    pub frames_per_second: f64,
+    /// Quality metrics (absent when not measured).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub metrics: Option<ClipMetrics>,
+    /// What the telemetry says of the whole clip (always measured: it is free).
+    pub motion: MotionSummary,
+    #[serde(skip)]
+    pub per_frame: Vec<FrameRecord>,
+}
+
+impl RunSummary {
+    /// Whether clearly fewer frames were decoded than the container declares:
+    /// the file is truncated or damaged (ffmpeg decodes what it can and
+    /// still succeeds).
+    pub fn looks_truncated(&self) -> bool {
+        self.frames_declared
+            .is_some_and(|n| (self.frames as f64) < TRUNCATED_SHARE * n as f64 - 2.0)
+    }
+}
+
+/// Share of the declared frames under which an input counts as truncated
+/// (declared counts can be a few frames off: edit lists, priming frames).
+pub const TRUNCATED_SHARE: f64 = 0.95;
+
+/// Runs the stabilizer over the whole input.
+pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
+    cfg.params.validate()?;
+    let mut outputs: Vec<(&'static str, &Path)> = vec![("input", cfg.input)];
+    outputs.extend(cfg.output.map(|p| ("output", p)));
+    outputs.extend(cfg.telemetry.map(|p| ("telemetry", p)));
+    outputs.extend(cfg.also_writes.iter().copied());
+    paths::check_distinct(&outputs)?;
+
+    let mut src: Box<dyn FrameSource> =
+        video::open_input(cfg.input, &super::input_options(cfg.fps, cfg.timeout))?;
+    let info = src.info().clone();
+    let mut stab = Stabilizer::new(&cfg.lens, info.width, info.height, cfg.params.clone())?;
+    let (ow, oh) = stab.output_size();
+    let mut sink = match cfg.output {
+        Some(path) => {
+            let mut spec = OutputSpec::new(ow, oh, cfg.fps.unwrap_or(info.fps));
+            spec.audio_from = info.has_audio.then(|| cfg.input.to_path_buf());
+            spec.timeout = cfg.timeout;
+            spec.crf = cfg.crf;
+            Some(video::create_output(path, &spec)?)
+        }
+        None => None,
+    };
+    let mut telemetry = match cfg.telemetry {
+        Some(p) => {
+            let mut w = BufWriter::new(AtomicFile::create(p, "")?);
+            writeln!(w, "{}", super::TELEMETRY_HEADER).map_err(|source| RunError::Write {
+                path: p.to_path_buf(),
+                source,
+            })?;
+            Some((w, p))
+        }
+        None => None,
+    };
+    let mut measure = cfg
+        .measure
+        .then(|| MetricsWorker::start(cfg.keep_per_frame));
+    let mut per_frame = Vec::new();
+    let mut motion = MotionAccumulator::default();
+    let mut frame = Frame::new(info.width, info.height, PixelFormat::Rgb8);
+    let start = Instant::now();
+    let mut frames = 0u64;
+    let mut emit = |stab: &Stabilizer, tel: Telemetry| -> Result<(), RunError> {
+        if let Some(s) = sink.as_mut() {
+            s.write_frame(&stab.output(), tel.t)?;
+        }
+        if let Some(m) = measure.as_mut() {
+            m.push(&stab.output(), stab.output_coverage(), &tel);
+        }
+        motion.push(tel.valid_fraction, Some(&tel));
+        if let Some((w, path)) = telemetry.as_mut() {
+            w.write_all(telemetry::row(&tel).as_bytes())
+                .map_err(|source| RunError::Write {
+                    path: path.to_path_buf(),
+                    source,
+                })?;
+        }
+        if cfg.keep_per_frame {
+            per_frame.push(FrameRecord {
+                telemetry: tel,
+                metrics: FrameMetrics::default(),
+            });
+        }
+        frames += 1;
+        if let Some(c) = cfg.control {
+            c.frame_written();
+        }
+        if let Some(report) = cfg.progress {
+            report(Progress {
+                done: frames,
+                total: info.frame_count,
+                elapsed_s: start.elapsed().as_secs_f64(),
+            });
+        }
+        Ok(())
+    };
+    let check = || cfg.control.map_or(Ok(()), RunControl::check);
+    while let Some(t) = src.next_frame(&mut frame)? {
+        check()?;
+        if let Some(tel) = stab.push(frame.as_ref(), t)? {
+            emit(&stab, tel)?;
+        }
+    }
+    while let Some(tel) = stab.finish() {
+        check()?;
+        emit(&stab, tel)?;
+    }
+    let metrics = match measure {
+        Some(worker) => {
+            let (clip, frame_metrics) = worker.finish().ok_or(RunError::MetricsWorker)?;
+            for (record, m) in per_frame.iter_mut().zip(frame_metrics) {
+                record.metrics = m;
+            }
+            Some(clip)
+        }
+        None => None,
+    };
+    if frames == 0 {
+        return Err(RunError::NoFrames {
+            path: cfg.input.to_path_buf(),
+        });
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    if let Some(s) = sink {
+        s.finish()?;
+    }
+    if let Some((w, path)) = telemetry {
+        let file = w.into_inner().map_err(|e| RunError::Write {
+            path: path.to_path_buf(),
+            source: e.into_error(),
+        })?;
+        file.persist()?;
+    }
+    Ok(RunSummary {
+        frames,
+        frames_declared: info.frame_count,
+        input_size: (info.width, info.height),
+        output_size: (ow, oh),
+        seconds,
+        frames_per_second: frames as f64 / seconds.max(1e-9),
+        metrics,
+        motion: motion.summary(),
+        per_frame,
+    })
+}

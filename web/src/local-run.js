@@ -1,0 +1,75 @@
+// Stabilizes a clip in the browser: checks the settings, starts worker.js,
+// relays its progress, shows its result, and offers the server when the
+// browser cannot decode the clip.
+import { $, state, setPageState, showError, reset } from './state.js';
+import { settings, lensArg, showFieldErrors, refuseSettings } from './settings.js';
+import { showResult, setOriginal, playable } from './result.js';
+import { telemetryCsv, rowsFromWorker } from './telemetry.js';
+import { localSummary } from './summary.js';
+
+export async function runLocal(file) {
+  if (!file) return;
+  state.file = file;
+  const run = reset();
+  $('again').disabled = false;
+  if (state.worker) { state.worker.terminate(); state.worker = null; }
+  const s = settings();
+  if (s.errors.length) return refuseSettings(s.errors);
+  showFieldErrors([]);
+  setPageState('processing');
+  $('status-text').textContent = `Reading ${file.name}…`;
+  const worker = new Worker('worker.js', { type: 'module' });
+  state.worker = worker;
+  const lens = await lensArg(s);
+  const t0 = performance.now();
+  let start = null;
+  const current = () => state.run === run && state.worker === worker;
+  worker.onerror = (e) => { if (current()) showError(`worker failed: ${e.message || e}`); };
+  worker.onmessage = (ev) => {
+    if (!current()) return;
+    const m = ev.data;
+    if (m.type === 'start') {
+      start = m;
+      $('status-text').textContent = `${m.width}x${m.height} ${m.codec} → ${m.outWidth}x${m.outHeight} ${m.outCodec}` +
+        (m.simd ? ' (WASM SIMD)' : '') + (m.audioNote ? ` · ${m.audioNote}` : '');
+      if (m.total) $('progress').max = m.total;
+    } else if (m.type === 'progress') {
+      if (m.total) { $('progress').max = m.total; $('progress').value = m.done; }
+      $('status-text').textContent = `Frame ${m.done}${m.total ? ' / ' + m.total : ''} · ${m.fps.toFixed(0)} frames/s ` +
+        `(stabilizer alone ${m.stabFps.toFixed(0)} frames/s; plot metrics ${m.metricsFps.toFixed(0)} frames/s)`;
+    } else if (m.type === 'done') {
+      const secs = (performance.now() - t0) / 1000;
+      $('progress').max = m.frames; $('progress').value = m.frames;
+      $('status-text').textContent = `Done: ${m.frames} frames in ${secs.toFixed(1)} s · ${m.fps.toFixed(0)} frames/s end to end ` +
+        `(decode + stabilize + measure + encode); stabilizer alone ${m.stabFps.toFixed(0)} frames/s, plot metrics ${m.metricsFps.toFixed(0)} frames/s.`;
+      document.body.dataset.frames = m.frames;
+      document.body.dataset.fps = m.fps.toFixed(1);
+      document.body.dataset.stabFps = m.stabFps.toFixed(1);
+      worker.terminate();
+      state.worker = null;
+      showResult({
+        blob: new Blob([m.buffer], { type: m.mime }), mime: m.mime, name: file.name,
+        original: file, origCaption: 'Original (full frame)',
+        rows: rowsFromWorker(m.telemetry),
+        csv: new Blob([telemetryCsv(m.telemetry)], { type: 'text/csv' }),
+        summary: localSummary(start, m, s.params.view.mode),
+        inputWidth: start ? start.width : 0,
+      });
+      setPageState('done');
+      // WebCodecs decoded it, but the <video> element may still not play the container.
+      playable(file).then((ok) => {
+        if (ok === false && state.run === run) setOriginal(null, `Original: this browser's video player cannot show ${file.name} (it was decoded frame by frame for stabilizing)`);
+      });
+    } else if (m.type === 'unsupported') {
+      $('unsupported-text').textContent = `This browser cannot decode the ${m.codec.toUpperCase()} video in ${m.fileName}. ` +
+        'The server can stabilize it instead (the clip is uploaded to this page\'s server).';
+      $('unsupported').hidden = false;
+      $('status-text').textContent = 'Codec not supported by this browser.';
+      setPageState('error');
+    } else if (m.type === 'error') {
+      showError(m.message);
+    }
+  };
+  state.cancel = () => { worker.terminate(); if (state.worker === worker) state.worker = null; showError('Cancelled.'); };
+  worker.postMessage({ type: 'process', file, params: s.params, lens, format: s.format });
+}

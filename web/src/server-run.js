@@ -1,0 +1,128 @@
+// Falls back to the server's job API for clips this browser cannot decode:
+// POST /jobs with the page's settings, poll GET /jobs/{id}, then fetch the
+// output and the job's telemetry.csv (plot, download). When the browser cannot
+// play the user's file either, a second job (mode none, no averaging, no
+// crop) makes a copy it can play for the Original slot and the compare views.
+import { $, state, setPageState, showError, reset } from './state.js';
+import { settings, serverQuery, showFieldErrors, refuseSettings, SERVER_MAX_LOOKAHEAD } from './settings.js';
+import { showResult, setOriginal, playable } from './result.js';
+import { rowsFromCsv } from './telemetry.js';
+import { serverSummary } from './summary.js';
+
+async function problem(res) {
+  try { const p = await res.json(); return p.detail || p.title || JSON.stringify(p); } catch { return `HTTP ${res.status}`; }
+}
+
+class JobError extends Error {}
+
+/** Submits a job; returns its URL (`/jobs/{id}`). */
+async function submit(file, query, lensFile) {
+  let res;
+  if (lensFile) {
+    const fd = new FormData();
+    fd.append('video', file, file.name);
+    fd.append('lens', lensFile, lensFile.name);
+    res = await fetch(`/jobs?${query}`, { method: 'POST', body: fd });
+  } else {
+    res = await fetch(`/jobs?${query}`, { method: 'POST', body: file, headers: { 'Content-Type': file.type || 'application/octet-stream' } });
+  }
+  if (res.status !== 202 && !res.ok) throw new JobError(`server refused the job: ${await problem(res)}`);
+  const job = await res.json();
+  return res.headers.get('Location') || `/jobs/${job.id}`;
+}
+
+/** Polls a job until it is done (returns its status) or `stop()` says so (returns null). */
+async function waitFor(loc, onStatus, stop) {
+  for (;;) {
+    await new Promise((r) => setTimeout(r, 300));
+    if (stop()) return null;
+    const r = await fetch(loc);
+    if (!r.ok) throw new JobError(`job status: ${await problem(r)}`);
+    const st = await r.json();
+    if (stop()) return null;
+    onStatus(st);
+    if (st.state === 'done') return st;
+    if (st.state === 'failed' || st.state === 'cancelled') throw new JobError(`server job ${st.state}: ${st.error || ''}`);
+  }
+}
+
+async function fetchBlob(url, what) {
+  const r = await fetch(url);
+  if (!r.ok) throw new JobError(`${what}: ${await problem(r)}`);
+  return r.blob();
+}
+
+export async function runOnServer(file) {
+  if (!file) return;
+  const run = reset();
+  const s = settings();
+  if (!s.errors.length && s.params.view.lookahead > SERVER_MAX_LOOKAHEAD) {
+    s.errors.push({ id: 'lookahead', message: `Lookahead (lookahead): ${s.params.view.lookahead} is more than the server accepts (allowed on the server: 0..=${SERVER_MAX_LOOKAHEAD} frames).` });
+  }
+  if (s.errors.length) {
+    refuseSettings(s.errors);
+    $('unsupported').hidden = false;
+    return;
+  }
+  setPageState('processing');
+  $('status-text').textContent = `Uploading ${file.name} to the server…`;
+  let cancelled = false, loc = null;
+  const stop = () => cancelled || state.run !== run;
+  state.cancel = () => { cancelled = true; if (loc) fetch(loc, { method: 'DELETE' }).catch(() => {}); showError('Cancelled.'); };
+  try {
+    loc = await submit(file, serverQuery(s), s.lensFile);
+    if (stop()) { fetch(loc, { method: 'DELETE' }).catch(() => {}); return; }
+    const st = await waitFor(loc, (st) => {
+      if (st.frames_total) { $('progress').max = st.frames_total; $('progress').value = st.frames_done; }
+      $('status-text').textContent = `Server: ${st.state}, frame ${st.frames_done}${st.frames_total ? ' / ' + st.frames_total : ''}`;
+    }, stop);
+    if (!st) return;
+    const format = st.format || s.format;
+    const mime = format === 'webm' ? 'video/webm' : 'video/mp4';
+    const blob = await fetchBlob(st.output || `${loc}/output`, 'job output');
+    let csv = null, rows = null;
+    try {
+      const text = await (await fetchBlob(st.telemetry || `${loc}/telemetry.csv`, 'job telemetry')).text();
+      csv = new Blob([text], { type: 'text/csv' });
+      rows = rowsFromCsv(text);
+    } catch { /* no telemetry: no plot, no CSV */ }
+    if (stop()) return;
+    $('status-text').textContent = `Done on the server: ${st.frames_done} frames.`;
+    document.body.dataset.frames = st.frames_done;
+    showResult({
+      blob: new Blob([blob], { type: mime }), mime, name: file.name, original: null,
+      origCaption: 'Original: checking whether this browser can play it…',
+      rows, csv, summary: serverSummary(st.metrics, s.params.view.mode),
+      inputWidth: st.metrics && st.metrics.input_size ? st.metrics.input_size[0] : 0,
+    });
+    setPageState('done');
+    state.cancel = null;
+    await showOriginal(file, s, run);
+  } catch (e) {
+    if (!stop()) showError(e instanceof JobError ? e.message : `server job: ${e.message || e}`);
+  }
+}
+
+/** Fills the Original slot: the user's file, or a playable copy made by the server. */
+async function showOriginal(file, s, run) {
+  const stale = () => state.run !== run;
+  if (await playable(file)) {
+    if (!stale()) setOriginal(file, 'Original (full frame)');
+    return;
+  }
+  if (stale()) return;
+  $('orig-caption').textContent = 'Original: this browser cannot play it; the server is making a copy it can play…';
+  try {
+    const q = new URLSearchParams({ mode: 'none', n_avg: 1, margin: 0, metrics: false, format: 'mp4' });
+    if (!s.lensFile) q.set('fov', s.fov);
+    const loc = await submit(file, q, s.lensFile);
+    const st = await waitFor(loc, () => {}, stale);
+    if (!st) return;
+    const copy = await fetchBlob(st.output || `${loc}/output`, 'copy of the original');
+    if (stale()) return;
+    setOriginal(new Blob([copy], { type: 'video/mp4' }),
+      `Original (full frame; re-encoded to H.264 by the server${s.lensFile ? ' and undistorted' : ''}, since this browser cannot play ${file.name})`);
+  } catch (e) {
+    if (!stale()) $('orig-caption').textContent = `Original: this browser cannot play ${file.name}, and the server could not make a copy (${e.message || e}).`;
+  }
+}

@@ -1,0 +1,122 @@
+// The settings form: amc-core's StabilizerParams (the fields this page
+// offers), the lens and the output format. Each number field is checked in
+// the page against the range amc-core's `validate()` enforces, so a bad value
+// gets a message naming the field before any work starts; an empty field
+// means the default.
+import { $, showError, setPageState } from './state.js';
+
+/**
+ * The number fields: input id, label, the parameter's name in amc-core, its
+ * default, range (inclusive unless `open`), whole numbers only, unit.
+ * Ranges: amc-core RenderParams::validate (n_avg, margin), ViewParams::validate
+ * (rate_a, rate_b, lookahead) and amc-wasm's lens check (fov: 1 < DEG < 179).
+ */
+export const FIELDS = [
+  { id: 'n_avg', label: 'Averaging window', def: 6, min: 1, max: 64, int: true, unit: 'frames' },
+  { id: 'margin', label: 'Margin', def: 0.125, min: 0, max: 0.45, unit: 'share of each side' },
+  { id: 'rate_a', label: 'Smoothing a', def: 2, min: 0, max: 1000, unit: 'per second' },
+  { id: 'rate_b', label: 'Smoothing b', def: 40, min: 0, max: 10000, unit: 'per second per radian' },
+  { id: 'lookahead', label: 'Lookahead', def: 0, min: 0, max: 600, int: true, unit: 'frames' },
+  { id: 'fov', label: 'Field of view', def: 70, min: 1, max: 179, open: true, unit: 'degrees' },
+];
+
+/** The server's job API accepts at most this lookahead (amc-server serve/options.rs). */
+export const SERVER_MAX_LOOKAHEAD = 240;
+
+const range = (f) => (f.open ? `${f.min} < value < ${f.max}` : `${f.min}..=${f.max}`) + ` ${f.unit}`;
+
+/** Reads one field: its value, or an error message naming it and its range. */
+function readField(f) {
+  const el = $(f.id);
+  const text = el.value.trim();
+  const name = `${f.label} (${f.id})`;
+  const allowed = `allowed: ${range(f)}${f.int ? ', whole numbers' : ''}; empty means the default, ${f.def}`;
+  if (el.validity && el.validity.badInput) return { error: `${name}: not a number (${allowed}).` };
+  if (text === '') return { value: f.def };
+  const v = Number(text);
+  const inRange = Number.isFinite(v) && (f.open ? v > f.min && v < f.max : v >= f.min && v <= f.max);
+  if (!inRange) return { error: `${name}: ${text} is out of range (${allowed}).` };
+  if (f.int && !Number.isInteger(v)) return { error: `${name}: ${text} is not a whole number (${allowed}).` };
+  return { value: v };
+}
+
+/**
+ * The form's settings: `{ params, fov, format, lensFile, errors }`; `errors`
+ * lists `{ id, message }` for every bad field (then `params` must not be used).
+ */
+export function settings() {
+  const values = {}, errors = [];
+  for (const f of FIELDS) {
+    const r = readField(f);
+    if (r.error) errors.push({ id: f.id, message: r.error });
+    else values[f.id] = r.value;
+  }
+  return {
+    params: {
+      view: { mode: $('mode').value, rate_a: values.rate_a, rate_b: values.rate_b, lookahead: values.lookahead },
+      render: { n_avg: values.n_avg, margin: values.margin },
+    },
+    fov: values.fov,
+    format: $('format').value,
+    lensFile: $('lens').files[0] || null,
+    errors,
+  };
+}
+
+/** Marks bad fields (aria-invalid) and shows their messages under the form; returns them joined. */
+export function showFieldErrors(errors) {
+  for (const f of FIELDS) $(f.id).setAttribute('aria-invalid', String(errors.some((e) => e.id === f.id)));
+  const box = $('form-error');
+  box.textContent = errors.map((e) => e.message).join('\n');
+  box.hidden = errors.length === 0;
+  return box.textContent;
+}
+
+/**
+ * Refuses to start with bad settings: marks the fields, and says so in the
+ * page's error box (naming the fields; the ranges are under the form).
+ */
+export function refuseSettings(errors) {
+  showFieldErrors(errors);
+  const names = errors.map((e) => { const f = FIELDS.find((x) => x.id === e.id); return `${f.label} (${f.id})`; });
+  showError(`Not started: ${names.join(', ')} out of range; see the message under the settings.`);
+  $('error').dataset.source = 'settings';
+  $(errors[0].id).focus();
+}
+
+/** Checks the form as the user types; clears a settings refusal once all is well. */
+export function initSettings() {
+  for (const f of FIELDS) {
+    $(f.id).addEventListener('input', () => {
+      const { errors } = settings();
+      showFieldErrors(errors);
+      if (!errors.length && !$('error').hidden && $('error').dataset.source === 'settings') {
+        $('error').hidden = true;
+        $('status-text').textContent = 'Settings fixed: pick a clip, or press Stabilize again.';
+        setPageState('idle');
+      }
+    });
+  }
+}
+
+/** The lens argument of the WASM Stabilizer: the lens file's text, or the field of view. */
+export async function lensArg(s) {
+  return s.lensFile ? await s.lensFile.text() : s.fov;
+}
+
+/**
+ * The query of `POST /jobs` for these settings. `rate_a`/`rate_b` are sent
+ * only when they differ from the defaults, so older servers (which do not
+ * know them) keep working with the default smoothing.
+ */
+export function serverQuery(s) {
+  const def = Object.fromEntries(FIELDS.map((f) => [f.id, f.def]));
+  const q = new URLSearchParams({
+    mode: s.params.view.mode, n_avg: s.params.render.n_avg, margin: s.params.render.margin,
+    lookahead: s.params.view.lookahead, format: s.format,
+  });
+  if (!s.lensFile) q.set('fov', s.fov);
+  if (s.params.view.rate_a !== def.rate_a) q.set('rate_a', s.params.view.rate_a);
+  if (s.params.view.rate_b !== def.rate_b) q.set('rate_b', s.params.view.rate_b);
+  return q;
+}
