@@ -139,6 +139,24 @@ pub fn ffprobe_stream_types(path: &Path) -> Vec<String> {
     .collect()
 }
 
+/// Presentation times (seconds) of a file's video frames, in order.
+pub fn ffprobe_frame_times(path: &Path) -> Vec<f64> {
+    ffprobe(
+        path,
+        &[
+            "-select_streams",
+            "v:0",
+            "-show_entries",
+            "frame=pts_time",
+            "-of",
+            "csv=p=0",
+        ],
+    )
+    .lines()
+    .filter_map(|l| l.trim().trim_end_matches(',').parse().ok())
+    .collect()
+}
+
 /// Whether a file has an audio stream.
 pub fn has_audio(path: &Path) -> bool {
     ffprobe_stream_types(path).iter().any(|t| t == "audio")
