@@ -32,8 +32,8 @@ struct Module {
     aliases: HashMap<String, Vec<String>>,
     /// Sources of glob imports (`use x::*`).
     globs: Vec<Vec<String>>,
-    /// References: (path, line, whether a lone ident counts: imports and glob names do).
-    refs: Vec<(Vec<String>, usize, bool)>,
+    /// Paths written here (in `use` and in code), with their lines.
+    refs: Vec<(Vec<String>, usize)>,
 }
 
 /// Where a path leads.
@@ -153,7 +153,7 @@ impl Crate {
                             None => md.globs.push(segs),
                             Some(b) => {
                                 if !public {
-                                    md.refs.push((segs.clone(), line, true));
+                                    md.refs.push((segs.clone(), line));
                                 }
                                 if b != "_" {
                                     md.aliases.insert(b.to_string(), segs);
@@ -253,12 +253,14 @@ impl Crate {
     fn edges(&self) -> BTreeMap<(usize, usize), (String, String)> {
         let mut edges = BTreeMap::new();
         for (m, md) in self.mods.iter().enumerate() {
-            for (segs, line, lone_ok) in &md.refs {
+            for (segs, line) in &md.refs {
+                // A lone ident is a use only as a name imported by `use` or a glob; `crate`,
+                // `super` and `self` alone are visibilities (`pub(crate)`) or receivers.
                 let f = segs[0].as_str();
-                let lone_counts = *lone_ok
-                    || md.aliases.contains_key(f)
-                    || (!md.defs.contains(f) && !md.children.contains_key(f));
-                if segs.len() == 1 && (!lone_counts || matches!(f, "crate" | "self" | "super")) {
+                let local = md.defs.contains(f)
+                    || md.children.contains_key(f)
+                    || matches!(f, "crate" | "self" | "super");
+                if segs.len() == 1 && local && !md.aliases.contains_key(f) {
                     continue;
                 }
                 if let Some(to) = self.resolve(m, segs, 0).module() {
@@ -376,7 +378,7 @@ fn use_leaves(
 
 /// Collects the paths `a::b::c` written in a token stream, with their lines. Paths after `.`
 /// (fields, methods) and absolute `::a` paths are skipped; lone idents are kept (see `edges`).
-fn scan(tokens: TokenStream, refs: &mut Vec<(Vec<String>, usize, bool)>) {
+fn scan(tokens: TokenStream, refs: &mut Vec<(Vec<String>, usize)>) {
     let toks: Vec<TokenTree> = tokens.into_iter().collect();
     let colons = |i: usize| {
         matches!((toks.get(i), toks.get(i + 1)), (Some(TokenTree::Punct(a)), Some(TokenTree::Punct(b)))
@@ -401,7 +403,7 @@ fn scan(tokens: TokenStream, refs: &mut Vec<(Vec<String>, usize, bool)>) {
                     }
                 }
                 if !after_dot && !absolute {
-                    refs.push((segs, id.span().start().line, false));
+                    refs.push((segs, id.span().start().line));
                 }
             }
             _ => {}
@@ -510,7 +512,7 @@ fn checker_passes_an_acyclic_tree() {
         ),
         (
             "src/b.rs",
-            "use crate::a::A; pub struct B; pub fn make(_: A) -> B { B }",
+            "use crate::a::A; pub(super) struct B; pub(crate) fn make(_: A) -> B { B }",
         ),
     ]);
     assert!(cycles.is_empty(), "{cycles:?}");

@@ -1,9 +1,9 @@
 //! Bad input: every failure exits non-zero with one clear `error:` line (or clap's usage error),
 //! never panics, and leaves no partial output behind.
 
+use amc_e2e::fixtures::{ffprobe_frames, test_picture};
 use amc_e2e::*;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 /// What a failing run must look like.
 #[derive(Clone, Copy, PartialEq)]
@@ -171,22 +171,8 @@ fn bad_images_of_different_sizes() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path().join("mixed");
     std::fs::create_dir(&d).unwrap();
-    for (name, size) in [("a-001.png", "64x48"), ("a-002.png", "80x60")] {
-        let st = Command::new("ffmpeg")
-            .args([
-                "-v",
-                "error",
-                "-f",
-                "lavfi",
-                "-i",
-                &format!("testsrc=size={size}"),
-                "-frames:v",
-                "1",
-            ])
-            .arg(d.join(name))
-            .status()
-            .expect("ffmpeg not found");
-        assert!(st.success());
+    for (name, (w, h)) in [("a-001.png", (64, 48)), ("a-002.png", (80, 60))] {
+        test_picture(&d.join(name), w, h);
     }
     bad(
         "images of different sizes",

@@ -1,5 +1,6 @@
 //! Smaller command-line checks: `amc eval` with a plot, and `amc demo`.
 
+use amc_e2e::fixtures::ffprobe_frames;
 use amc_e2e::*;
 
 #[test]

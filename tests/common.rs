@@ -1,8 +1,10 @@
 //! Helpers shared by the end-to-end tests of the `amc` command line.
 //!
 //! Every test drives the RELEASE binary (`target/release/amc`), which [`amc`] builds once per
-//! test process. Shared real data lives outside the repository in `../shared/data`.
+//! test process. Shared real data lives outside the repository in `../shared/data`. Everything
+//! that runs ffmpeg or ffprobe (probing outputs, generated test clips) is in [`fixtures`].
 
+pub mod fixtures;
 #[path = "server_harness.rs"]
 pub mod server;
 
@@ -345,93 +347,6 @@ pub fn mean(v: &[f64]) -> f64 {
 
 pub fn max(v: &[f64]) -> f64 {
     v.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
-}
-
-// ---------------------------------------------------------------- media
-
-/// Number of video frames ffprobe decodes from a file (or image sequence pattern).
-pub fn ffprobe_frames(path: &Path) -> u64 {
-    let out = Command::new("ffprobe")
-        .args([
-            "-v",
-            "error",
-            "-count_frames",
-            "-select_streams",
-            "v:0",
-            "-show_entries",
-            "stream=nb_read_frames",
-            "-of",
-            "csv=p=0",
-        ])
-        .arg(path)
-        .output()
-        .expect("could not run ffprobe (is ffmpeg installed?)");
-    let s = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "ffprobe failed on {}: {}",
-        path.display(),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    s.trim()
-        .trim_end_matches(',')
-        .parse()
-        .unwrap_or_else(|_| panic!("ffprobe gave no frame count for {}: {s:?}", path.display()))
-}
-
-/// Codec types (`video`, `audio`, `data`, ...) of a file's streams, per ffprobe.
-pub fn ffprobe_stream_types(path: &Path) -> Vec<String> {
-    let out = Command::new("ffprobe")
-        .args([
-            "-v",
-            "error",
-            "-show_entries",
-            "stream=codec_type",
-            "-of",
-            "csv=p=0",
-        ])
-        .arg(path)
-        .output()
-        .expect("could not run ffprobe");
-    assert!(out.status.success(), "ffprobe failed on {}", path.display());
-    String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| l.trim().trim_end_matches(',').to_string())
-        .filter(|l| !l.is_empty())
-        .collect()
-}
-
-pub fn has_audio(path: &Path) -> bool {
-    ffprobe_stream_types(path).iter().any(|t| t == "audio")
-}
-
-/// ffprobe's values of `entries` (comma-separated stream fields) for a file's first video stream.
-pub fn ffprobe_video_entries(path: &Path, entries: &str) -> String {
-    let out = Command::new("ffprobe")
-        .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
-        .arg(format!("stream={entries}"))
-        .args(["-of", "csv=p=0"])
-        .arg(path)
-        .output()
-        .expect("could not run ffprobe");
-    String::from_utf8_lossy(&out.stdout)
-        .trim()
-        .trim_end_matches(',')
-        .to_string()
-}
-
-/// Width and height of a file's first video stream.
-pub fn ffprobe_size(path: &Path) -> (u32, u32) {
-    let s = ffprobe_video_entries(path, "width,height");
-    let mut it = s.split(',').map(|x| x.parse::<u32>().unwrap_or(0));
-    (it.next().unwrap_or(0), it.next().unwrap_or(0))
-}
-
-/// Duration of a file's first video stream, seconds (NaN if unknown).
-pub fn ffprobe_video_duration(path: &Path) -> f64 {
-    ffprobe_video_entries(path, "duration")
-        .parse()
-        .unwrap_or(f64::NAN)
 }
 
 // ---------------------------------------------------------------- synth clips

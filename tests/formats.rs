@@ -1,6 +1,7 @@
 //! Output formats: every container the CLI writes is readable by ffprobe with the input's frame
 //! count, and the containers that can hold audio keep the input's audio.
 
+use amc_e2e::fixtures::{ffmpeg, ffprobe_frames, ffprobe_size, ffprobe_stream_types};
 use amc_e2e::*;
 use std::path::Path;
 
@@ -130,25 +131,17 @@ fn karma_with_gopro_data_streams() {
 
 /// Decodes a video (or a PNG sequence pattern) to raw RGB24 frames with ffmpeg.
 fn raw_rgb(input: &Path, out: &Path) -> Vec<u8> {
-    let status = std::process::Command::new("ffmpeg")
-        .args(["-v", "error", "-y", "-i"])
-        .arg(input)
-        .args([
-            "-fps_mode",
-            "passthrough",
-            "-f",
-            "rawvideo",
-            "-pix_fmt",
-            "rgb24",
-        ])
-        .arg(out)
-        .status()
-        .expect("ffmpeg");
-    assert!(
-        status.success(),
-        "ffmpeg could not decode {}",
-        input.display()
-    );
+    ffmpeg(&[
+        "-i",
+        &s(input),
+        "-fps_mode",
+        "passthrough",
+        "-f",
+        "rawvideo",
+        "-pix_fmt",
+        "rgb24",
+        &s(out),
+    ]);
     std::fs::read(out).unwrap()
 }
 

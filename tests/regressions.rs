@@ -2,12 +2,9 @@
 //! uploads over 2 MB refused, partial files left by a signal, variable frame
 //! rates drifting against their audio, synthetic folders read at the wrong rate).
 
-#[path = "server_harness.rs"]
-mod server_harness;
-
+use amc_e2e::fixtures::{ffmpeg, ffprobe_frame_times, ffprobe_frames};
+use amc_e2e::server::{self, post_multipart, Server};
 use amc_e2e::*;
-use server_harness::{post_multipart, Server};
-use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -112,58 +109,32 @@ fn a_signal_stops_the_run_and_leaves_no_partial_file() {
         // No ffmpeg of ours survives (they read the input clip).
         std::thread::sleep(Duration::from_millis(200));
         assert!(
-            server_harness::ffmpeg_using(&data("karma/karma.mp4")).is_empty(),
+            server::ffmpeg_using(&data("karma/karma.mp4")).is_empty(),
             "{sig}: ffmpeg children left running"
         );
     }
-}
-
-/// Presentation times (seconds) of a file's video frames.
-fn frame_times(path: &Path) -> Vec<f64> {
-    let out = Command::new("ffprobe")
-        .args([
-            "-v",
-            "error",
-            "-select_streams",
-            "v:0",
-            "-show_entries",
-            "frame=pts_time",
-            "-of",
-            "csv=p=0",
-        ])
-        .arg(path)
-        .output()
-        .unwrap();
-    String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .filter_map(|l| l.trim().trim_end_matches(',').parse().ok())
-        .collect()
 }
 
 #[test]
 fn variable_frame_rate_input_keeps_each_frame_time() {
     let d = tempfile::tempdir().unwrap();
     let vfr = d.path().join("karma_vfr.mp4");
-    let st = Command::new("ffmpeg")
-        .args(["-v", "error", "-y", "-i"])
-        .arg(data("karma/karma.mp4"))
-        .args([
-            "-t",
-            "5",
-            "-vf",
-            "select='not(mod(n\\,3))+not(mod(n\\,7))',scale=320:-2",
-            "-fps_mode",
-            "vfr",
-            "-c:a",
-            "copy",
-        ])
-        .arg(&vfr)
-        .status()
-        .unwrap();
-    assert!(st.success());
+    ffmpeg(&[
+        "-i",
+        &s(&data("karma/karma.mp4")),
+        "-t",
+        "5",
+        "-vf",
+        "select='not(mod(n\\,3))+not(mod(n\\,7))',scale=320:-2",
+        "-fps_mode",
+        "vfr",
+        "-c:a",
+        "copy",
+        &s(&vfr),
+    ]);
     let out = d.path().join("out.mp4");
     amc_ok(&["stabilize", &s(&vfr), "-o", &s(&out), "--fov", "90", "-q"]);
-    let (a, b) = (frame_times(&vfr), frame_times(&out));
+    let (a, b) = (ffprobe_frame_times(&vfr), ffprobe_frame_times(&out));
     assert_eq!(a.len(), b.len());
     let (a0, b0) = (a[0], b[0]);
     let worst = a
@@ -217,14 +188,19 @@ fn large_multipart_uploads_are_accepted_in_either_part_order() {
     // Tens of MB: karma.mp4 six times over (stream copy), about 25 MB.
     let d = tempfile::tempdir().unwrap();
     let big = d.path().join("big.mp4");
-    let st = Command::new("ffmpeg")
-        .args(["-v", "error", "-y", "-stream_loop", "5", "-i"])
-        .arg(data("karma/karma.mp4"))
-        .args(["-map", "0:v:0", "-map", "0:a:0", "-c", "copy"])
-        .arg(&big)
-        .status()
-        .unwrap();
-    assert!(st.success());
+    ffmpeg(&[
+        "-stream_loop",
+        "5",
+        "-i",
+        &s(&data("karma/karma.mp4")),
+        "-map",
+        "0:v:0",
+        "-map",
+        "0:a:0",
+        "-c",
+        "copy",
+        &s(&big),
+    ]);
     let karma = std::fs::read(&big).unwrap();
     assert!(karma.len() > 10_000_000, "{} bytes", karma.len());
     let frames = ffprobe_frames(&big).to_string();

@@ -3,10 +3,11 @@
 //!
 //! The tests run one at a time (they share two CPU cores and measure rates).
 
-use amc_e2e::server::{
-    delete, get, make_clip, post, post_multipart, raw_request, websocket, Server,
+use amc_e2e::fixtures::{
+    ffmpeg, ffprobe_frames, ffprobe_video_duration, has_audio, test_clip, test_picture,
 };
-use amc_e2e::{data, ffprobe_frames, has_audio};
+use amc_e2e::server::{delete, get, post, post_multipart, raw_request, websocket, Server};
+use amc_e2e::{data, s};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 use tungstenite::Message;
@@ -32,10 +33,7 @@ fn assert_like_karma(bytes: &[u8], what: &str) {
         ffprobe_frames(&input),
         "{what}: frame count differs from the input's"
     );
-    let (d_out, d_in) = (
-        amc_e2e::ffprobe_video_duration(&out),
-        amc_e2e::ffprobe_video_duration(&input),
-    );
+    let (d_out, d_in) = (ffprobe_video_duration(&out), ffprobe_video_duration(&input));
     assert!(
         (d_out - d_in).abs() < 0.05,
         "{what}: duration {d_out} s vs input {d_in} s"
@@ -83,7 +81,7 @@ fn post_stabilize_returns_the_clip_with_metrics() {
     // Multipart with a lens file and WebM output, on a short clip.
     let dir = tempfile::tempdir().unwrap();
     let clip = dir.path().join("clip.mp4");
-    make_clip(&clip, 320, 180, 30, 1.0);
+    test_clip(&clip, 320, 180, 30, 1.0);
     let lens =
         br#"{"model":"pinhole","width":320,"height":180,"fx":250,"fy":250,"cx":159.5,"cy":89.5}"#;
     let r = post_multipart(
@@ -337,14 +335,8 @@ fn ingest_publisher_feeds_viewers() {
     let server = Server::start(&["--live-fov", "70"]);
     // JPEG frames of the first 3 s of cup.mp4.
     let dir = tempfile::tempdir().unwrap();
-    let status = std::process::Command::new("ffmpeg")
-        .args(["-v", "error", "-i"])
-        .arg(data("cup/cup.mp4"))
-        .args(["-t", "3", "-q:v", "4"])
-        .arg(dir.path().join("%04d.jpg"))
-        .status()
-        .unwrap();
-    assert!(status.success());
+    let (cup, jpgs) = (s(&data("cup/cup.mp4")), s(&dir.path().join("%04d.jpg")));
+    ffmpeg(&["-i", &cup, "-t", "3", "-q:v", "4", &jpgs]);
     let mut jpegs: Vec<_> = std::fs::read_dir(dir.path())
         .unwrap()
         .flatten()
@@ -420,25 +412,11 @@ fn bad_inputs_get_clear_statuses_and_leave_the_server_healthy() {
     let cup = read_file(&data("cup/cup.mp4"));
     let karma = read_file(&data("karma/karma.mp4"));
     let wide = dir.path().join("wide.mp4");
-    make_clip(&wide, 1000, 200, 10, 1.0);
+    test_clip(&wide, 1000, 200, 10, 1.0);
     let long = dir.path().join("long.mp4");
-    make_clip(&long, 64, 64, 5, 12.0);
+    test_clip(&long, 64, 64, 5, 12.0);
     let png = dir.path().join("still.png");
-    let status = std::process::Command::new("ffmpeg")
-        .args([
-            "-v",
-            "error",
-            "-f",
-            "lavfi",
-            "-i",
-            "testsrc2=size=320x180",
-            "-frames:v",
-            "1",
-        ])
-        .arg(&png)
-        .status()
-        .unwrap();
-    assert!(status.success());
+    test_picture(&png, 320, 180);
     let png = read_file(&png);
     let random: Vec<u8> = (0..200_000u32)
         .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
@@ -655,7 +633,7 @@ fn bounded_load_every_request_succeeds_or_gets_503() {
     let server = Server::start(&["--workers", "2", "--queue", "4"]);
     let dir = tempfile::tempdir().unwrap();
     let clip = dir.path().join("short.mp4");
-    make_clip(&clip, 320, 180, 30, 1.0);
+    test_clip(&clip, 320, 180, 30, 1.0);
     let clip = std::sync::Arc::new(read_file(&clip));
     let url = server.url("/stabilize?fov=70");
     let pid = server.pid();

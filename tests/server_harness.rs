@@ -355,25 +355,3 @@ pub fn websocket(
         Err(e) => Err(e.to_string()),
     }
 }
-
-/// Makes a small test clip with ffmpeg (`testsrc2` with a tone), `seconds` long.
-pub fn make_clip(path: &Path, width: u32, height: u32, fps: u32, seconds: f64) {
-    let status = Command::new("ffmpeg")
-        .args(["-v", "error", "-y", "-f", "lavfi", "-i"])
-        .arg(format!("testsrc2=size={width}x{height}:rate={fps}"))
-        .args(["-f", "lavfi", "-i", "sine=frequency=440:sample_rate=48000"])
-        .args(["-t", &seconds.to_string()])
-        .args([
-            "-c:v",
-            "libx264",
-            "-preset",
-            "ultrafast",
-            "-pix_fmt",
-            "yuv420p",
-        ])
-        .args(["-c:a", "aac", "-shortest"])
-        .arg(path)
-        .status()
-        .expect("could not run ffmpeg");
-    assert!(status.success(), "ffmpeg could not make {}", path.display());
-}

@@ -1,9 +1,11 @@
 //! Tests of the video module against clips generated with ffmpeg on the fly
-//! (and the sample clips under `shared/data` when present).
+//! (and the sample clips under `shared/data` when present). The clips, ffmpeg and
+//! ffprobe come from the end-to-end tests' fixtures (`amc_e2e::fixtures`).
 
 use super::*;
 use amc_core::image::PixelFormat;
-use std::process::Command;
+use amc_e2e::fixtures::{ffmpeg, ffprobe_stream_types, lavfi, test_clip, test_tone};
+use amc_e2e::list_dir;
 use std::time::Duration;
 
 /// Whether ffmpeg is installed; tests that need it pass vacuously (with a note) otherwise.
@@ -13,41 +15,6 @@ fn have_ffmpeg() -> bool {
         eprintln!("note: ffmpeg/ffprobe not installed, skipping");
     }
     ok
-}
-
-/// Runs `ffmpeg -y -loglevel error ARGS` and checks it succeeded.
-fn ffmpeg(args: &[&str]) {
-    let out = Command::new("ffmpeg")
-        .args(["-hide_banner", "-nostdin", "-y", "-loglevel", "error"])
-        .args(args)
-        .output()
-        .expect("run ffmpeg");
-    assert!(
-        out.status.success(),
-        "ffmpeg {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-/// Stream types of a file according to ffprobe (`video`, `audio`, ...).
-fn stream_types(path: &Path) -> Vec<String> {
-    let out = Command::new("ffprobe")
-        .args([
-            "-v",
-            "error",
-            "-show_entries",
-            "stream=codec_type",
-            "-of",
-            "csv=p=0",
-        ])
-        .arg(path)
-        .output()
-        .expect("run ffprobe");
-    String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| l.trim().to_string())
-        .filter(|l| !l.is_empty())
-        .collect()
 }
 
 /// Decodes a whole input: info, frames and timestamps.
@@ -122,37 +89,10 @@ fn write_all(path: &Path, spec: &OutputSpec, frames: &[Frame]) {
     sink.finish().unwrap();
 }
 
-/// Names in `dir` (to check nothing is left behind).
-fn listing(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
-}
-
+/// A 1 s, 64x48, 30 fps H.264 clip with an AAC tone.
 fn make_clip(dir: &Path) -> PathBuf {
     let clip = dir.join("clip.mp4");
-    ffmpeg(&[
-        "-f",
-        "lavfi",
-        "-i",
-        "testsrc=size=64x48:rate=30",
-        "-f",
-        "lavfi",
-        "-i",
-        "sine=frequency=440",
-        "-t",
-        "1",
-        "-c:v",
-        "libx264",
-        "-pix_fmt",
-        "yuv420p",
-        "-c:a",
-        "aac",
-        clip.to_str().unwrap(),
-    ]);
+    test_clip(&clip, 64, 48, 30, 1.0);
     clip
 }
 
@@ -174,7 +114,7 @@ fn reads_generated_mp4() {
     for (i, t) in times.iter().enumerate() {
         assert!((t - i as f64 / 30.0).abs() < 1e-3, "frame {i} at {t}");
     }
-    // Frames differ (testsrc moves), so they are really decoded in turn.
+    // Frames differ (testsrc2 moves), so they are really decoded in turn.
     assert_ne!(frames[0].data, frames[29].data);
 
     // Dropping a source mid-stream stops ffmpeg promptly.
@@ -203,19 +143,18 @@ fn keeps_variable_frame_rate_timestamps() {
     let dir = tempfile::tempdir().unwrap();
     let clip = dir.path().join("vfr.mkv");
     // Frames at 0, 0.1, 0.2, then a gap to 0.5, 0.6, ...
-    ffmpeg(&[
-        "-f",
-        "lavfi",
-        "-i",
-        "testsrc=size=32x32:rate=10:duration=1",
-        "-vf",
-        "select='not(between(n,3,4))'",
-        "-fps_mode",
-        "passthrough",
-        "-c:v",
-        "libx264",
-        clip.to_str().unwrap(),
-    ]);
+    lavfi(
+        &clip,
+        &["testsrc=size=32x32:rate=10:duration=1"],
+        &[
+            "-vf",
+            "select='not(between(n,3,4))'",
+            "-fps_mode",
+            "passthrough",
+            "-c:v",
+            "libx264",
+        ],
+    );
     let (_, frames, times) = read_all(&clip, &InputOptions::default());
     assert_eq!(frames.len(), 8);
     assert_timestamps(&times);
@@ -258,10 +197,10 @@ fn round_trips_every_output_format() {
     }
     // Only the finished outputs, no temporaries.
     assert_eq!(
-        listing(dir.path()),
+        list_dir(dir.path()),
         ["out.MKV", "out.mp4", "out.webm", "out.y4m", "pngs", "pngs2"]
     );
-    assert_eq!(listing(&dir.path().join("pngs"))[0], "frame-000000.png");
+    assert_eq!(list_dir(&dir.path().join("pngs"))[0], "frame-000000.png");
 }
 
 #[test]
@@ -304,7 +243,7 @@ fn copies_audio() {
             ..OutputSpec::new(64, 48, 30.0)
         };
         write_all(&out, &spec, &frames);
-        assert_eq!(stream_types(&out), ["video", "audio"], "{name}");
+        assert_eq!(ffprobe_stream_types(&out), ["video", "audio"], "{name}");
     }
     // No audio in the source: none in the output, and no error.
     let silent = dir.path().join("silent.y4m");
@@ -315,7 +254,7 @@ fn copies_audio() {
         ..OutputSpec::new(64, 48, 30.0)
     };
     write_all(&out, &spec, &frames[..2]);
-    assert_eq!(stream_types(&out), ["video"]);
+    assert_eq!(ffprobe_stream_types(&out), ["video"]);
 }
 
 #[test]
@@ -361,17 +300,7 @@ fn reads_y4m_written_by_ffmpeg() {
         let y4m = dir.path().join(format!("{pix_fmt}.y4m"));
         let mkv = dir.path().join(format!("{pix_fmt}.mkv"));
         let src = "testsrc2=size=66x50:rate=25";
-        ffmpeg(&[
-            "-f",
-            "lavfi",
-            "-i",
-            src,
-            "-frames:v",
-            "4",
-            "-pix_fmt",
-            pix_fmt,
-            y4m.to_str().unwrap(),
-        ]);
+        lavfi(&y4m, &[src], &["-frames:v", "4", "-pix_fmt", pix_fmt]);
         // The same pictures, losslessly, for ffmpeg's own conversion to RGB.
         ffmpeg(&[
             "-i",
@@ -469,15 +398,7 @@ fn reports_bad_inputs() {
 
     // Audio only: no video stream.
     let wav = d.join("tone.wav");
-    ffmpeg(&[
-        "-f",
-        "lavfi",
-        "-i",
-        "sine",
-        "-t",
-        "0.2",
-        wav.to_str().unwrap(),
-    ]);
+    test_tone(&wav, 0.2);
     let e = open(&wav).to_string();
     assert!(e.contains("no video stream"), "{e}");
 }
@@ -525,13 +446,13 @@ fn reports_bad_outputs_and_leaves_nothing_behind() {
         let sink = create_output(&d.join(name), &spec).unwrap();
         assert!(sink.finish().is_err());
     }
-    assert_eq!(listing(d), ["full"], "left behind");
+    assert_eq!(list_dir(d), ["full"], "left behind");
 
     // An existing empty directory is replaced.
     let empty = d.join("empty");
     std::fs::create_dir(&empty).unwrap();
     write_all(&empty, &spec, &[frame]);
-    assert_eq!(listing(&empty), ["frame-000000.png"]);
+    assert_eq!(list_dir(&empty), ["frame-000000.png"]);
 }
 
 #[test]
@@ -557,9 +478,7 @@ fn watchdog_stops_a_stalled_child() {
 
 /// The sample clips shipped with the project (skipped when absent).
 fn sample(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data")
-        .join(rel);
+    let p = amc_e2e::data_dir().join(rel);
     if p.exists() {
         Some(p)
     } else {

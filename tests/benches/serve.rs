@@ -7,9 +7,9 @@
 //!    live feed adds (frame decoded -> stabilized JPEG ready), as reported in
 //!    each frame's telemetry, over 300 frames.
 
-use amc_e2e::data;
+use amc_e2e::fixtures::ffmpeg;
 use amc_e2e::server::{post, websocket, Server};
-use std::process::Command;
+use amc_e2e::{data, s};
 use std::time::{Duration, Instant};
 use tungstenite::Message;
 
@@ -21,31 +21,30 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 fn main() {
     let dir = tempfile::tempdir().expect("temp dir");
     let clip = dir.path().join("karma-720p30-20s.mp4");
-    let status = Command::new("ffmpeg")
-        .args(["-v", "error", "-y", "-stream_loop", "1", "-i"])
-        .arg(data("karma/karma.mp4"))
-        .args([
-            "-t",
-            "20",
-            "-map",
-            "0:v:0",
-            "-map",
-            "0:a:0",
-            "-vf",
-            "scale=1280:720,fps=30",
-            "-c:v",
-            "libx264",
-            "-preset",
-            "veryfast",
-            "-crf",
-            "20",
-            "-c:a",
-            "aac",
-        ])
-        .arg(&clip)
-        .status()
-        .expect("ffmpeg");
-    assert!(status.success(), "could not make the 720p clip");
+    // karma.mp4 looped and scaled.
+    ffmpeg(&[
+        "-stream_loop",
+        "1",
+        "-i",
+        &s(&data("karma/karma.mp4")),
+        "-t",
+        "20",
+        "-map",
+        "0:v:0",
+        "-map",
+        "0:a:0",
+        "-vf",
+        "scale=1280:720,fps=30",
+        "-c:v",
+        "libx264",
+        "-preset",
+        "veryfast",
+        "-crf",
+        "20",
+        "-c:a",
+        "aac",
+        &s(&clip),
+    ]);
     let bytes = std::fs::read(&clip).expect("clip");
     let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
     println!(
