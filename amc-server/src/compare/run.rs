@@ -270,8 +270,7 @@ fn compare_clip(
             return Err(CompareError::NoOutput {
                 method: method.label().into(),
                 clip: clip.name.clone(),
-            }
-            .into());
+            });
         }
         methods.push(r);
     }
@@ -361,19 +360,19 @@ fn resolve_clip(path: &Path, args: &CompareConfig) -> Result<Clip, CompareError>
 /// Runs `amc compare`.
 pub fn run(args: &CompareConfig) -> Result<(), CompareError> {
     if args.clips.is_empty() && !args.synthetic {
-        return Err(CompareError::NoClips.into());
+        return Err(CompareError::NoClips);
     }
     if !(0.5..=60.0).contains(&args.synthetic_seconds) {
-        return Err(CompareError::SyntheticSeconds(args.synthetic_seconds).into());
+        return Err(CompareError::SyntheticSeconds(args.synthetic_seconds));
     }
     if !(1..=MAX_LOOKAHEAD).contains(&args.lookahead) {
-        return Err(CompareError::Lookahead(args.lookahead).into());
+        return Err(CompareError::Lookahead(args.lookahead));
     }
     if !(1..=10).contains(&args.repeat) {
-        return Err(CompareError::Repeat(args.repeat).into());
+        return Err(CompareError::Repeat(args.repeat));
     }
     if args.synthetic && !args.panorama.is_file() {
-        return Err(CompareError::NoPanorama(args.panorama.clone()).into());
+        return Err(CompareError::NoPanorama(args.panorama.clone()));
     }
     video::ffmpeg_available()?;
     std::fs::create_dir_all(&args.report).map_err(|e| CompareError::io(&args.report, e))?;
