@@ -49,14 +49,10 @@ pub struct InputFlags {
     pub timeout: u64,
 }
 
-/// `amc stabilize`.
+/// What every run over a clip takes: the lens file, the stabilizer's options
+/// (with `--fov`) and how the input is read.
 #[derive(Args, Debug)]
-pub struct StabilizeArgs {
-    /// Input: any video ffmpeg reads, a folder of images (natural order), or .y4m.
-    pub input: PathBuf,
-    /// Output: .mp4 (H.264) / .webm / .mkv (audio copied), .y4m, or a folder for PNGs.
-    #[arg(short, long)]
-    pub output: PathBuf,
+pub struct RunFlags {
     /// Lens file: the project's JSON, an OpenCV calibration (JSON/YAML) or a Gyroflow profile.
     #[arg(long, value_name = "FILE", conflicts_with = "fov")]
     pub lens: Option<PathBuf>,
@@ -65,7 +61,20 @@ pub struct StabilizeArgs {
     pub stabilizer: StabilizerFlags,
     /// How the input is read.
     #[command(flatten)]
-    pub input_flags: InputFlags,
+    pub input: InputFlags,
+}
+
+/// `amc stabilize`.
+#[derive(Args, Debug)]
+pub struct StabilizeArgs {
+    /// Input: any video ffmpeg reads, a folder of images (natural order), or .y4m.
+    pub input: PathBuf,
+    /// Output: .mp4 (H.264) / .webm / .mkv (audio copied), .y4m, or a folder for PNGs.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// The lens, the stabilizer's options and how the input is read.
+    #[command(flatten)]
+    pub run: RunFlags,
     /// Write per-frame telemetry (CSV: frame,t,rx,ry,rz,vx,vy,vz,...).
     #[arg(long, value_name = "FILE.csv")]
     pub telemetry: Option<PathBuf>,
@@ -86,15 +95,10 @@ pub struct StabilizeArgs {
 pub struct EvalArgs {
     /// Input clip (as for `stabilize`).
     pub input: PathBuf,
-    /// Lens file (as for `stabilize`).
-    #[arg(long, value_name = "FILE", conflicts_with = "fov")]
-    pub lens: Option<PathBuf>,
-    /// The stabilizer's options (`--mode` is ignored: every mode is run).
+    /// The lens, the stabilizer's options (`--mode` is ignored: every mode
+    /// is run) and how the input is read.
     #[command(flatten)]
-    pub stabilizer: StabilizerFlags,
-    /// How the input is read.
-    #[command(flatten)]
-    pub input_flags: InputFlags,
+    pub run: RunFlags,
     /// Print JSON instead of a Markdown table.
     #[arg(long)]
     pub json: bool,

@@ -50,10 +50,11 @@ fn say_rate(input: &std::path::Path, fps: Option<f64>, timeout: Duration, quiet:
 
 fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), CliError> {
     let options = args
+        .run
         .stabilizer
-        .options(amc_core::Mode::Stabilize, args.lens.as_ref())?;
-    let timeout = Duration::from_secs(args.input_flags.timeout);
-    let fps = args.input_flags.fps;
+        .options(amc_core::Mode::Stabilize, args.run.lens.as_ref())?;
+    let timeout = Duration::from_secs(args.run.input.timeout);
+    let fps = args.run.input.fps;
     let mut paths = vec![
         ("input", args.input.as_path()),
         ("output", args.output.as_path()),
@@ -137,14 +138,15 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
 
 fn evaluate(a: args::EvalArgs) -> Result<(), CliError> {
     let quiet = a.quiet;
-    let timeout = Duration::from_secs(a.input_flags.timeout);
-    say_rate(&a.input, a.input_flags.fps, timeout, quiet);
+    let timeout = Duration::from_secs(a.run.input.timeout);
+    say_rate(&a.input, a.run.input.fps, timeout, quiet);
     let cfg = eval::EvalConfig {
         options: a
+            .run
             .stabilizer
-            .options(amc_core::Mode::Stabilize, a.lens.as_ref())?,
+            .options(amc_core::Mode::Stabilize, a.run.lens.as_ref())?,
         input: a.input,
-        fps: a.input_flags.fps,
+        fps: a.run.input.fps,
         timeout,
         gt: a.gt,
         plot: a.plot.clone(),
