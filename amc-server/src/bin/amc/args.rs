@@ -497,3 +497,109 @@ impl CompareArgs {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(argv: &[&str]) -> Result<Cli, clap::Error> {
+        Cli::try_parse_from(std::iter::once("amc").chain(argv.iter().copied()))
+    }
+
+    #[test]
+    fn synth_defaults_and_lists() {
+        let Command::Synth(a) = parse(&["synth", "p.jpg", "-o", "out"]).unwrap().command else {
+            panic!("not synth")
+        };
+        let c = a.config();
+        assert_eq!(
+            c,
+            amc_server::synth::SynthConfig::new("p.jpg".into(), "out".into())
+        );
+        let Command::Synth(a) = parse(&[
+            "synth",
+            "p.jpg",
+            "-o",
+            "out",
+            "--fisheye",
+            "-0.01,0.002,0,0",
+            "--pan-dps",
+            "-5",
+            "--shake-band",
+            "5, 9",
+        ])
+        .unwrap()
+        .command
+        else {
+            panic!("not synth")
+        };
+        assert_eq!(a.fisheye, Some([-0.01, 0.002, 0.0, 0.0]));
+        assert_eq!((a.pan_dps, a.shake_band), (-5.0, (5.0, 9.0)));
+        assert!(parse(&["synth", "p.jpg"]).is_err());
+        assert!(parse(&["synth", "p.jpg", "-o", "o", "--shake-band", "12"]).is_err());
+        assert!(parse(&["synth", "p.jpg", "-o", "o", "--fisheye", "1,2,x,4"]).is_err());
+    }
+
+    #[test]
+    fn stabilizer_flags_come_from_the_core_table() {
+        let Command::Stabilize(a) = parse(&[
+            "stabilize",
+            "in.mp4",
+            "-o",
+            "out.mp4",
+            "--n-avg",
+            "4",
+            "--rate-a",
+            "0.5",
+            "--mode",
+            "saccade",
+            "--fov",
+            "90",
+        ])
+        .unwrap()
+        .command
+        else {
+            panic!("not stabilize")
+        };
+        let o = a.run.stabilizer.options(Mode::Stabilize, None).unwrap();
+        assert_eq!(o.params.render.n_avg, 4);
+        assert_eq!(o.params.view.rate_a, 0.5);
+        assert_eq!(o.params.view.mode, Mode::Saccade);
+        assert_eq!(o.lens, LensSpec::Fov(90.0));
+        // Every option of the table is a flag.
+        let cmd = <Cli as clap::CommandFactory>::command();
+        let stabilize = cmd.find_subcommand("stabilize").unwrap();
+        for o in amc_core::options::OPTIONS {
+            assert!(
+                stabilize
+                    .get_arguments()
+                    .any(|a| a.get_long() == Some(o.flag)),
+                "--{} missing",
+                o.flag
+            );
+        }
+        // A lens file and a field of view exclude each other; ranges are the core's.
+        assert!(parse(&[
+            "stabilize",
+            "i",
+            "-o",
+            "o",
+            "--lens",
+            "l.json",
+            "--fov",
+            "90"
+        ])
+        .is_err());
+        let Command::Stabilize(a) = parse(&["stabilize", "i", "-o", "o", "--n-avg", "0"])
+            .unwrap()
+            .command
+        else {
+            panic!("not stabilize")
+        };
+        let e = a.run.stabilizer.options(Mode::Stabilize, None).unwrap_err();
+        assert!(
+            e.to_string().contains("n_avg") && e.to_string().contains("1..=64"),
+            "{e}"
+        );
+    }
+}
