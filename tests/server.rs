@@ -800,6 +800,9 @@ fn bad_inputs_get_clear_statuses_and_leave_the_server_healthy() {
     assert!(server.healthy());
     server.assert_no_scratch_left(Duration::from_secs(5));
     assert!(server.ffmpeg_children().is_empty());
+    // Text logs written to a file carry no colour codes.
+    let log = server.log();
+    assert!(!log.contains('\x1b'), "ANSI escapes in the log:\n{log}");
 }
 
 #[test]

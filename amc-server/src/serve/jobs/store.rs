@@ -340,7 +340,7 @@ impl JobStore {
             .filter(|j| before.is_none_or(|b| j.seq < b))
             .cloned()
             .collect();
-        jobs.sort_by(|a, b| b.seq.cmp(&a.seq));
+        jobs.sort_by_key(|j| std::cmp::Reverse(j.seq));
         let more = jobs.len() > limit;
         jobs.truncate(limit);
         JobPage {
