@@ -159,12 +159,33 @@ fn jobs_report_progress_and_cancel_cleanly() {
     );
     assert_eq!(done["frames_done"], 362);
     assert_eq!(done["progress"], 1.0);
+    // One flat metrics object, the motion apart, no value twice.
+    for key in [
+        "rms_normal_flow",
+        "rms_frame_change",
+        "sharpness",
+        "valid_fraction",
+    ] {
+        assert!(
+            done["metrics"][key].as_f64().is_some(),
+            "metrics.{key}: {done}"
+        );
+    }
+    assert!(done["metrics"].get("metrics").is_none(), "{done}");
     assert!(
-        done["metrics"]["metrics"]["rms_normal_flow"]
-            .as_f64()
-            .is_some(),
+        done["motion"]["rms_speed_est_dps"].as_f64().is_some(),
         "{done}"
     );
+    assert!(
+        done["created"].as_str().is_some_and(|t| t.ends_with('Z')),
+        "{done}"
+    );
+    // GET /jobs lists it, newest first.
+    let list = get(&server.url("/jobs?limit=10"));
+    assert_eq!(list.status, 200, "{}", list.text());
+    let list = list.json();
+    assert_eq!(list["jobs"][0]["id"], id.as_str(), "{list}");
+    assert_eq!(list["jobs"][0]["state"], "done", "{list}");
 
     let out = get(&server.url(&format!("/jobs/{id}/output")));
     assert_eq!(out.status, 200);
@@ -327,6 +348,138 @@ fn live_source_reaches_viewers_at_its_rate_and_slow_viewers_do_not_hold_it_back(
     // Ingest is refused while the feed comes from --live-source.
     let e = websocket(&server.addr, "/live/ingest", Duration::from_secs(5)).err();
     assert_eq!(e.as_deref(), Some("HTTP 409"));
+}
+
+/// The value of a counter or gauge in a `/metrics` scrape.
+fn metric(server: &Server, name: &str) -> f64 {
+    let text = get(&server.url("/metrics")).text();
+    text.lines()
+        .find_map(|l| l.strip_prefix(name)?.strip_prefix(' ')?.trim().parse().ok())
+        .unwrap_or_else(|| panic!("/metrics lacks {name}:\n{text}"))
+}
+
+fn wait_until(what: &str, within: Duration, mut ok: impl FnMut() -> bool) {
+    let start = Instant::now();
+    while !ok() {
+        assert!(start.elapsed() < within, "{what} (waited {within:?})");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+#[test]
+fn live_feed_pauses_without_viewers_and_resumes_for_the_first() {
+    let _g = serial();
+    let karma = data("karma/karma.mp4");
+    let server = Server::start(&[
+        "--live-source",
+        karma.to_str().unwrap(),
+        "--live-loop",
+        "--live-fov",
+        "70",
+    ]);
+    // Opened once at start (so /healthz can tell it works), then paused:
+    // no ffmpeg and no frames while nobody watches.
+    wait_until(
+        "the live source's ffmpeg still runs with no viewer",
+        Duration::from_secs(15),
+        || server.ffmpeg_children().is_empty(),
+    );
+    let health = get(&server.url("/healthz"));
+    assert_eq!(health.status, 200, "{}", health.text());
+    assert_eq!(
+        health.json()["live"]["state"],
+        "paused",
+        "{}",
+        health.text()
+    );
+    let before = metric(&server, "amc_live_frames_total");
+    let processed = metric(&server, "amc_frames_processed_total");
+    std::thread::sleep(Duration::from_secs(3));
+    assert_eq!(metric(&server, "amc_live_frames_total"), before);
+    assert_eq!(metric(&server, "amc_frames_processed_total"), processed);
+    assert!(server.ffmpeg_children().is_empty());
+
+    // The first viewer resumes it within a few seconds.
+    let start = Instant::now();
+    let mut viewer = websocket(&server.addr, "/live", Duration::from_secs(10)).expect("viewer");
+    read_frames(&mut viewer, 10);
+    assert!(
+        start.elapsed() < Duration::from_secs(5),
+        "the first frames took {:?}",
+        start.elapsed()
+    );
+    assert!(
+        !server.ffmpeg_children().is_empty(),
+        "no ffmpeg while watched"
+    );
+    assert!(metric(&server, "amc_live_frames_total") >= before + 10.0);
+    assert_eq!(
+        get(&server.url("/healthz")).json()["live"]["state"],
+        "running"
+    );
+
+    // The last viewer leaving pauses it again.
+    drop(viewer);
+    wait_until(
+        "the live source's ffmpeg outlived the last viewer",
+        Duration::from_secs(5),
+        || server.ffmpeg_children().is_empty(),
+    );
+    std::thread::sleep(Duration::from_millis(500));
+    let paused = metric(&server, "amc_live_frames_total");
+    std::thread::sleep(Duration::from_secs(2));
+    assert_eq!(metric(&server, "amc_live_frames_total"), paused);
+}
+
+#[test]
+fn a_live_source_that_cannot_be_opened_is_reported_and_the_api_still_works() {
+    let _g = serial();
+    let missing = "/nonexistent/amc-test/flight.mp4";
+    let server = Server::start(&["--live-source", missing, "--log-json"]);
+    let mut health = None;
+    wait_until(
+        "/healthz never reported the live source",
+        Duration::from_secs(15),
+        || {
+            let h = get(&server.url("/healthz"));
+            let bad = h.status == 503;
+            health = Some(h);
+            bad
+        },
+    );
+    let h = health.unwrap();
+    assert_eq!(h.status, 503);
+    let j = h.json();
+    assert_eq!(j["status"], "unavailable", "{j}");
+    assert!(j["detail"].as_str().unwrap().contains(missing), "{j}");
+    assert_eq!(j["live"]["state"], "unavailable", "{j}");
+    // The rest of the API works.
+    assert_eq!(get(&server.url("/openapi.json")).status, 200);
+    assert_eq!(get(&server.url("/jobs")).status, 200);
+    // A plain GET of the WebSocket endpoint is a problem+json 426.
+    let plain = get(&server.url("/live"));
+    assert_eq!(plain.status, 426, "{}", plain.text());
+    assert_eq!(
+        plain.header("content-type"),
+        Some("application/problem+json")
+    );
+    assert!(plain.json()["detail"]
+        .as_str()
+        .unwrap()
+        .contains("WebSocket"));
+    // The log says it, as JSON lines without colours.
+    let log = server.log();
+    assert!(
+        log.contains(missing),
+        "the log does not name the source:\n{log}"
+    );
+    assert!(!log.contains('\x1b'), "ANSI escapes in the log:\n{log}");
+    for line in log.lines().filter(|l| !l.trim().is_empty()) {
+        assert!(
+            serde_json::from_str::<serde_json::Value>(line).is_ok(),
+            "not a JSON log line: {line}"
+        );
+    }
 }
 
 #[test]
@@ -625,6 +778,9 @@ fn bad_inputs_get_clear_statuses_and_leave_the_server_healthy() {
     assert!(server.healthy());
     server.assert_no_scratch_left(Duration::from_secs(5));
     assert!(server.ffmpeg_children().is_empty());
+    // Text logs written to a file carry no colour codes.
+    let log = server.log();
+    assert!(!log.contains('\x1b'), "ANSI escapes in the log:\n{log}");
 }
 
 #[test]
@@ -697,6 +853,22 @@ fn service_documents_itself_and_shuts_down_cleanly() {
     assert_eq!(api.status, 200);
     let doc = api.json();
     assert!(doc["openapi"].as_str().unwrap().starts_with("3."));
+    // Every operation has an operationId, unique in the document.
+    let mut ids = std::collections::BTreeSet::new();
+    for (path, item) in doc["paths"].as_object().unwrap() {
+        for (method, op) in item.as_object().unwrap() {
+            let id = op["operationId"].as_str();
+            assert!(id.is_some(), "{method} {path} has no operationId");
+            assert!(
+                ids.insert(id.unwrap().to_string()),
+                "operationId {id:?} twice"
+            );
+        }
+    }
+    assert!(
+        doc["paths"]["/jobs"]["get"].is_object(),
+        "GET /jobs is not documented"
+    );
     for path in [
         "/stabilize",
         "/jobs",

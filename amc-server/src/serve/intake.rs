@@ -2,11 +2,11 @@
 //! options (or 400), the upload (or 400/413/415) and its inspection (or 415/422).
 
 use super::options::JobOptions;
-use super::problem::ApiError;
+use super::problem::{count, ApiError};
+use super::state::AppState;
 use super::storage::Scratch;
 use super::upload::{self, Upload};
 use super::work;
-use super::AppState;
 use amc_video::Inspection;
 use axum::body::BodyDataStream;
 use axum::extract::Request;
@@ -47,8 +47,8 @@ async fn accept_parts(
     let options = JobOptions::from_query(parts.uri.query())?;
     let admission = state.admission.clone().try_acquire_owned().map_err(|_| {
         ApiError::Saturated(format!(
-            "the service is busy: {} clips are being processed or queued (--workers {} plus --queue {}); try again shortly",
-            state.limits.workers + state.limits.queue,
+            "the service is busy: {} being processed or queued (--workers {} plus --queue {}); try again shortly",
+            count((state.limits.workers + state.limits.queue) as u64, "clip is", "clips are"),
             state.limits.workers,
             state.limits.queue
         ))

@@ -1,5 +1,5 @@
 //! `GET /openapi.json`: an OpenAPI 3.1 description of every endpoint.
-//! A test checks that every route of [`super::app`] is described here.
+//! A test checks that every route of [`super::router::app`] is described here.
 
 use super::options::all_options;
 use super::stabilize::SUMMARY_HEADERS;
@@ -53,6 +53,10 @@ fn upload_errors(responses: &mut Map<String, Value>) {
     }));
 }
 
+fn job_state() -> Value {
+    json!({"type": "string", "enum": ["queued", "running", "done", "failed", "cancelled"]})
+}
+
 fn id_parameter() -> Value {
     json!({"name": "id", "in": "path", "required": true, "description": "Job id: 32 hex digits",
            "schema": {"type": "string", "pattern": "^[0-9a-f]{32}$"}})
@@ -92,19 +96,38 @@ pub fn spec() -> Value {
         },
         "paths": {
             "/stabilize": {"post": {
+                "operationId": "stabilizeClip",
                 "summary": "Stabilize a clip and stream the result back",
                 "parameters": query_parameters(),
                 "requestBody": upload_body(),
                 "responses": stabilize_ok
             }},
-            "/jobs": {"post": {
-                "summary": "Queue a clip as a job",
-                "parameters": query_parameters(),
-                "requestBody": upload_body(),
-                "responses": jobs_created
-            }},
+            "/jobs": {
+                "post": {
+                    "operationId": "createJob",
+                    "summary": "Queue a clip as a job",
+                    "parameters": query_parameters(),
+                    "requestBody": upload_body(),
+                    "responses": jobs_created
+                },
+                "get": {
+                    "operationId": "listJobs",
+                    "summary": "The jobs the service knows (queued, running and finished until they expire), newest first, one page at a time",
+                    "parameters": [
+                        {"name": "limit", "in": "query", "required": false, "description": "Jobs per page: 1..=100 (default 20)",
+                         "schema": {"type": "integer", "minimum": 1, "maximum": 100, "default": 20}},
+                        {"name": "cursor", "in": "query", "required": false, "description": "The next_cursor of the previous page (absent: the newest jobs)",
+                         "schema": {"type": "string"}}
+                    ],
+                    "responses": {
+                        "200": {"description": "One page of jobs", "content": {"application/json": {"schema": {"$ref": "#/components/schemas/JobPage"}}}},
+                        "400": problem("A bad limit or cursor, or an unknown parameter")
+                    }
+                }
+            },
             "/jobs/{id}": {
                 "get": {
+                    "operationId": "getJob",
                     "summary": "A job's state, progress and (when done) metrics",
                     "parameters": [id_parameter()],
                     "responses": {
@@ -113,6 +136,7 @@ pub fn spec() -> Value {
                     }
                 },
                 "delete": {
+                    "operationId": "deleteJob",
                     "summary": "Cancel a queued or running job (its ffmpeg children are killed and files removed), or remove a finished one",
                     "parameters": [id_parameter()],
                     "responses": {
@@ -123,6 +147,7 @@ pub fn spec() -> Value {
                 }
             },
             "/jobs/{id}/output": {"get": {
+                "operationId": "getJobOutput",
                 "summary": "The stabilized video of a finished job",
                 "parameters": [id_parameter()],
                 "responses": {
@@ -132,6 +157,7 @@ pub fn spec() -> Value {
                 }
             }},
             "/jobs/{id}/telemetry.csv": {"get": {
+                "operationId": "getJobTelemetry",
                 "summary": "Per-frame telemetry of a finished job: frame,t,rx,ry,rz,vx,vy,vz,...",
                 "parameters": [id_parameter()],
                 "responses": {
@@ -141,25 +167,37 @@ pub fn spec() -> Value {
                 }
             }},
             "/live": {"get": {
-                "summary": "WebSocket for viewers of the live feed: per stabilized frame, one binary message (JPEG) then one text message (LiveTelemetry JSON). Slow viewers skip frames.",
-                "responses": {"101": {"description": "Switching to the WebSocket protocol"}}
-            }},
-            "/live/ingest": {"get": {
-                "summary": "WebSocket for one publisher: each binary message is one JPEG frame of the feed to stabilize",
+                "operationId": "watchLive",
+                "summary": "WebSocket for viewers of the live feed: per stabilized frame, one binary message (JPEG) then one text message (LiveTelemetry JSON). Slow viewers skip frames. With no viewer the feed is paused; the first viewer resumes it.",
                 "responses": {
                     "101": {"description": "Switching to the WebSocket protocol"},
+                    "426": problem("Not a WebSocket upgrade request")
+                }
+            }},
+            "/live/ingest": {"get": {
+                "operationId": "publishLive",
+                "summary": "WebSocket for one publisher: each binary message is one JPEG frame of the feed to stabilize (dropped undecoded while no viewer watches)",
+                "responses": {
+                    "101": {"description": "Switching to the WebSocket protocol"},
+                    "426": problem("Not a WebSocket upgrade request"),
                     "409": problem("Another publisher is connected, or the feed comes from --live-source")
                 }
             }},
             "/healthz": {"get": {
-                "summary": "Health: ffmpeg runs and the work directory is writable",
-                "responses": {"200": {"description": "Healthy"}, "503": {"description": "Unhealthy"}}
+                "operationId": "getHealth",
+                "summary": "Health: ffmpeg runs, the work directory is writable and the --live-source (if any) can be opened",
+                "responses": {
+                    "200": {"description": "Healthy", "content": {"application/json": {"schema": {"$ref": "#/components/schemas/Health"}}}},
+                    "503": {"description": "Unhealthy: `detail` says why (a live source that cannot be opened is named)", "content": {"application/json": {"schema": {"$ref": "#/components/schemas/Health"}}}}
+                }
             }},
             "/metrics": {"get": {
+                "operationId": "getMetrics",
                 "summary": "Prometheus text format: jobs by state, frames processed, processing rate, live viewers, frames dropped",
                 "responses": {"200": {"description": "Metrics", "content": {"text/plain": {}}}}
             }},
             "/openapi.json": {"get": {
+                "operationId": "getOpenApi",
                 "summary": "This document",
                 "responses": {"200": {"description": "OpenAPI 3.1", "content": {"application/json": {}}}}
             }}
@@ -169,17 +207,59 @@ pub fn spec() -> Value {
                 "type": {"type": "string"}, "title": {"type": "string"},
                 "status": {"type": "integer"}, "detail": {"type": "string"}
             }},
-            "Job": {"type": "object", "required": ["id", "state", "frames_done"], "properties": {
+            "Job": {"type": "object", "required": ["id", "state", "created", "frames_done"], "properties": {
                 "id": {"type": "string"},
-                "state": {"type": "string", "enum": ["queued", "running", "done", "failed", "cancelled"]},
+                "state": job_state(),
+                "created": {"type": "string", "format": "date-time"},
                 "frames_done": {"type": "integer"},
                 "frames_total": {"type": ["integer", "null"]},
                 "progress": {"type": ["number", "null"], "minimum": 0, "maximum": 1},
                 "format": {"type": "string", "enum": ["mp4", "webm"]},
-                "error": {"type": ["string", "null"]},
-                "metrics": {"type": ["object", "null"], "description": "frames, sizes, seconds, frames_per_second and the paper's clip metrics"},
-                "output": {"type": ["string", "null"]},
-                "telemetry": {"type": ["string", "null"]}
+                "error": {"type": ["string", "null"], "description": "Why it failed"},
+                "metrics": {"oneOf": [{"$ref": "#/components/schemas/JobMetrics"}, {"type": "null"}], "description": "When done"},
+                "motion": {"oneOf": [{"$ref": "#/components/schemas/JobMotion"}, {"type": "null"}], "description": "When done"},
+                "output": {"type": ["string", "null"], "description": "URL of the video, when done"},
+                "telemetry": {"type": ["string", "null"], "description": "URL of the telemetry CSV, when done"}
+            }},
+            "JobMetrics": {"type": "object", "properties": {
+                "frames": {"type": "integer", "description": "Output frames"},
+                "input_size": {"type": "array", "items": {"type": "integer"}, "description": "[width, height] of the input"},
+                "output_size": {"type": "array", "items": {"type": "integer"}, "description": "[width, height] of the output"},
+                "seconds": {"type": "number", "description": "Processing time"},
+                "frames_per_second": {"type": "number", "description": "Processing rate"},
+                "rms_normal_flow": {"type": ["number", "null"], "description": "RMS normal flow of the output, pixels per frame (null with metrics=false)"},
+                "rms_frame_change": {"type": ["number", "null"], "description": "RMS luma change between consecutive outputs, 0..1 (null with metrics=false)"},
+                "sharpness": {"type": ["number", "null"], "description": "RMS Sobel gradient magnitude (null with metrics=false)"},
+                "valid_fraction": {"type": "number", "description": "Mean share of pixels covered by every averaged frame"},
+                "min_valid_fraction": {"type": "number", "description": "Lowest per-frame share of fully covered pixels"}
+            }},
+            "JobMotion": {"type": "object", "properties": {
+                "rms_speed_est_dps": {"type": "number", "description": "RMS angular speed of the camera (estimated), deg/s"},
+                "rms_speed_view_dps": {"type": "number", "description": "RMS angular speed of the view, deg/s"},
+                "saccades": {"type": "integer", "description": "Saccades made (saccade mode)"}
+            }},
+            "JobPage": {"type": "object", "required": ["jobs", "next_cursor"], "properties": {
+                "jobs": {"type": "array", "items": {"type": "object", "required": ["id", "state", "created", "frames_done"], "properties": {
+                    "id": {"type": "string"},
+                    "state": job_state(),
+                    "created": {"type": "string", "format": "date-time"},
+                    "frames_done": {"type": "integer"},
+                    "frames_total": {"type": ["integer", "null"]},
+                    "progress": {"type": ["number", "null"], "minimum": 0, "maximum": 1}
+                }}},
+                "next_cursor": {"type": ["string", "null"], "description": "Pass as cursor for the next page; null on the last"}
+            }},
+            "Health": {"type": "object", "properties": {
+                "status": {"type": "string", "enum": ["ok", "unavailable"]},
+                "detail": {"type": ["string", "null"]},
+                "version": {"type": "string"},
+                "workers": {"type": "integer"},
+                "busy": {"type": "integer"},
+                "live": {"type": "object", "properties": {
+                    "source": {"type": "string"},
+                    "state": {"type": "string", "enum": ["running", "paused", "unavailable", "waiting for a publisher"]},
+                    "viewers": {"type": "integer"}
+                }}
             }},
             "LiveTelemetry": {"type": "object", "properties": {
                 "frame": {"type": "integer"}, "t": {"type": "number"},

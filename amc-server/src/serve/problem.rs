@@ -9,6 +9,12 @@ use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 use thiserror::Error;
 
+/// `n` and the noun in its number: `1 clip`, `2 clips` (for messages).
+pub fn count(n: impl Into<u64>, one: &str, many: &str) -> String {
+    let n = n.into();
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
 /// Seconds a saturated service asks clients to wait before retrying.
 pub const RETRY_AFTER_SECS: u64 = 5;
 
@@ -33,6 +39,9 @@ pub enum ApiError {
     NoRoute(String),
     #[error("{0}")]
     MethodNotAllowed(String),
+    /// A plain HTTP request to a WebSocket endpoint.
+    #[error("{0}")]
+    UpgradeRequired(String),
     #[error("no job with id {0:?} (jobs expire after --job-ttl seconds)")]
     JobNotFound(String),
     /// The job exists but has nothing of that kind (yet).
@@ -64,6 +73,7 @@ impl ApiError {
             ApiError::Unprocessable(_) => StatusCode::UNPROCESSABLE_ENTITY,
             ApiError::JobNotFound(_) | ApiError::NoRoute(_) => StatusCode::NOT_FOUND,
             ApiError::MethodNotAllowed(_) => StatusCode::METHOD_NOT_ALLOWED,
+            ApiError::UpgradeRequired(_) => StatusCode::UPGRADE_REQUIRED,
             ApiError::Conflict(_) => StatusCode::CONFLICT,
             ApiError::Saturated(_) => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
@@ -81,6 +91,7 @@ impl ApiError {
             ApiError::JobNotFound(_) => "job-not-found",
             ApiError::NoRoute(_) => "not-found",
             ApiError::MethodNotAllowed(_) => "method-not-allowed",
+            ApiError::UpgradeRequired(_) => "upgrade-required",
             ApiError::Conflict(_) => "conflict",
             ApiError::Saturated(_) => "saturated",
             ApiError::Internal(_) => "internal",
@@ -109,10 +120,24 @@ impl IntoResponse for ApiError {
             header::CONTENT_TYPE,
             HeaderValue::from_static("application/problem+json"),
         );
+        if status == StatusCode::UPGRADE_REQUIRED {
+            res.headers_mut()
+                .insert(header::UPGRADE, HeaderValue::from_static("websocket"));
+        }
         if status == StatusCode::SERVICE_UNAVAILABLE {
             res.headers_mut()
                 .insert(header::RETRY_AFTER, HeaderValue::from(RETRY_AFTER_SECS));
         }
         res
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn counts_agree_in_number() {
+        assert_eq!(super::count(1u64, "clip is", "clips are"), "1 clip is");
+        assert_eq!(super::count(0u64, "clip is", "clips are"), "0 clips are");
+        assert_eq!(super::count(3u64, "frame", "frames"), "3 frames");
     }
 }

@@ -7,8 +7,8 @@
 
 use super::intake::{self, Intake};
 use super::problem::ApiError;
+use super::state::AppState;
 use super::work::{self, WorkSpec};
-use super::AppState;
 use crate::engine::{RunControl, RunSummary};
 use axum::body::Body;
 use axum::extract::{Request, State};

@@ -2,7 +2,10 @@
 
 use super::*;
 use axum::body::{to_bytes, Body};
-use axum::http::Request;
+use axum::http::{header, Request, StatusCode};
+use axum::Router;
+use std::sync::Arc;
+use std::time::Duration;
 use tower::ServiceExt;
 
 fn state(dir: &std::path::Path) -> Arc<AppState> {
@@ -58,19 +61,96 @@ async fn routes_and_errors() {
     assert_eq!(ctype, "application/problem+json");
     assert!(j["detail"].as_str().unwrap().contains("n_avg"), "{j}");
 
+    // The smoothing options come from amc-core's table: a bad value is named.
+    let (s, _, j) = call(
+        &app,
+        Request::post("/jobs?rate_a=-1")
+            .header("content-type", "video/mp4")
+            .body(Body::from("x"))
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(s, StatusCode::BAD_REQUEST, "{j}");
+    assert!(j["detail"].as_str().unwrap().contains("rate_a"), "{j}");
+
     let (s, _, _) = call(&app, get("/jobs/abc")).await;
     assert_eq!(s, StatusCode::NOT_FOUND);
     let (s, ctype, _) = call(&app, get("/nothing/here")).await;
     assert_eq!(s, StatusCode::NOT_FOUND);
     assert_eq!(ctype, "application/problem+json");
-    let (s, _, _) = call(&app, get("/jobs")).await;
+    let (s, _, j) = call(&app, get("/jobs")).await;
+    assert_eq!(s, StatusCode::OK);
+    assert_eq!(j["jobs"].as_array().map(Vec::len), Some(0), "{j}");
+    assert!(j["next_cursor"].is_null(), "{j}");
+    for q in ["limit=0", "limit=101", "limit=x", "cursor=abc", "page=2"] {
+        let (s, ctype, j) = call(&app, get(&format!("/jobs?{q}"))).await;
+        assert_eq!(s, StatusCode::BAD_REQUEST, "{q}");
+        assert_eq!(ctype, "application/problem+json", "{q}");
+        let name = q.split('=').next().unwrap();
+        assert!(j["detail"].as_str().unwrap().contains(name), "{q}: {j}");
+    }
+    let (s, _, _) = call(&app, Request::put("/jobs").body(Body::empty()).unwrap()).await;
     assert_eq!(s, StatusCode::METHOD_NOT_ALLOWED);
+    // The WebSocket endpoints answer a plain request with problem+json 426.
+    for path in ["/live", "/live/ingest"] {
+        let (s, ctype, j) = call(&app, get(path)).await;
+        assert_eq!(s, StatusCode::UPGRADE_REQUIRED, "{path}");
+        assert_eq!(ctype, "application/problem+json", "{path}");
+        assert!(j["detail"].as_str().unwrap().contains("WebSocket"), "{j}");
+    }
     let (s, ctype, _) = call(&app, get("/")).await;
     assert_eq!(s, StatusCode::OK);
     assert!(ctype.starts_with("text/html"));
     let (s, _, doc) = call(&app, get("/openapi.json")).await;
     assert_eq!(s, StatusCode::OK);
     assert_eq!(doc["paths"].as_object().unwrap().len(), 10);
+    assert_eq!(operation_ids(&doc).len(), 12);
+}
+
+/// Every operation's `operationId`, checked present, camelCase and unique.
+fn operation_ids(doc: &serde_json::Value) -> Vec<String> {
+    let mut ids = Vec::new();
+    for (path, item) in doc["paths"].as_object().unwrap() {
+        for (method, op) in item.as_object().unwrap() {
+            let id = op["operationId"]
+                .as_str()
+                .unwrap_or_else(|| panic!("{method} {path} has no operationId"));
+            assert!(
+                id.chars().next().is_some_and(|c| c.is_ascii_lowercase())
+                    && id.chars().all(|c| c.is_ascii_alphanumeric()),
+                "{method} {path}: operationId {id:?} is not camelCase"
+            );
+            assert!(!ids.contains(&id.to_string()), "operationId {id} twice");
+            ids.push(id.to_string());
+        }
+    }
+    ids
+}
+
+#[tokio::test]
+async fn every_stabilizer_option_is_documented_with_its_help() {
+    let doc = openapi::spec();
+    for op in ["/stabilize", "/jobs"] {
+        let params = doc["paths"][op]["post"]["parameters"].as_array().unwrap();
+        for o in amc_core::options::OPTIONS {
+            let p = params
+                .iter()
+                .find(|p| p["name"] == o.name)
+                .unwrap_or_else(|| panic!("POST {op} lacks the option {}", o.name));
+            assert_eq!(p["description"], o.help, "{}", o.name);
+            assert_eq!(p["in"], "query");
+        }
+    }
+}
+
+#[test]
+fn job_times_are_rfc3339() {
+    use std::time::{SystemTime, UNIX_EPOCH};
+    let at = |s: u64| jobs::rfc3339(UNIX_EPOCH + Duration::from_secs(s));
+    assert_eq!(at(0), "1970-01-01T00:00:00Z");
+    assert_eq!(at(951_782_400), "2000-02-29T00:00:00Z");
+    assert_eq!(at(1_795_983_845), "2026-11-29T20:24:05Z");
+    assert!(jobs::rfc3339(SystemTime::now()).starts_with("20"));
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -105,7 +185,7 @@ async fn a_small_job_runs_to_done_and_its_files_go_with_it() {
     let app = app(st.clone());
     let (s, _, j) = call(
         &app,
-        Request::post("/jobs?fov=60&n_avg=3")
+        Request::post("/jobs?fov=60&n_avg=3&rate_a=0.5&rate_b=10")
             .header("content-type", "video/mp4")
             .body(Body::from(std::fs::read(&clip).unwrap()))
             .unwrap(),
@@ -124,6 +204,34 @@ async fn a_small_job_runs_to_done_and_its_files_go_with_it() {
     }
     assert_eq!(last["state"], "done", "{last}");
     assert_eq!(last["frames_done"], 30);
+    // One flat metrics object and one motion object, each value once.
+    let m = &last["metrics"];
+    for key in [
+        "frames",
+        "rms_normal_flow",
+        "rms_frame_change",
+        "sharpness",
+        "valid_fraction",
+        "min_valid_fraction",
+        "frames_per_second",
+    ] {
+        assert!(m[key].is_number(), "metrics.{key}: {last}");
+    }
+    assert!(
+        m.get("metrics").is_none() && m.get("motion").is_none(),
+        "{last}"
+    );
+    for key in ["rms_speed_est_dps", "rms_speed_view_dps", "saccades"] {
+        assert!(last["motion"][key].is_number(), "motion.{key}: {last}");
+        assert!(m.get(key).is_none(), "{key} twice: {last}");
+    }
+    // The listing shows it.
+    let (s, _, list) = call(&app, get("/jobs?limit=5")).await;
+    assert_eq!(s, StatusCode::OK);
+    assert_eq!(list["jobs"][0]["id"], id.as_str(), "{list}");
+    assert_eq!(list["jobs"][0]["state"], "done");
+    assert_eq!(list["jobs"][0]["progress"], 1.0);
+    assert!(list["jobs"][0]["created"].as_str().unwrap().ends_with('Z'));
     assert!(
         st.disk.used() > 0,
         "the output is counted against the disk budget"

@@ -3,9 +3,9 @@
 //! blocking thread; a [`RunControl`] cancels it (its ffmpeg children are
 //! killed and its partial files removed when the pipeline unwinds).
 
+use super::config::Limits;
 use super::options::JobOptions;
-use super::problem::ApiError;
-use super::Limits;
+use super::problem::{count, ApiError};
 use crate::engine::{self, RunConfig, RunControl, RunError, RunSummary};
 use amc_core::{AmcError, LensSpec};
 use amc_video::{self as video, Inspection, VideoError};
@@ -43,7 +43,7 @@ impl WorkSpec {
 }
 
 /// A control for one run: the per-job time limit, counted in the service's frames.
-pub fn control(state: &super::AppState) -> std::sync::Arc<RunControl> {
+pub fn control(state: &super::state::AppState) -> std::sync::Arc<RunControl> {
     std::sync::Arc::new(
         RunControl::new(Some(state.limits.job_time_limit))
             .counting_into(state.metrics.frames_processed.clone()),
@@ -130,9 +130,9 @@ pub fn stabilize(
     .and_then(|summary| {
         if summary.looks_truncated() {
             return Err(ApiError::Unsupported(format!(
-                "the video is truncated or damaged: only {} of the {} frames it declares could be decoded",
+                "the video is truncated or damaged: only {} of the {} it declares could be decoded",
                 summary.frames,
-                summary.frames_declared.unwrap_or(0)
+                count(summary.frames_declared.unwrap_or(0), "frame", "frames")
             )));
         }
         Ok(summary)

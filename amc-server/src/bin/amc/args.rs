@@ -256,7 +256,9 @@ pub struct ServeArgs {
     #[arg(long, default_value_t = 60)]
     pub ffmpeg_timeout: u64,
     /// Live feed source: a file, an RTSP/UDP/SRT URL or a device (anything ffmpeg opens).
-    /// Without it, the feed comes from a publisher on /live/ingest.
+    /// Without it, the feed comes from a publisher on /live/ingest. It is read only while
+    /// a viewer watches /live. One that cannot be opened does not stop the service: it is
+    /// logged, retried, and /healthz answers 503 naming it until it works.
     #[arg(long, value_name = "SOURCE")]
     pub live_source: Option<String>,
     /// Replay a file --live-source forever.

@@ -1,230 +1,23 @@
-//! Batch jobs: `POST /jobs` queues a clip and answers 202 at once;
-//! `GET /jobs/{id}` reports state and progress; the output and telemetry
-//! are fetched when done; `DELETE /jobs/{id}` cancels or removes.
-//!
-//! A job's files live in its own [`Scratch`] folder, dropped (with its disk
-//! budget) when the job is cancelled, removed or expires. Ids are 128 random
-//! bits in hex; anything else is an unknown job, so an id never names a path.
+//! The job endpoints: `POST /jobs` queues a clip and answers 202 at once;
+//! `GET /jobs` lists jobs; `GET /jobs/{id}` reports state and progress; the
+//! output and telemetry are fetched when done; `DELETE /jobs/{id}` cancels
+//! or removes. A job's task waits for a worker, stabilizes, settles.
 
-use super::intake::{self, Intake};
-use super::options::OutputFormat;
-use super::problem::ApiError;
-use super::storage::Scratch;
-use super::work::{self, WorkSpec};
-use super::AppState;
-use crate::engine::{RunControl, RunSummary};
+use super::store::{lock, Job, JobPage, JobState, JobView};
+use crate::serve::intake::{self, Intake};
+use crate::serve::problem::ApiError;
+use crate::serve::state::AppState;
+use crate::serve::work::{self, WorkSpec};
 use axum::body::Body;
 use axum::extract::{Path as UrlPath, Request, State};
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
-use serde::Serialize;
-use std::collections::HashMap;
-use std::sync::{Arc, Mutex, MutexGuard};
-use std::time::{Duration, Instant};
-use tokio::sync::{watch, Notify};
+use std::sync::Arc;
+use std::time::Duration;
 
 /// Longest a `DELETE` waits for a running job to unwind (kill ffmpeg, remove files).
 const CANCEL_WAIT: Duration = Duration::from_secs(15);
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum JobState {
-    Queued,
-    Running,
-    Done,
-    Failed,
-    Cancelled,
-}
-
-impl JobState {
-    pub const ALL: [JobState; 5] = [
-        JobState::Queued,
-        JobState::Running,
-        JobState::Done,
-        JobState::Failed,
-        JobState::Cancelled,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            JobState::Queued => "queued",
-            JobState::Running => "running",
-            JobState::Done => "done",
-            JobState::Failed => "failed",
-            JobState::Cancelled => "cancelled",
-        }
-    }
-
-    fn finished(self) -> bool {
-        matches!(
-            self,
-            JobState::Done | JobState::Failed | JobState::Cancelled
-        )
-    }
-}
-
-struct JobInner {
-    state: JobState,
-    scratch: Option<Scratch>,
-    summary: Option<RunSummary>,
-    error: Option<String>,
-    finished_at: Option<Instant>,
-}
-
-pub struct Job {
-    id: String,
-    format: OutputFormat,
-    frames_total: Option<u64>,
-    control: Arc<RunControl>,
-    /// Wakes a queued job's task when it is cancelled.
-    cancel: Notify,
-    /// Becomes true when the job's task has finished with its files.
-    settled: watch::Sender<bool>,
-    inner: Mutex<JobInner>,
-}
-
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
-}
-
-/// A job as `GET /jobs/{id}` shows it.
-#[derive(Serialize)]
-pub struct JobView {
-    pub id: String,
-    pub state: JobState,
-    pub frames_done: u64,
-    pub frames_total: Option<u64>,
-    /// `frames_done / frames_total` in [0, 1], when the total is known.
-    pub progress: Option<f64>,
-    pub format: &'static str,
-    pub error: Option<String>,
-    pub metrics: Option<RunSummary>,
-    pub output: Option<String>,
-    pub telemetry: Option<String>,
-}
-
-impl Job {
-    pub fn state(&self) -> JobState {
-        lock(&self.inner).state
-    }
-
-    fn view(&self) -> JobView {
-        let inner = lock(&self.inner);
-        let frames_done = self.control.frames_done();
-        let done = inner.state == JobState::Done;
-        JobView {
-            id: self.id.clone(),
-            state: inner.state,
-            frames_done,
-            frames_total: self.frames_total,
-            progress: match (done, self.frames_total) {
-                (true, _) => Some(1.0),
-                (false, Some(n)) if n > 0 => Some((frames_done as f64 / n as f64).min(1.0)),
-                _ => None,
-            },
-            format: self.format.extension(),
-            error: inner.error.clone(),
-            metrics: inner.summary.clone(),
-            output: done.then(|| format!("/jobs/{}/output", self.id)),
-            telemetry: done.then(|| format!("/jobs/{}/telemetry.csv", self.id)),
-        }
-    }
-
-    fn finish(&self, state: JobState, summary: Option<RunSummary>, error: Option<String>) {
-        let mut inner = lock(&self.inner);
-        if inner.state == JobState::Cancelled {
-            // Cancelled while running: the work's result does not matter.
-            inner.scratch = None;
-        } else {
-            inner.state = state;
-            inner.summary = summary;
-            inner.error = error;
-            if state != JobState::Done {
-                inner.scratch = None;
-            }
-        }
-        inner.finished_at = Some(Instant::now());
-        drop(inner);
-        self.settled.send_replace(true);
-    }
-
-    /// Cancels a queued or running job; false if it had already finished.
-    fn cancel(&self) -> bool {
-        let mut inner = lock(&self.inner);
-        if inner.state.finished() {
-            return false;
-        }
-        inner.state = JobState::Cancelled;
-        inner.finished_at = Some(Instant::now());
-        drop(inner);
-        self.control.cancel();
-        self.cancel.notify_one();
-        true
-    }
-}
-
-/// All jobs the service knows.
-#[derive(Default)]
-pub struct JobStore {
-    jobs: Mutex<HashMap<String, Arc<Job>>>,
-}
-
-impl JobStore {
-    /// A job by id; ids that are not 32 hex digits are never looked up.
-    pub fn get(&self, id: &str) -> Result<Arc<Job>, ApiError> {
-        let valid = id.len() == 32 && id.bytes().all(|b| b.is_ascii_hexdigit());
-        let unknown = || ApiError::JobNotFound(id.chars().take(64).collect());
-        if !valid {
-            return Err(unknown());
-        }
-        lock(&self.jobs).get(id).cloned().ok_or_else(unknown)
-    }
-
-    fn insert(&self, job: Arc<Job>) {
-        lock(&self.jobs).insert(job.id.clone(), job);
-    }
-
-    fn remove(&self, id: &str) -> Option<Arc<Job>> {
-        lock(&self.jobs).remove(id)
-    }
-
-    /// Number of jobs in each state.
-    pub fn counts(&self) -> HashMap<JobState, usize> {
-        let mut counts = HashMap::new();
-        for job in lock(&self.jobs).values() {
-            *counts.entry(job.state()).or_insert(0) += 1;
-        }
-        counts
-    }
-
-    /// Removes finished jobs older than `ttl` (and their files).
-    pub fn expire(&self, ttl: Duration) -> usize {
-        let now = Instant::now();
-        let mut jobs = lock(&self.jobs);
-        let before = jobs.len();
-        jobs.retain(|_, job| {
-            let inner = lock(&job.inner);
-            !(inner.state.finished()
-                && inner
-                    .finished_at
-                    .is_some_and(|t| now.duration_since(t) > ttl))
-        });
-        before - jobs.len()
-    }
-
-    /// Cancels every job (shutdown).
-    pub fn cancel_all(&self) {
-        for job in lock(&self.jobs).values() {
-            job.cancel();
-        }
-    }
-
-    /// Drops every job and its files (shutdown, after the tasks have ended).
-    pub fn clear(&self) {
-        lock(&self.jobs).clear();
-    }
-}
 
 fn new_id() -> String {
     use rand::RngCore;
@@ -261,21 +54,13 @@ async fn create_job(state: &Arc<AppState>, request: Request) -> Result<JobView, 
     let bytes = upload.bytes;
     let spec = WorkSpec::for_upload(&scratch, upload, options, &inspection, true);
     let control = work::control(state);
-    let job = Arc::new(Job {
-        id: id.clone(),
+    let job = Arc::new(Job::new(
+        id.clone(),
         format,
-        frames_total: inspection.info.frame_count,
+        inspection.info.frame_count,
         control,
-        cancel: Notify::new(),
-        settled: watch::channel(false).0,
-        inner: Mutex::new(JobInner {
-            state: JobState::Queued,
-            scratch: Some(scratch),
-            summary: None,
-            error: None,
-            finished_at: None,
-        }),
-    });
+        scratch,
+    ));
     state.jobs.insert(job.clone());
     tracing::info!(job = %id, bytes, frames = ?job.frames_total, "job queued");
     let view = job.view();
@@ -350,6 +135,49 @@ async fn run(state: Arc<AppState>, job: Arc<Job>, spec: WorkSpec) {
             );
         }
     }
+}
+
+/// Jobs listed per page by default, and at most.
+const PAGE_DEFAULT: usize = 20;
+const PAGE_MAX: usize = 100;
+
+/// `GET /jobs?limit=N&cursor=C`: the jobs the service knows, newest first,
+/// `limit` (1..=100, default 20) per page; `next_cursor` fetches the next.
+pub async fn list(
+    State(state): State<Arc<AppState>>,
+    uri: axum::http::Uri,
+) -> Result<Json<JobPage>, ApiError> {
+    let mut limit = PAGE_DEFAULT;
+    let mut cursor = None;
+    for (key, value) in form_urlencoded::parse(uri.query().unwrap_or("").as_bytes()) {
+        match key.as_ref() {
+            "limit" => {
+                limit = value
+                    .trim()
+                    .parse::<usize>()
+                    .ok()
+                    .filter(|n| (1..=PAGE_MAX).contains(n))
+                    .ok_or_else(|| {
+                        ApiError::BadOption(format!(
+                            "invalid limit: {value:?} (allowed: 1..={PAGE_MAX})"
+                        ))
+                    })?
+            }
+            "cursor" => {
+                cursor = Some(value.trim().parse::<u64>().map_err(|_| {
+                    ApiError::BadOption(format!(
+                        "invalid cursor: {value:?} (allowed: the next_cursor of a previous page)"
+                    ))
+                })?)
+            }
+            other => {
+                return Err(ApiError::BadOption(format!(
+                    "unknown option {other:?} (known: limit, cursor)"
+                )))
+            }
+        }
+    }
+    Ok(Json(state.jobs.page(limit, cursor)))
 }
 
 /// `GET /jobs/{id}`.

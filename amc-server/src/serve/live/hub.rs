@@ -6,25 +6,26 @@
 //! source thread --try_send--> [1 slot] --> processor thread --watch--> viewer tasks
 //! ingest socket --try_send-->            (stabilize, JPEG)    (latest frame only)
 //! ```
+//! With no viewer the feed is paused: the source's ffmpeg child is stopped
+//! (and started again, from a file's beginning, for the first viewer) and
+//! a publisher's frames are dropped undecoded, so an unwatched feed costs
+//! no CPU.
+//!
 //! Memory is bounded by design: the processor's input holds one frame (a
 //! frame arriving while it is full is dropped and counted), and the
 //! fan-out is a `watch` channel holding only the newest frame, so a slow
 //! viewer skips frames instead of queueing them and never delays the others.
 
-use super::metrics::Metrics;
-use super::problem::ApiError;
-use super::AppState;
+use super::jpeg::{decode_jpeg, encode_jpeg};
+use crate::serve::metrics::Metrics;
 use amc_core::view::Mode;
 use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams};
 use amc_video::{self as video, InputOptions};
-use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
-use axum::extract::State;
-use axum::response::Response;
 use bytes::Bytes;
 use serde::Serialize;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 use tokio::sync::watch;
 
@@ -32,11 +33,8 @@ use tokio::sync::watch;
 const INPUT_SLOTS: usize = 1;
 /// Wait before reopening a live source that failed or ended.
 const REOPEN_DELAY: Duration = Duration::from_secs(2);
-/// Frames a viewer may have unread before it is skipped ahead (about 0.2 s
-/// at 30 frames/s: enough for a round trip on a slow link, little staleness).
-const VIEWER_IN_FLIGHT: u64 = 6;
-/// Largest JPEG frame a publisher may send.
-pub const MAX_INGEST_FRAME_BYTES: usize = 16 << 20;
+/// How often a paused source thread looks for a viewer.
+const PAUSED_POLL: Duration = Duration::from_millis(100);
 
 /// How the live feed is stabilized.
 #[derive(Clone, Debug)]
@@ -103,6 +101,9 @@ enum Input {
         frame: Frame,
         t: Option<f64>,
         arrived: Instant,
+        /// Which opening of the source it comes from: a new one (after a
+        /// pause or a failure) starts a new stabilizer.
+        opening: u64,
     },
     Jpeg {
         bytes: Bytes,
@@ -120,6 +121,37 @@ pub struct LiveHub {
     stop: AtomicBool,
     pub config: LiveConfig,
     metrics: Arc<Metrics>,
+    /// Viewers connected to `/live`; none pauses the feed.
+    viewers: AtomicUsize,
+    /// Why `--live-source` cannot be used right now (for `/healthz`).
+    source_error: Mutex<Option<String>>,
+    /// Whether the source's ffmpeg child is running.
+    source_open: AtomicBool,
+    /// Openings of the source so far.
+    openings: AtomicU64,
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A viewer's place: counted while it lives (it keeps the feed running).
+pub struct Viewing(Arc<LiveHub>);
+
+impl Drop for Viewing {
+    fn drop(&mut self) {
+        self.0.viewers.fetch_sub(1, Ordering::SeqCst);
+        self.0.metrics.live_viewers.dec();
+    }
+}
+
+/// The single publisher's slot, taken while it lives.
+pub struct Publishing(Arc<LiveHub>);
+
+impl Drop for Publishing {
+    fn drop(&mut self) {
+        self.0.publisher.store(false, Ordering::SeqCst);
+    }
 }
 
 impl LiveHub {
@@ -134,6 +166,10 @@ impl LiveHub {
             stop: AtomicBool::new(false),
             config,
             metrics,
+            viewers: AtomicUsize::new(0),
+            source_error: Mutex::new(None),
+            source_open: AtomicBool::new(false),
+            openings: AtomicU64::new(0),
         });
         let processor = hub.clone();
         std::thread::Builder::new()
@@ -154,14 +190,68 @@ impl LiveHub {
         self.latest.subscribe()
     }
 
+    /// Counts a viewer until the returned guard is dropped; the first one
+    /// resumes a paused feed.
+    pub fn watch(self: &Arc<Self>) -> Viewing {
+        self.viewers.fetch_add(1, Ordering::SeqCst);
+        self.metrics.live_viewers.inc();
+        Viewing(self.clone())
+    }
+
+    fn watched(&self) -> bool {
+        self.viewers.load(Ordering::SeqCst) > 0
+    }
+
+    /// Takes the single publisher slot, if it is free.
+    pub fn publish(self: &Arc<Self>) -> Option<Publishing> {
+        (!self.publisher.swap(true, Ordering::SeqCst)).then(|| Publishing(self.clone()))
+    }
+
+    /// Why `--live-source` cannot be used, while it cannot.
+    pub fn source_error(&self) -> Option<String> {
+        lock(&self.source_error).clone()
+    }
+
+    /// The feed's state for `/healthz`.
+    pub fn status(&self) -> serde_json::Value {
+        let viewers = self.viewers.load(Ordering::SeqCst);
+        let state = match &self.config.source {
+            Some(_) if self.source_error().is_some() => "unavailable",
+            Some(_) if self.source_open.load(Ordering::SeqCst) => "running",
+            Some(_) => "paused",
+            None if self.publisher.load(Ordering::SeqCst) && viewers > 0 => "running",
+            None if self.publisher.load(Ordering::SeqCst) => "paused",
+            None => "waiting for a publisher",
+        };
+        serde_json::json!({
+            "source": self.config.source.as_deref().unwrap_or("/live/ingest"),
+            "state": state,
+            "viewers": viewers,
+        })
+    }
+
+    /// Records (and logs, once per new trouble) why the source cannot be used.
+    fn set_source_error(&self, error: Option<String>) {
+        let mut slot = lock(&self.source_error);
+        match (&error, slot.as_ref()) {
+            (Some(e), prev) if prev != Some(e) => tracing::warn!(
+                error = %e,
+                "the live feed is unavailable (the rest of the API works; /healthz answers 503 until the source can be opened)"
+            ),
+            (None, Some(_)) => tracing::info!("the live source works again"),
+            _ => {}
+        }
+        *slot = error;
+    }
+
     /// Stops the threads (shutdown).
     pub fn stop(&self) {
         self.stop.store(true, Ordering::SeqCst);
-        self.input.lock().unwrap_or_else(|e| e.into_inner()).take();
+        lock(&self.input).take();
     }
 
     fn submit(&self, input: Input) {
-        let guard = self.input.lock().unwrap_or_else(|e| e.into_inner());
+        let guard = lock(&self.input);
         let Some(tx) = guard.as_ref() else { return };
         match tx.try_send(input) {
             Ok(()) => {}
@@ -176,29 +266,34 @@ impl LiveHub {
     }
 
     fn give_back(&self, frame: Frame) {
-        let mut spare = self.spare.lock().unwrap_or_else(|e| e.into_inner());
+        let mut spare = lock(&self.spare);
         if spare.len() < INPUT_SLOTS + 2 {
             spare.push(frame);
         }
     }
 
     fn take_buffer(&self) -> Frame {
-        self.spare
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
+        lock(&self.spare)
             .pop()
             .unwrap_or_else(|| Frame::new(0, 0, PixelFormat::Rgb8))
     }
 
-    /// A JPEG frame from a publisher.
+    /// A JPEG frame from a publisher (dropped undecoded while nobody watches).
     pub fn submit_jpeg(&self, bytes: Bytes) {
+        if !self.watched() {
+            return;
+        }
         self.submit(Input::Jpeg {
             bytes,
             arrived: Instant::now(),
         });
     }
 
-    /// The source thread: decode `--live-source` in real time, hand frames on.
+    /// The source thread: decode `--live-source` in real time while
+    /// someone watches, hand frames on. The source is opened once at start
+    /// (so `/healthz` knows whether it works), then again for each viewer
+    /// after a pause; one that cannot be opened is retried every
+    /// REOPEN_DELAY.
     fn read_source(self: Arc<Self>) {
         let Some(source) = self.config.source.clone() else {
             return;
@@ -211,38 +306,74 @@ impl LiveHub {
             looped: self.config.looped && is_file,
             ..InputOptions::default()
         };
-        while !self.stop.load(Ordering::SeqCst) {
-            match video::open_stream(&source, self.config.format.as_deref(), &opts) {
-                Ok(mut src) => {
-                    tracing::info!(%source, width = src.info().width, height = src.info().height, fps = src.info().fps, "live source open");
-                    loop {
-                        if self.stop.load(Ordering::SeqCst) {
-                            return;
-                        }
-                        let mut frame = self.take_buffer();
-                        match src.next_frame(&mut frame) {
-                            Ok(Some(t)) => self.submit(Input::Rgb {
-                                frame,
-                                t: Some(t),
-                                arrived: Instant::now(),
-                            }),
-                            Ok(None) => {
-                                tracing::info!(%source, "live source ended");
-                                break;
-                            }
-                            Err(e) => {
-                                tracing::warn!(%source, error = %e, "live source failed");
-                                break;
-                            }
-                        }
+        let stopped = || self.stop.load(Ordering::SeqCst);
+        let mut checked = false;
+        while !stopped() {
+            if checked {
+                while !stopped() && !self.watched() {
+                    std::thread::sleep(PAUSED_POLL);
+                }
+                if stopped() {
+                    return;
+                }
+            }
+            let mut src = match video::open_stream(&source, self.config.format.as_deref(), &opts) {
+                Ok(src) => src,
+                Err(e) => {
+                    self.set_source_error(Some(format!(
+                        "the live source {source} cannot be opened: {e}"
+                    )));
+                    // Retried whether or not anyone watches, so that
+                    // /healthz sees the source come back.
+                    checked = false;
+                    std::thread::sleep(REOPEN_DELAY);
+                    continue;
+                }
+            };
+            checked = true;
+            self.set_source_error(None);
+            let opening = self.openings.fetch_add(1, Ordering::SeqCst) + 1;
+            self.source_open.store(true, Ordering::SeqCst);
+            tracing::info!(%source, width = src.info().width, height = src.info().height, fps = src.info().fps, "live source open");
+            let ended = loop {
+                if stopped() {
+                    break false;
+                }
+                if !self.watched() {
+                    tracing::info!(%source, "no viewers: live source paused");
+                    break false;
+                }
+                let mut frame = self.take_buffer();
+                match src.next_frame(&mut frame) {
+                    Ok(Some(t)) => self.submit(Input::Rgb {
+                        frame,
+                        t: Some(t),
+                        arrived: Instant::now(),
+                        opening,
+                    }),
+                    Ok(None) => {
+                        tracing::info!(%source, "live source ended");
+                        break true;
+                    }
+                    Err(e) => {
+                        self.set_source_error(Some(format!(
+                            "the live source {source} failed: {e}"
+                        )));
+                        // Probed again even with no viewer, as above.
+                        checked = false;
+                        break true;
                     }
                 }
-                Err(e) => tracing::warn!(%source, error = %e, "cannot open the live source"),
+            };
+            // Dropping the source kills its ffmpeg child.
+            drop(src);
+            self.source_open.store(false, Ordering::SeqCst);
+            if ended {
+                if is_file && !self.config.looped {
+                    return;
+                }
+                std::thread::sleep(REOPEN_DELAY);
             }
-            if is_file && !self.config.looped {
-                return;
-            }
-            std::thread::sleep(REOPEN_DELAY);
         }
     }
 
@@ -256,9 +387,22 @@ impl LiveHub {
         let mut last_t = f64::NEG_INFINITY;
         let mut published = 0u64;
         let mut decode_failures = 0u64;
+        let mut last_opening = 0u64;
         while let Ok(input) = rx.recv() {
             let (frame, t, arrived, from_source) = match input {
-                Input::Rgb { frame, t, arrived } => (frame, t, arrived, true),
+                Input::Rgb {
+                    frame,
+                    t,
+                    arrived,
+                    opening,
+                } => {
+                    if opening != last_opening {
+                        // The source was reopened: its clock starts again.
+                        last_opening = opening;
+                        size = (0, 0);
+                    }
+                    (frame, t, arrived, true)
+                }
                 Input::Jpeg { bytes, arrived } => match decode_jpeg(&bytes, &mut rgb) {
                     Ok(()) => (
                         std::mem::replace(&mut rgb, Frame::new(0, 0, PixelFormat::Rgb8)),
@@ -367,159 +511,4 @@ impl LiveHub {
         };
         Stabilizer::new(&lens, width, height, self.config.params.clone())
     }
-}
-
-/// Encodes a stabilized frame for viewers (jpeg-encoder's SIMD path: a
-/// few milliseconds at 960x540, several times faster than `image`'s encoder).
-fn encode_jpeg(
-    frame: &amc_core::FrameRef<'_>,
-    quality: u8,
-    out: &mut Vec<u8>,
-) -> Result<(), String> {
-    let (Ok(w), Ok(h)) = (u16::try_from(frame.width), u16::try_from(frame.height)) else {
-        return Err(format!(
-            "{}x{} is too large for JPEG",
-            frame.width, frame.height
-        ));
-    };
-    let color = match frame.format {
-        PixelFormat::Rgb8 => jpeg_encoder::ColorType::Rgb,
-        PixelFormat::Rgba8 => jpeg_encoder::ColorType::Rgba,
-    };
-    jpeg_encoder::Encoder::new(out, quality)
-        .encode(frame.data, w, h, color)
-        .map_err(|e| e.to_string())
-}
-
-fn decode_jpeg(bytes: &[u8], into: &mut Frame) -> Result<(), image::ImageError> {
-    let img = image::load_from_memory_with_format(bytes, image::ImageFormat::Jpeg)?.into_rgb8();
-    let (w, h) = (img.width() as usize, img.height() as usize);
-    into.width = w;
-    into.height = h;
-    into.format = PixelFormat::Rgb8;
-    into.data = img.into_raw();
-    Ok(())
-}
-
-/// Resolves once the service starts shutting down.
-async fn until_shutdown(rx: &mut watch::Receiver<bool>) {
-    let _ = rx.wait_for(|s| *s).await;
-}
-
-/// Decrements the viewer gauge when a viewer's task ends.
-struct ViewerGuard(Arc<Metrics>);
-
-impl Drop for ViewerGuard {
-    fn drop(&mut self) {
-        self.0.live_viewers.dec();
-    }
-}
-
-/// `GET /live`: a viewer's WebSocket.
-pub async fn viewer(ws: WebSocketUpgrade, State(state): State<Arc<AppState>>) -> Response {
-    ws.on_upgrade(move |socket| serve_viewer(socket, state))
-}
-
-async fn serve_viewer(mut socket: WebSocket, state: Arc<AppState>) {
-    state.metrics.live_viewers.inc();
-    let _guard = ViewerGuard(state.metrics.clone());
-    let mut frames = state.live.subscribe();
-    let mut shutdown = state.shutdown.subscribe();
-    let mut last: Option<u64> = None;
-    // Flow control: each frame is followed by a ping carrying its number;
-    // the viewer's pong says it has read that far. A viewer that has not
-    // read the last VIEWER_IN_FLIGHT frames gets none until it has, so
-    // what it sees is never more than that many frames old.
-    let mut sent = 0u64;
-    let mut acked = 0u64;
-    loop {
-        tokio::select! {
-            changed = frames.changed() => {
-                if changed.is_err() {
-                    break;
-                }
-                let Some(frame) = frames.borrow_and_update().clone() else { continue };
-                if sent - acked >= VIEWER_IN_FLIGHT {
-                    continue;
-                }
-                if let Some(prev) = last {
-                    if frame.frame > prev + 1 {
-                        state.metrics.live_dropped.inc_by(frame.frame - prev - 1);
-                    }
-                }
-                last = Some(frame.frame);
-                if socket.send(Message::Binary(frame.jpeg.clone())).await.is_err()
-                    || socket.send(Message::Text(frame.meta.clone().into())).await.is_err()
-                    || socket.send(Message::Ping(Bytes::copy_from_slice(&sent.to_be_bytes()))).await.is_err()
-                {
-                    break;
-                }
-                sent += 1;
-            }
-            msg = socket.recv() => match msg {
-                Some(Ok(Message::Pong(payload))) => {
-                    if let Ok(n) = <[u8; 8]>::try_from(payload.as_ref()) {
-                        acked = acked.max(u64::from_be_bytes(n) + 1).min(sent);
-                    }
-                }
-                Some(Ok(Message::Close(_))) | None | Some(Err(_)) => break,
-                Some(Ok(_)) => {}
-            },
-            _ = until_shutdown(&mut shutdown) => {
-                let _ = socket.send(Message::Close(None)).await;
-                break;
-            }
-        }
-    }
-}
-
-/// Marks the single publisher slot as taken while it lives.
-struct PublisherSlot(Arc<AppState>);
-
-impl Drop for PublisherSlot {
-    fn drop(&mut self) {
-        self.0.live.publisher.store(false, Ordering::SeqCst);
-    }
-}
-
-/// `GET /live/ingest`: a publisher's WebSocket; each binary message is one JPEG frame.
-pub async fn ingest(
-    ws: WebSocketUpgrade,
-    State(state): State<Arc<AppState>>,
-) -> Result<Response, ApiError> {
-    if let Some(source) = &state.live.config.source {
-        return Err(ApiError::Conflict(format!(
-            "the live feed comes from --live-source {source}; ingest is for a server started without it"
-        )));
-    }
-    if state.live.publisher.swap(true, Ordering::SeqCst) {
-        return Err(ApiError::Conflict(
-            "another publisher is connected to /live/ingest; one at a time".into(),
-        ));
-    }
-    let slot = PublisherSlot(state.clone());
-    Ok(ws
-        .max_message_size(MAX_INGEST_FRAME_BYTES)
-        .on_upgrade(move |socket| serve_publisher(socket, slot)))
-}
-
-async fn serve_publisher(mut socket: WebSocket, slot: PublisherSlot) {
-    let state = slot.0.clone();
-    let mut shutdown = state.shutdown.subscribe();
-    tracing::info!("live publisher connected");
-    loop {
-        tokio::select! {
-            msg = socket.recv() => match msg {
-                Some(Ok(Message::Binary(bytes))) => state.live.submit_jpeg(bytes),
-                Some(Ok(Message::Close(_))) | None | Some(Err(_)) => break,
-                Some(Ok(_)) => {}
-            },
-            _ = until_shutdown(&mut shutdown) => {
-                let _ = socket.send(Message::Close(None)).await;
-                break;
-            }
-        }
-    }
-    tracing::info!("live publisher disconnected");
-    drop(slot);
 }

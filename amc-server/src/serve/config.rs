@@ -1,0 +1,227 @@
+//! `amc serve`'s settings: the command line's flags ([`ServeConfig`]), their
+//! checks, and what they turn into ([`Limits`], the live feed's [`LiveConfig`]).
+
+use super::live::LiveConfig;
+use amc_core::view::Mode;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// `amc serve` settings (the command line's flags, one field each).
+#[derive(Debug, Clone)]
+pub struct ServeConfig {
+    /// Address to listen on (port 0 picks a free port; the chosen one is printed).
+    pub addr: SocketAddr,
+    /// Folder of the web page served at `/` (built by `bash web/build.sh`).
+    pub web_dir: PathBuf,
+    /// Folder for uploads and results (default: a new folder in the system's temp dir,
+    /// removed on exit).
+    pub work_dir: Option<PathBuf>,
+    /// Largest upload, megabytes.
+    pub max_upload_mb: u64,
+    /// Widest video accepted, pixels.
+    pub max_width: usize,
+    /// Tallest video accepted, pixels.
+    pub max_height: usize,
+    /// Longest video accepted, seconds.
+    pub max_duration: f64,
+    /// Clips processed at once (default: the number of CPU cores).
+    pub workers: Option<usize>,
+    /// Clips accepted beyond those being processed (they wait); more get 503.
+    pub queue: usize,
+    /// Longest a clip may take to process, seconds.
+    pub job_time_limit: u64,
+    /// How long a finished job's results are kept, seconds.
+    pub job_ttl: u64,
+    /// Disk space uploads and results may use together, megabytes.
+    pub max_disk_mb: u64,
+    /// Longest an ffmpeg child may stall before it is killed, seconds.
+    pub ffmpeg_timeout: u64,
+    /// Live feed source: a file, an RTSP/UDP/SRT URL or a device (anything ffmpeg opens).
+    /// Without it, the feed comes from a publisher on /live/ingest. Read only while a
+    /// viewer watches; one that cannot be opened makes /healthz answer 503, nothing more.
+    pub live_source: Option<String>,
+    /// Replay a file --live-source forever.
+    pub live_loop: bool,
+    /// ffmpeg input format of --live-source (e.g. v4l2 for /dev/video0).
+    pub live_format: Option<String>,
+    /// Live feed mode: stabilize or saccade.
+    pub live_mode: Mode,
+    /// Horizontal field of view of the live camera, degrees (a pinhole).
+    pub live_fov: f64,
+    /// Lens file of the live camera (as for `amc stabilize --lens`).
+    pub live_lens: Option<PathBuf>,
+    /// Frames averaged into each live output frame (1..=64).
+    pub live_n_avg: usize,
+    /// Share cropped from each side of the live output (0..=0.45).
+    pub live_margin: f64,
+    /// Width of the live output in pixels (default: the cropped input width).
+    pub live_width: Option<usize>,
+    /// JPEG quality of live frames (1..=100).
+    pub live_jpeg_quality: u8,
+    /// Log one JSON object per line (for log collectors) instead of text.
+    /// The level is set with RUST_LOG (default: info).
+    pub log_json: bool,
+}
+
+/// The service's limits, from the flags.
+#[derive(Clone, Debug)]
+pub struct Limits {
+    pub max_upload_bytes: u64,
+    pub max_width: usize,
+    pub max_height: usize,
+    pub max_duration_s: f64,
+    pub workers: usize,
+    pub queue: usize,
+    pub job_time_limit: Duration,
+    pub job_ttl: Duration,
+    pub max_disk_bytes: u64,
+    pub ffmpeg_timeout: Duration,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Self {
+            max_upload_bytes: 2_000_000_000,
+            max_width: 3840,
+            max_height: 2160,
+            max_duration_s: 1800.0,
+            workers: default_workers(),
+            queue: 8,
+            job_time_limit: Duration::from_secs(3600),
+            job_ttl: Duration::from_secs(3600),
+            max_disk_bytes: 20_000_000_000,
+            ffmpeg_timeout: Duration::from_secs(60),
+        }
+    }
+}
+
+fn default_workers() -> usize {
+    std::thread::available_parallelism().map_or(2, |n| n.get())
+}
+
+/// Why the service could not start or stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// A setting outside its range.
+    #[error("invalid --{flag}: {detail}")]
+    Invalid {
+        /// The setting's flag, without dashes.
+        flag: &'static str,
+        /// The value and what is allowed.
+        detail: String,
+    },
+    /// The live camera's parameters or lens are refused by the core.
+    #[error(transparent)]
+    Core(#[from] amc_core::AmcError),
+    /// ffmpeg is missing.
+    #[error(transparent)]
+    Video(#[from] amc_video::VideoError),
+    /// A file or folder the service needs cannot be used.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The listening socket or the runtime failed.
+    #[error("{what}: {source}")]
+    Network {
+        /// What was being done.
+        what: String,
+        /// Why it failed.
+        source: std::io::Error,
+    },
+}
+
+fn check<T: PartialOrd + std::fmt::Display>(
+    flag: &'static str,
+    value: T,
+    lo: T,
+    hi: T,
+) -> Result<(), ServeError> {
+    if value < lo || value > hi {
+        return Err(ServeError::Invalid {
+            flag,
+            detail: format!("{value} (allowed: {lo}..={hi})"),
+        });
+    }
+    Ok(())
+}
+
+impl ServeConfig {
+    /// Checks the flags and turns them into limits.
+    pub fn limits(&self) -> Result<Limits, ServeError> {
+        let workers = self.workers.unwrap_or_else(default_workers);
+        check("max-upload-mb", self.max_upload_mb, 1, 1_000_000)?;
+        check("max-width", self.max_width, 16, 16384)?;
+        check("max-height", self.max_height, 16, 16384)?;
+        check("max-duration", self.max_duration, 0.1, 86_400.0)?;
+        check("workers", workers, 1, 256)?;
+        check("queue", self.queue, 0, 10_000)?;
+        check("job-time-limit", self.job_time_limit, 1, 604_800)?;
+        check("job-ttl", self.job_ttl, 1, 2_592_000)?;
+        check("max-disk-mb", self.max_disk_mb, 1, 1_000_000_000)?;
+        check("ffmpeg-timeout", self.ffmpeg_timeout, 1, 86_400)?;
+        if self.max_disk_mb < self.max_upload_mb {
+            return Err(ServeError::Invalid {
+                flag: "max-disk-mb",
+                detail: format!(
+                    "{} (allowed: at least --max-upload-mb, {})",
+                    self.max_disk_mb, self.max_upload_mb
+                ),
+            });
+        }
+        Ok(Limits {
+            max_upload_bytes: self.max_upload_mb * 1_000_000,
+            max_width: self.max_width,
+            max_height: self.max_height,
+            max_duration_s: self.max_duration,
+            workers,
+            queue: self.queue,
+            job_time_limit: Duration::from_secs(self.job_time_limit),
+            job_ttl: Duration::from_secs(self.job_ttl),
+            max_disk_bytes: self.max_disk_mb * 1_000_000,
+            ffmpeg_timeout: Duration::from_secs(self.ffmpeg_timeout),
+        })
+    }
+
+    /// The live feed's configuration.
+    pub fn live(&self) -> Result<LiveConfig, ServeError> {
+        check("live-jpeg-quality", self.live_jpeg_quality, 1, 100)?;
+        // The same range as every other field of view (`fov`).
+        if amc_core::LensSpec::parse_fov(&self.live_fov.to_string()).is_err() {
+            return Err(ServeError::Invalid {
+                flag: "live-fov",
+                detail: format!("{} (allowed: 0 < DEG <= 179)", self.live_fov),
+            });
+        }
+        let mut params = amc_core::StabilizerParams::default();
+        params.view.mode = self.live_mode;
+        params.render.n_avg = self.live_n_avg;
+        params.render.margin = self.live_margin;
+        params.render.output_width = self.live_width;
+        params.validate()?;
+        let lens = match &self.live_lens {
+            Some(p) => {
+                let text = std::fs::read_to_string(p).map_err(|source| ServeError::Io {
+                    path: p.clone(),
+                    source,
+                })?;
+                Some(amc_core::lens::parse_lens(&text).map_err(amc_core::AmcError::from)?)
+            }
+            None => None,
+        };
+        Ok(LiveConfig {
+            source: self.live_source.clone(),
+            format: self.live_format.clone(),
+            looped: self.live_loop,
+            params,
+            lens,
+            fov_deg: self.live_fov,
+            jpeg_quality: self.live_jpeg_quality,
+            ffmpeg_timeout: Duration::from_secs(self.ffmpeg_timeout),
+        })
+    }
+}

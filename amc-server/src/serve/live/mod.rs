@@ -1,0 +1,19 @@
+//! The live feed: frames from `--live-source` (anything ffmpeg opens) or
+//! from a publisher on `/live/ingest` are stabilized by one processor
+//! thread ([`hub`]) and fanned out to `/live` viewers ([`viewer`]).
+//!
+//! | module | what |
+//! |---|---|
+//! | `hub` | the source and processor threads, the newest frame, viewers and publisher slots, pausing |
+//! | `jpeg` | JPEG encoding of stabilized frames, decoding of published ones |
+//! | `viewer` | `GET /live`: a viewer's WebSocket |
+//! | `ingest` | `GET /live/ingest`: the publisher's WebSocket |
+
+mod hub;
+mod ingest;
+mod jpeg;
+mod viewer;
+
+pub use hub::{LiveConfig, LiveHub};
+pub use ingest::ingest;
+pub use viewer::viewer;

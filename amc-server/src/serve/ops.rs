@@ -1,0 +1,65 @@
+//! Operations endpoints: `GET /healthz` (readiness) and `GET /metrics`
+//! (Prometheus text).
+
+use super::jobs::JobState;
+use super::metrics::StateLabel;
+use super::state::AppState;
+use axum::extract::State;
+use axum::http::{header, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use std::sync::Arc;
+
+/// `GET /healthz`: 200 while the service can work (ffmpeg runs, the work dir
+/// is writable, the `--live-source` if any can be opened); 503 with a
+/// `detail` saying what is wrong otherwise.
+pub async fn healthz(State(state): State<Arc<AppState>>) -> Response {
+    let work_dir = state.work_dir.clone();
+    let check = tokio::task::spawn_blocking(move || -> Result<(), String> {
+        amc_video::ffmpeg_available().map_err(|e| e.to_string())?;
+        tempfile::tempfile_in(&work_dir).map_err(|e| format!("work dir not writable: {e}"))?;
+        Ok(())
+    })
+    .await
+    .unwrap_or_else(|e| Err(e.to_string()))
+    // The API works without the live feed, but a source that cannot be
+    // opened is something to fix: the probe says so.
+    .and_then(|()| state.live.source_error().map_or(Ok(()), Err));
+    let body = |status: &str, detail: Option<String>| {
+        Json(serde_json::json!({
+            "status": status,
+            "detail": detail,
+            "version": env!("CARGO_PKG_VERSION"),
+            "workers": state.limits.workers,
+            "busy": state.limits.workers - state.cpu.available_permits().min(state.limits.workers),
+            "live": state.live.status(),
+        }))
+    };
+    match check {
+        Ok(()) => body("ok", None).into_response(),
+        Err(e) => (
+            StatusCode::SERVICE_UNAVAILABLE,
+            body("unavailable", Some(e)),
+        )
+            .into_response(),
+    }
+}
+
+/// `GET /metrics`.
+pub async fn prometheus(State(state): State<Arc<AppState>>) -> Response {
+    let counts = state.jobs.counts();
+    for s in JobState::ALL {
+        state
+            .metrics
+            .jobs
+            .get_or_create(&StateLabel { state: s.name() })
+            .set(counts.get(&s).copied().unwrap_or(0) as i64);
+    }
+    state.metrics.disk_used.set(state.disk.used() as i64);
+    let mut res = state.metrics.encode().into_response();
+    res.headers_mut().insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("text/plain; version=0.0.4; charset=utf-8"),
+    );
+    res
+}

@@ -1,0 +1,148 @@
+//! [`run`]: boots the service (logging, the async runtime, the listener, the
+//! once-a-second ticker) and shuts it down gracefully on Ctrl-C or SIGTERM.
+
+use super::config::{ServeConfig, ServeError};
+use super::router::app;
+use super::state::AppState;
+use std::io::IsTerminal;
+use std::time::Duration;
+
+/// Waits for Ctrl-C or SIGTERM.
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        _ = ctrl_c => {},
+        _ = term => {},
+    }
+}
+
+/// Runs the service until Ctrl-C or SIGTERM.
+pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
+    let limits = args.limits()?;
+    let live = args.live()?;
+    amc_video::ffmpeg_available()?;
+    let (work_dir, owned_dir) = match &args.work_dir {
+        Some(d) => {
+            let io = |source| ServeError::Io {
+                path: d.clone(),
+                source,
+            };
+            std::fs::create_dir_all(d).map_err(io)?;
+            let dir = tempfile::Builder::new()
+                .prefix("amc-serve-")
+                .tempdir_in(d)
+                .map_err(io)?;
+            (dir.path().to_path_buf(), dir)
+        }
+        None => {
+            let dir = tempfile::Builder::new()
+                .prefix("amc-serve-")
+                .tempdir()
+                .map_err(|source| ServeError::Io {
+                    path: std::env::temp_dir(),
+                    source,
+                })?;
+            (dir.path().to_path_buf(), dir)
+        }
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    // Colours only for a person at a terminal; never in JSON (log collectors)
+    // nor in a file or pipe. This covers every event, the HTTP trace
+    // layer's spans and fields included.
+    let colour = !args.log_json && std::io::stderr().is_terminal();
+    let logs = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(colour);
+    let _ = if args.log_json {
+        logs.json().try_init()
+    } else {
+        logs.try_init()
+    };
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .map_err(|source| ServeError::Network {
+            what: "cannot start the async runtime".into(),
+            source,
+        })?;
+    let state =
+        AppState::new(limits, work_dir.clone(), args.web_dir.clone(), live).map_err(|source| {
+            ServeError::Io {
+                path: work_dir.clone(),
+                source,
+            }
+        })?;
+    runtime.block_on(async {
+        let listener = tokio::net::TcpListener::bind(args.addr)
+            .await
+            .map_err(|source| ServeError::Network {
+                what: format!("cannot listen on {}", args.addr),
+                source,
+            })?;
+        let addr = listener
+            .local_addr()
+            .map_err(|source| ServeError::Network {
+                what: format!("cannot listen on {}", args.addr),
+                source,
+            })?;
+        // Tests and scripts read this line to find the port.
+        println!("listening on http://{addr}");
+        tracing::info!(%addr, work_dir = %work_dir.display(), web_dir = %args.web_dir.display(), workers = state.limits.workers, "amc serve started");
+        let ticker = {
+            let state = state.clone();
+            tokio::spawn(async move {
+                let mut tick = tokio::time::interval(Duration::from_secs(1));
+                let sweep_every = (state.limits.job_ttl / 4).clamp(Duration::from_secs(1), Duration::from_secs(30));
+                let mut last_sweep = tokio::time::Instant::now();
+                loop {
+                    tick.tick().await;
+                    state.metrics.sample();
+                    if last_sweep.elapsed() >= sweep_every {
+                        last_sweep = tokio::time::Instant::now();
+                        let n = state.jobs.expire(state.limits.job_ttl);
+                        if n > 0 {
+                            tracing::info!(expired = n, "finished jobs removed");
+                        }
+                    }
+                }
+            })
+        };
+        let shutdown_state = state.clone();
+        let served = axum::serve(listener, app(state.clone()))
+            .with_graceful_shutdown(async move {
+                shutdown_signal().await;
+                tracing::info!("shutting down: cancelling jobs, closing live connections");
+                shutdown_state.shutdown.send_replace(true);
+                shutdown_state.jobs.cancel_all();
+                shutdown_state.live.stop();
+            })
+            .await;
+        ticker.abort();
+        state.tasks.close();
+        let _ = tokio::time::timeout(Duration::from_secs(30), state.tasks.wait()).await;
+        state.jobs.clear();
+        served.map_err(|source| ServeError::Network {
+            what: "the server failed".into(),
+            source,
+        })
+    })?;
+    drop(state);
+    drop(owned_dir);
+    tracing::info!("stopped; work directory removed");
+    Ok(())
+}

@@ -1,0 +1,72 @@
+//! [`AppState`]: what every handler shares (limits, semaphores, the disk
+//! budget, the job table, the live hub, metrics, the task tracker and the
+//! shutdown flag).
+
+use super::config::Limits;
+use super::jobs::JobStore;
+use super::live::{LiveConfig, LiveHub};
+use super::metrics::Metrics;
+use super::problem::ApiError;
+use super::storage::DiskBudget;
+use axum::response::{IntoResponse, Response};
+use std::path::PathBuf;
+use std::sync::Arc;
+use tokio::sync::{watch, Semaphore};
+use tokio_util::task::TaskTracker;
+
+/// Everything the handlers share.
+pub struct AppState {
+    pub limits: Limits,
+    pub work_dir: PathBuf,
+    pub web_dir: PathBuf,
+    /// One permit per clip processed at once.
+    pub cpu: Arc<Semaphore>,
+    /// One permit per clip accepted (processing or waiting).
+    pub admission: Arc<Semaphore>,
+    pub disk: Arc<DiskBudget>,
+    pub jobs: JobStore,
+    pub live: Arc<LiveHub>,
+    pub metrics: Arc<Metrics>,
+    /// Every spawned task and blocking worker, awaited on shutdown.
+    pub tasks: TaskTracker,
+    /// Becomes true when the service is shutting down.
+    pub shutdown: watch::Sender<bool>,
+}
+
+impl AppState {
+    /// State with its work directory at `work_dir` (created if missing).
+    pub fn new(
+        limits: Limits,
+        work_dir: PathBuf,
+        web_dir: PathBuf,
+        live: LiveConfig,
+    ) -> std::io::Result<Arc<Self>> {
+        std::fs::create_dir_all(&work_dir)?;
+        let metrics = Arc::new(Metrics::new());
+        metrics.disk_limit.set(limits.max_disk_bytes as i64);
+        Ok(Arc::new(Self {
+            cpu: Arc::new(Semaphore::new(limits.workers)),
+            admission: Arc::new(Semaphore::new(limits.workers + limits.queue)),
+            disk: Arc::new(DiskBudget::new(limits.max_disk_bytes)),
+            jobs: JobStore::default(),
+            live: LiveHub::start(live, metrics.clone()),
+            metrics,
+            tasks: TaskTracker::new(),
+            shutdown: watch::channel(false).0,
+            limits,
+            work_dir,
+            web_dir,
+        }))
+    }
+
+    /// Answers a refused request, counting it for `/metrics`.
+    pub fn refuse(&self, e: ApiError) -> Response {
+        self.metrics.reject(e.status().as_u16());
+        e.into_response()
+    }
+}
+
+/// Resolves once the service starts shutting down.
+pub async fn until_shutdown(rx: &mut watch::Receiver<bool>) {
+    let _ = rx.wait_for(|s| *s).await;
+}
