@@ -89,7 +89,7 @@ export async function runOnServer(file) {
     showResult({
       blob: new Blob([blob], { type: mime }), mime, name: file.name, original: null,
       origCaption: 'Original: checking whether this browser can play it…',
-      rows, csv, summary: serverSummary(st.metrics, s.params.view.mode),
+      rows, csv, summary: serverSummary(st, s.params.view.mode),
       inputWidth: st.metrics && st.metrics.input_size ? st.metrics.input_size[0] : 0,
     });
     setPageState('done');

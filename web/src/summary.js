@@ -75,11 +75,16 @@ export function localSummary(start, done, mode) {
   };
 }
 
-/** Summary of a server job from its RunSummary (`GET /jobs/{id}` metrics). */
-export function serverSummary(rs, mode) {
-  if (!rs) return null;
+/** Summary of a server job (`GET /jobs/{id}`: its flat `metrics` and its `motion`). */
+export function serverSummary(job, mode) {
+  const m = job && job.metrics;
+  if (!m) return null;
+  const mo = job.motion || {};
   return {
-    where: 'server', mode, frames: rs.frames, fps: rs.frames_per_second, inSize: rs.input_size, outSize: rs.output_size,
-    input: null, output: rs.metrics || null, motion: rs.motion || null,
+    where: 'server', mode, frames: m.frames, fps: m.frames_per_second, inSize: m.input_size, outSize: m.output_size,
+    input: null,
+    output: m.rms_normal_flow == null ? null : { frames: m.frames, rms_normal_flow: m.rms_normal_flow, rms_change: m.rms_frame_change, sharpness: m.sharpness },
+    motion: { frames: m.frames, valid_fraction: m.valid_fraction, min_valid_fraction: m.min_valid_fraction,
+              rms_speed_est_dps: mo.rms_speed_est_dps, rms_speed_view_dps: mo.rms_speed_view_dps, saccades: mo.saccades ?? 0 },
   };
 }
