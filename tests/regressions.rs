@@ -225,3 +225,37 @@ fn large_multipart_uploads_are_accepted_in_either_part_order() {
     }
     server.assert_no_scratch_left(Duration::from_secs(10));
 }
+
+#[test]
+fn every_output_gets_ordinary_file_permissions() {
+    use std::os::unix::fs::PermissionsExt;
+    let d = tempfile::tempdir().unwrap();
+    let (out, tel, met) = (
+        d.path().join("o.y4m"),
+        d.path().join("t.csv"),
+        d.path().join("m.json"),
+    );
+    // The umask decides, as for any file a program creates (0644 under the usual 022).
+    let mode = |p: &std::path::Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    let umask_probe = d.path().join("probe");
+    std::fs::write(&umask_probe, b"").unwrap();
+    let expected = mode(&umask_probe);
+    amc_ok(&[
+        "stabilize",
+        &s(&cup()),
+        "-o",
+        &s(&out),
+        "--fov",
+        "60",
+        "--output-width",
+        "160",
+        "--telemetry",
+        &s(&tel),
+        "--metrics",
+        &s(&met),
+        "-q",
+    ]);
+    for p in [&out, &tel, &met] {
+        assert_eq!(mode(p), expected, "{}", p.display());
+    }
+}
