@@ -50,6 +50,12 @@ fn bad(case: &str, input: &Path, out_name: &str, args: &[String], expect: Expect
         "[{case}] amc panicked:\n{}",
         r.stderr
     );
+    // Messages name the user's paths, never the hidden temporary output.
+    assert!(
+        !r.stderr.contains(".partial-"),
+        "[{case}] the message names a temporary file:\n{}",
+        r.stderr
+    );
     if expect == Expect::ErrorOrSuccess && r.success() {
         assert!(
             out.exists(),
@@ -288,5 +294,112 @@ fn bad_truncated_mp4() {
         );
     } else {
         eprintln!("[truncated mp4 (30%)] outcome: clean error");
+    }
+}
+
+/// Copies the first `n` JPEG frames of the cc9 sample into `dir` (sorted by name).
+fn copy_jpegs(dir: &Path, n: usize) -> Vec<PathBuf> {
+    let mut src: Vec<PathBuf> = std::fs::read_dir(data("cc9/frames"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "jpg"))
+        .collect();
+    src.sort();
+    std::fs::create_dir_all(dir).unwrap();
+    src.iter()
+        .take(n)
+        .enumerate()
+        .map(|(i, p)| {
+            let to = dir.join(format!("f-{i:03}.jpg"));
+            std::fs::copy(p, &to).unwrap();
+            to
+        })
+        .collect()
+}
+
+#[test]
+fn bad_still_image_named_mp4() {
+    let tmp = tempfile::tempdir().unwrap();
+    let p = tmp.path().join("photo.mp4");
+    let st = Command::new("ffmpeg")
+        .args(["-v", "error", "-f", "lavfi", "-i", "testsrc=size=64x48"])
+        .args(["-frames:v", "1", "-f", "image2", "-c:v", "png"])
+        .arg(&p)
+        .status()
+        .expect("ffmpeg not found");
+    assert!(st.success());
+    let r = bad(
+        "PNG named photo.mp4",
+        &p,
+        "out.mp4",
+        &args(&["--fov", "60"]),
+        Expect::OneLine,
+    );
+    assert!(
+        r.stderr.contains("photo.mp4")
+            && r.stderr.contains("still image")
+            && r.stderr.contains("folder"),
+        "{}",
+        r.stderr
+    );
+}
+
+#[test]
+fn bad_truncated_jpeg_in_folder() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path().join("frames");
+    let files = copy_jpegs(&d, 6);
+    let victim = &files[3];
+    let bytes = std::fs::read(victim).unwrap();
+    std::fs::write(victim, &bytes[..bytes.len() * 6 / 10]).unwrap();
+    let r = bad(
+        "truncated JPEG in a folder",
+        &d,
+        "out.mp4",
+        &args(&["--fov", "60"]),
+        Expect::OneLine,
+    );
+    assert!(
+        r.stderr.contains("f-003.jpg") && r.stderr.contains("truncated"),
+        "{}",
+        r.stderr
+    );
+}
+
+#[test]
+fn bad_empty_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let p = tmp.path().join("empty.mp4");
+    std::fs::write(&p, b"").unwrap();
+    let r = bad(
+        "empty file",
+        &p,
+        "out.mp4",
+        &args(&["--fov", "60"]),
+        Expect::OneLine,
+    );
+    assert!(
+        r.stderr.contains("empty.mp4") && r.stderr.contains("empty file"),
+        "{}",
+        r.stderr
+    );
+    assert!(!r.stderr.contains("moov"), "{}", r.stderr);
+}
+
+#[test]
+fn bad_crf_beyond_the_format_range() {
+    for (out, crf, range) in [("out.mp4", "52", "0..=51"), ("out.mkv", "63", "0..=51")] {
+        let r = bad(
+            &format!("--crf {crf} for {out}"),
+            &cup(),
+            out,
+            &args(&["--fov", "60", "--crf", crf]),
+            Expect::OneLine,
+        );
+        assert!(
+            r.stderr.contains(out) && r.stderr.contains(crf) && r.stderr.contains(range),
+            "{}",
+            r.stderr
+        );
     }
 }

@@ -7,7 +7,7 @@
 //! private 0600 of temporary files, since they are renamed into place.
 
 use crate::cleanup;
-use crate::VideoError;
+use crate::error::VideoError;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

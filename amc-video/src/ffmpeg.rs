@@ -10,13 +10,12 @@
 //! Encoding: `ffmpeg -f rawvideo -pix_fmt rgb24 -i pipe:0 [-i AUDIO_SRC] ... TMP`,
 //! renamed onto the output path once ffmpeg has succeeded.
 
-use super::probe::{probe, probe_device, probe_with, Probe};
-use super::process::{run_capture, Proc};
-use super::{
-    as_rgb, check_frame, no_frames, shape_rgb, FrameSink, FrameSource, InputOptions, OutputSpec,
-    VideoError, VideoInfo,
-};
 use crate::atomic::AtomicFile;
+use crate::error::VideoError;
+use crate::frame::{as_rgb, check_frame, extension, no_frames, shape_rgb, FrameSink, FrameSource};
+use crate::probe::{probe, probe_device, probe_with, Probe};
+use crate::process::{run_capture, Proc};
+use crate::spec::{InputOptions, Inspection, OutputSpec, VideoInfo};
 use amc_core::image::{Frame, FrameRef};
 use std::ffi::OsString;
 use std::io::{Read, Write};
@@ -86,6 +85,18 @@ impl FfmpegSource {
     /// Probes `path` and starts decoding it.
     pub fn open(path: &Path, opts: &InputOptions) -> Result<Self, VideoError> {
         let probed = probe(path, opts.timeout)?;
+        // ffmpeg happily decodes a PNG or JPEG (whatever its name) as a
+        // one-frame video, which cannot be stabilized: say what it is.
+        let found = Inspection {
+            info: probed.info.clone(),
+            format_name: probed.format_name.clone(),
+        };
+        if found.is_still_image() {
+            return Err(VideoError::StillImage {
+                path: path.to_path_buf(),
+                format: found.format_name,
+            });
+        }
         Self::start(path, None, probed, opts)
     }
 
@@ -340,13 +351,46 @@ impl Container {
         }
     }
 
-    /// Video codec arguments for quality `crf` (codec default when `None`).
+    /// The highest CRF its encoder takes (x264: 51, VP9: 63; both start at 0).
+    pub fn max_crf(self) -> u8 {
+        match self {
+            Container::Mp4 | Container::Mkv => 51,
+            Container::Webm => 63,
+        }
+    }
+
+    /// The encoder's name, for messages.
+    fn encoder(self) -> &'static str {
+        match self {
+            Container::Mp4 | Container::Mkv => "x264",
+            Container::Webm => "VP9",
+        }
+    }
+
+    /// Checks a requested CRF against the encoder's range.
+    fn check_crf(self, path: &Path, crf: Option<u8>) -> Result<(), VideoError> {
+        match crf {
+            Some(crf) if crf > self.max_crf() => Err(VideoError::BadFrame {
+                path: path.to_path_buf(),
+                detail: format!(
+                    "quality (CRF) {crf} is out of range for {}: {} takes 0..={}",
+                    self.suffix(),
+                    self.encoder(),
+                    self.max_crf()
+                ),
+            }),
+            _ => Ok(()),
+        }
+    }
+
+    /// Video codec arguments for quality `crf` (codec default when `None`;
+    /// checked against [`Container::max_crf`] beforehand).
     fn video_args(self, crf: Option<u8>) -> Vec<String> {
         let v = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
         match self {
             Container::Mp4 | Container::Mkv => {
                 let mut a = v(&["-c:v", "libx264", "-preset", "veryfast", "-crf"]);
-                a.push(crf.unwrap_or(20).min(51).to_string());
+                a.push(crf.unwrap_or(20).to_string());
                 a
             }
             Container::Webm => {
@@ -365,7 +409,7 @@ impl Container {
                     "0",
                     "-crf",
                 ]);
-                a.push(crf.unwrap_or(32).min(63).to_string());
+                a.push(crf.unwrap_or(32).to_string());
                 a
             }
         }
@@ -412,6 +456,7 @@ impl FfmpegSink {
         spec: &OutputSpec,
         container: Container,
     ) -> Result<Self, VideoError> {
+        container.check_crf(path, spec.crf)?;
         let audio = match &spec.audio_from {
             Some(src) => audio_codec_of(src, spec.timeout)?.map(|c| (src.clone(), c)),
             None => None,
@@ -475,7 +520,10 @@ impl FfmpegSink {
         os.push(temp.partial_path().as_os_str().to_owned());
 
         let mut proc = Proc::spawn("ffmpeg", &os, path, spec.timeout, true, None)?;
-        let header = super::mkv::header(spec.width, spec.height);
+        // ffmpeg names the file it writes in its errors: that is the hidden
+        // temporary sibling, which means nothing to the user.
+        proc.alias(temp.partial_path(), path);
+        let header = crate::mkv::header(spec.width, spec.height);
         if let Some(stdin) = proc.stdin.as_mut() {
             // A failure shows on the first frame, with ffmpeg's own message.
             let _ = stdin.write_all(&header);
@@ -507,7 +555,7 @@ impl FfmpegSink {
 
 /// The audio codec of the input `src`, when it is a file with audio.
 fn audio_codec_of(src: &Path, timeout: Duration) -> Result<Option<String>, VideoError> {
-    if src.is_dir() || super::extension(src).as_deref() == Some("y4m") {
+    if src.is_dir() || extension(src).as_deref() == Some("y4m") {
         return Ok(None);
     }
     Ok(probe(src, timeout)?.audio_codec)
@@ -522,7 +570,7 @@ impl FrameSink for FfmpegSink {
         let rgb = as_rgb(frame, &mut self.scratch);
         self.proc.arm();
         let written = match self.proc.stdin.as_mut() {
-            Some(stdin) => super::mkv::write_frame(stdin, t, rgb, &mut self.block_header),
+            Some(stdin) => crate::mkv::write_frame(stdin, t, rgb, &mut self.block_header),
             None => Err(std::io::ErrorKind::BrokenPipe.into()),
         };
         self.proc.disarm();

@@ -1,12 +1,13 @@
 //! Directories of still images as video: input from image files in natural
 //! order (`frame-9` before `frame-10`), output as `frame-000000.png`, ...
 
-use super::process::run_capture;
-use super::{
-    as_rgb, check_frame, no_frames, shape_rgb, FrameSink, FrameSource, InputOptions, OutputSpec,
-    VideoError, VideoInfo, IMAGE_EXTENSIONS,
-};
 use crate::atomic::AtomicDir;
+use crate::error::VideoError;
+use crate::frame::{as_rgb, check_frame, extension, no_frames, shape_rgb, FrameSink, FrameSource};
+use crate::process::run_capture;
+use crate::spec::{
+    InputOptions, OutputSpec, VideoInfo, DEFAULT_IMAGE_FPS, FOLDER_META, IMAGE_EXTENSIONS,
+};
 use amc_core::image::{Frame, FrameRef};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
@@ -19,8 +20,7 @@ pub fn list_images(dir: &Path) -> Result<Vec<PathBuf>, VideoError> {
     for entry in entries {
         let entry = entry.map_err(|e| VideoError::io(dir, "list", e))?;
         let path = entry.path();
-        let is_image =
-            super::extension(&path).is_some_and(|ext| IMAGE_EXTENSIONS.contains(&ext.as_str()));
+        let is_image = extension(&path).is_some_and(|ext| IMAGE_EXTENSIONS.contains(&ext.as_str()));
         // Hidden files are editor/OS litter (`._frame.png` on macOS volumes).
         let hidden = entry.file_name().to_string_lossy().starts_with('.');
         if is_image && !hidden && path.is_file() {
@@ -49,7 +49,7 @@ pub fn list_images(dir: &Path) -> Result<Vec<PathBuf>, VideoError> {
 /// `gt.csv` (`frame,t,...`). `None` when it says nothing usable.
 fn folder_fps(dir: &Path) -> Option<f64> {
     let valid = |fps: f64| (fps.is_finite() && fps > 0.0 && fps <= 10_000.0).then_some(fps);
-    if let Ok(text) = std::fs::read_to_string(dir.join(super::FOLDER_META)) {
+    if let Ok(text) = std::fs::read_to_string(dir.join(FOLDER_META)) {
         if let Some(fps) = serde_json::from_str::<serde_json::Value>(&text)
             .ok()
             .and_then(|v| v.get("fps").and_then(|f| f.as_f64()))
@@ -90,10 +90,7 @@ impl ImageDirSource {
         } else {
             folder_fps(dir)
         };
-        let fps = opts
-            .fps_override
-            .or(own_fps)
-            .unwrap_or(super::DEFAULT_IMAGE_FPS);
+        let fps = opts.fps_override.or(own_fps).unwrap_or(DEFAULT_IMAGE_FPS);
         let n = files.len() as u64;
         Ok(Self {
             info: VideoInfo {
@@ -160,12 +157,20 @@ fn decode(
     };
     // Sniffing the content rather than trusting the extension copes with
     // misnamed files (a JPEG called .png).
-    let reader = image::ImageReader::open(path)
-        .map_err(|e| VideoError::io(path, "open image", e))?
+    let bytes = std::fs::read(path).map_err(|e| VideoError::io(path, "read image", e))?;
+    let reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
         .with_guessed_format()
         .map_err(|e| VideoError::io(path, "read image", e))?;
+    // The JPEG decoder fills in whatever is missing from a cut-off file
+    // (grey or smeared rows) without a word: check that it is complete.
+    if reader.format() == Some(image::ImageFormat::Jpeg) && !jpeg_complete(&bytes) {
+        return Err(err(
+            "truncated JPEG: the file ends before its end-of-image marker (an incomplete copy or download?)"
+                .into(),
+        ));
+    }
     let is_tiff = reader.format() == Some(image::ImageFormat::Tiff)
-        || matches!(super::extension(path).as_deref(), Some("tif" | "tiff"));
+        || matches!(extension(path).as_deref(), Some("tif" | "tiff"));
     match reader.decode() {
         Ok(img) => {
             let rgb = img.into_rgb8();
@@ -175,6 +180,62 @@ fn decode(
         // Formats this build of the image crate lacks (TIFF) go through ffmpeg.
         Err(image::ImageError::Unsupported(_)) if is_tiff => decode_with_ffmpeg(path, timeout),
         Err(e) => Err(err(format!("cannot decode image: {e}"))),
+    }
+}
+
+/// Whether a JPEG file runs to its end-of-image marker: walks the marker
+/// segments (skipping their payloads, so an EXIF thumbnail's own markers do
+/// not count) and the entropy-coded data after each start-of-scan, where a
+/// 0xFF byte is always followed by 0x00 (stuffing) or a restart marker.
+fn jpeg_complete(data: &[u8]) -> bool {
+    const SOI: u8 = 0xD8;
+    const EOI: u8 = 0xD9;
+    const SOS: u8 = 0xDA;
+    if data.len() < 4 || data[0] != 0xFF || data[1] != SOI {
+        return false;
+    }
+    let mut pos = 2;
+    loop {
+        // A marker: 0xFF (possibly repeated as fill), then its code.
+        if data.get(pos) != Some(&0xFF) {
+            return false;
+        }
+        while data.get(pos) == Some(&0xFF) {
+            pos += 1;
+        }
+        let Some(&code) = data.get(pos) else {
+            return false;
+        };
+        pos += 1;
+        match code {
+            EOI => return true,
+            // Markers without a payload.
+            0x01 | 0xD0..=0xD7 => continue,
+            _ => {}
+        }
+        let Some(len) = data.get(pos..pos + 2) else {
+            return false;
+        };
+        let len = u16::from_be_bytes([len[0], len[1]]) as usize;
+        if len < 2 {
+            return false;
+        }
+        pos += len;
+        if pos > data.len() {
+            return false;
+        }
+        if code == SOS {
+            // Entropy-coded data up to the next marker that is neither
+            // stuffing nor a restart.
+            loop {
+                match data.get(pos..pos + 2) {
+                    None => return false,
+                    Some([0xFF, 0x00]) | Some([0xFF, 0xD0..=0xD7]) => pos += 2,
+                    Some([0xFF, _]) => break,
+                    Some(_) => pos += 1,
+                }
+            }
+        }
     }
 }
 
@@ -348,5 +409,47 @@ mod tests {
         assert_eq!(parse_ppm(&data), Some((2, 1, vec![1, 2, 3, 4, 5, 6])));
         assert_eq!(parse_ppm(&data[..12]), None);
         assert_eq!(parse_ppm(b"P5\n2 1\n255\n\0\0"), None);
+    }
+
+    /// A tiny JPEG made by the encoder of the `image` crate.
+    fn small_jpeg() -> Vec<u8> {
+        let mut out = Vec::new();
+        let pixels: Vec<u8> = (0..32 * 24 * 3).map(|i| (i * 7 % 251) as u8).collect();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 90)
+            .encode(&pixels, 32, 24, image::ExtendedColorType::Rgb8)
+            .unwrap();
+        out
+    }
+
+    #[test]
+    fn tells_truncated_jpegs() {
+        let full = small_jpeg();
+        assert!(jpeg_complete(&full));
+        // Bytes after the end-of-image marker (camera trailers) are fine.
+        let mut trailer = full.clone();
+        trailer.extend_from_slice(b"\xff\xda trailing data");
+        assert!(jpeg_complete(&trailer));
+        for cut in [full.len() - 1, full.len() - 2, full.len() * 2 / 3, 10, 3] {
+            assert!(
+                !jpeg_complete(&full[..cut]),
+                "cut at {cut} of {}",
+                full.len()
+            );
+        }
+        assert!(!jpeg_complete(b"not a jpeg"));
+    }
+
+    #[test]
+    fn refuses_a_truncated_jpeg_naming_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let full = small_jpeg();
+        let good = dir.path().join("a.jpg");
+        std::fs::write(&good, &full).unwrap();
+        let timeout = std::time::Duration::from_secs(30);
+        assert_eq!(decode(&good, timeout).unwrap().0, 32);
+        let cut = dir.path().join("b.jpg");
+        std::fs::write(&cut, &full[..full.len() * 2 / 3]).unwrap();
+        let e = decode(&cut, timeout).unwrap_err().to_string();
+        assert!(e.contains("b.jpg") && e.contains("truncated JPEG"), "{e}");
     }
 }

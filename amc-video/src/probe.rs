@@ -1,7 +1,8 @@
 //! `ffprobe`: size, rate, length and audio of a video file.
 
-use super::process::run_capture;
-use super::{VideoError, VideoInfo};
+use crate::error::VideoError;
+use crate::process::run_capture;
+use crate::spec::{VideoInfo, DEFAULT_IMAGE_FPS};
 use serde_json::Value;
 use std::ffi::OsString;
 use std::path::Path;
@@ -134,7 +135,7 @@ fn parse(path: &Path, json: &[u8]) -> Result<Probe, VideoError> {
     .flatten()
     .filter_map(parse_rate)
     .next()
-    .unwrap_or(super::DEFAULT_IMAGE_FPS);
+    .unwrap_or(DEFAULT_IMAGE_FPS);
     let number = |v: &Value| -> Option<f64> {
         match v {
             Value::String(s) => s.parse().ok(),

@@ -6,7 +6,7 @@
 //! that is our own doing (the stabilizer being slow between frames) does not
 //! count, so long videos never time out, but a hung ffmpeg does.
 
-use super::VideoError;
+use crate::error::VideoError;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, ExitStatus, Stdio};
@@ -45,6 +45,9 @@ pub(crate) struct Proc {
     /// The file the child works on, for messages.
     pub path: PathBuf,
     timeout: Duration,
+    /// Paths the child knows by another name (a temporary file it writes to),
+    /// replaced by the user's in messages: `(hidden, shown)`.
+    aliases: Vec<(String, String)>,
 }
 
 impl Proc {
@@ -120,7 +123,21 @@ impl Proc {
             tool,
             path: path.to_path_buf(),
             timeout,
+            aliases: Vec::new(),
         })
+    }
+
+    /// Makes messages name `shown` wherever the child's output names `hidden`
+    /// (the full path, or its file name alone).
+    pub fn alias(&mut self, hidden: &Path, shown: &Path) {
+        self.aliases
+            .push((hidden.display().to_string(), shown.display().to_string()));
+        if let (Some(h), Some(s)) = (hidden.file_name(), shown.file_name()) {
+            self.aliases.push((
+                h.to_string_lossy().into_owned(),
+                s.to_string_lossy().into_owned(),
+            ));
+        }
     }
 
     /// Starts the stall clock before a blocking operation on the child's pipes.
@@ -188,9 +205,15 @@ impl Proc {
         // message already names.
         let path_prefix = format!("{}: ", self.path.display());
         let clean = |l: &str| {
+            let mut l = l.to_string();
+            for (hidden, shown) in &self.aliases {
+                if !hidden.is_empty() {
+                    l = l.replace(hidden.as_str(), shown);
+                }
+            }
             l.strip_prefix(path_prefix.as_str())
+                .map(str::to_string)
                 .unwrap_or(l)
-                .to_string()
         };
         match (lines.first(), lines.last()) {
             (Some(first), Some(last)) if lines.len() > 1 => {

@@ -7,11 +7,10 @@
 //! Colours are converted with BT.601 limited-range matrices, as ffmpeg does by
 //! default (full range when the header says `XCOLORRANGE=FULL`).
 
-use super::{
-    check_frame, fps_rational, no_frames, shape_rgb, FrameSink, FrameSource, InputOptions,
-    OutputSpec, VideoError, VideoInfo,
-};
 use crate::atomic::AtomicFile;
+use crate::error::VideoError;
+use crate::frame::{check_frame, fps_rational, no_frames, shape_rgb, FrameSink, FrameSource};
+use crate::spec::{InputOptions, OutputSpec, VideoInfo, DEFAULT_IMAGE_FPS};
 use amc_core::image::{Frame, FrameRef};
 use std::fs::File;
 use std::io::{BufRead, BufReader, BufWriter, Read, Write};
@@ -89,10 +88,7 @@ impl Y4mSource {
             LineRead::TooLong => return Err(bad("no YUV4MPEG2 header line".into())),
         };
         let (layout, file_fps) = parse_header(&header).map_err(bad)?;
-        let fps = opts
-            .fps_override
-            .or(file_fps)
-            .unwrap_or(super::DEFAULT_IMAGE_FPS);
+        let fps = opts.fps_override.or(file_fps).unwrap_or(DEFAULT_IMAGE_FPS);
         // With plain `FRAME` lines (the usual case) the count follows from the size.
         let per_frame = 6 + layout.frame_bytes() as u64;
         let frame_count = file_len

@@ -175,9 +175,11 @@ fn core_error(e: AmcError) -> ApiError {
 fn video_error(e: VideoError, input: &Path) -> ApiError {
     let msg = strip_path(&e.to_string(), input);
     match &e {
-        VideoError::NotAVideo { .. } | VideoError::Y4m { .. } | VideoError::Image { .. } => {
-            ApiError::Unsupported(msg)
-        }
+        VideoError::NotAVideo { .. }
+        | VideoError::StillImage { .. }
+        | VideoError::EmptyFile { .. }
+        | VideoError::Y4m { .. }
+        | VideoError::Image { .. } => ApiError::Unsupported(msg),
         VideoError::BadFrame { .. } | VideoError::SizeMismatch { .. } => {
             ApiError::Unprocessable(msg)
         }

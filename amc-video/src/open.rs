@@ -1,0 +1,125 @@
+//! The entry points: [`open_input`], [`open_stream`], [`create_output`] and
+//! [`inspect`] choose a format for a path and hand over to its module.
+
+use crate::error::VideoError;
+use crate::frame::{check_fps, extension, FrameSink, FrameSource};
+use crate::spec::{InputOptions, Inspection, OutputSpec};
+use crate::{ffmpeg, images, probe, y4m};
+use std::path::Path;
+use std::time::Duration;
+
+/// Probes a file (demuxing it to count frames) without decoding it.
+pub fn inspect(path: &Path, timeout: Duration) -> Result<Inspection, VideoError> {
+    check_not_empty(path, std::fs::metadata(path).ok().as_ref())?;
+    let p = probe::probe(path, timeout)?;
+    Ok(Inspection {
+        info: p.info,
+        format_name: p.format_name,
+    })
+}
+
+/// Opens a live source ffmpeg can read (a file, an RTSP/UDP/SRT URL, a V4L2
+/// device), with `format` as ffmpeg's `-f` when given. The source is probed
+/// without counting its frames, so endless streams open at once.
+pub fn open_stream(
+    source: &str,
+    format: Option<&str>,
+    opts: &InputOptions,
+) -> Result<Box<dyn FrameSource>, VideoError> {
+    Ok(Box::new(ffmpeg::FfmpegSource::open_stream(
+        source, format, opts,
+    )?))
+}
+
+/// Opens `path` for decoding: a directory of images, a `.y4m` file, or any
+/// video ffmpeg can read.
+pub fn open_input(path: &Path, opts: &InputOptions) -> Result<Box<dyn FrameSource>, VideoError> {
+    if let Some(fps) = opts.fps_override {
+        check_fps(path, fps)?;
+    }
+    let meta = std::fs::metadata(path).map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound => VideoError::NotFound {
+            path: path.to_path_buf(),
+        },
+        _ => VideoError::io(path, "read", e),
+    })?;
+    if meta.is_dir() {
+        return Ok(Box::new(images::ImageDirSource::open(path, opts)?));
+    }
+    // Checked before probing: ffprobe would say "moov atom not found" or
+    // "Invalid data found when processing input".
+    check_not_empty(path, Some(&meta))?;
+    if extension(path).as_deref() == Some("y4m") {
+        return Ok(Box::new(y4m::Y4mSource::open(path, opts)?));
+    }
+    // Opening it here turns permission problems into a plain I/O error
+    // instead of an obscure ffprobe message.
+    std::fs::File::open(path).map_err(|e| VideoError::io(path, "open", e))?;
+    Ok(Box::new(ffmpeg::FfmpegSource::open(path, opts)?))
+}
+
+/// Creates an output at `path`, its format chosen by the extension:
+/// `.mp4` (H.264), `.webm` (VP9), `.mkv` (H.264), `.y4m`, or a directory of
+/// PNG files when `path` has no extension, ends in `/`, or is an existing directory.
+pub fn create_output(path: &Path, spec: &OutputSpec) -> Result<Box<dyn FrameSink>, VideoError> {
+    if spec.width == 0 || spec.height == 0 {
+        return Err(VideoError::BadFrame {
+            path: path.to_path_buf(),
+            detail: format!("cannot write {}x{} frames", spec.width, spec.height),
+        });
+    }
+    check_fps(path, spec.fps)?;
+    let ends_with_slash = path.as_os_str().to_string_lossy().ends_with('/');
+    if ends_with_slash || path.is_dir() {
+        return Ok(Box::new(images::PngDirSink::create(path, spec)?));
+    }
+    match extension(path).as_deref() {
+        None => Ok(Box::new(images::PngDirSink::create(path, spec)?)),
+        Some("y4m") => Ok(Box::new(y4m::Y4mSink::create(path, spec)?)),
+        Some(ext) => match ffmpeg::Container::from_extension(ext) {
+            Some(container) => Ok(Box::new(ffmpeg::FfmpegSink::create(path, spec, container)?)),
+            None => Err(VideoError::UnsupportedOutput {
+                path: path.to_path_buf(),
+                ext: format!(".{ext}"),
+            }),
+        },
+    }
+}
+
+/// Checks that `ffmpeg` and `ffprobe` can be run.
+pub fn ffmpeg_available() -> Result<(), VideoError> {
+    for tool in ["ffmpeg", "ffprobe"] {
+        match std::process::Command::new(tool)
+            .arg("-version")
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .status()
+        {
+            Ok(status) if status.success() => {}
+            Ok(status) => {
+                return Err(VideoError::ToolMissing {
+                    tool,
+                    detail: format!("`{tool} -version` exited with {status}"),
+                })
+            }
+            Err(e) => {
+                return Err(VideoError::ToolMissing {
+                    tool,
+                    detail: e.to_string(),
+                })
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a 0-byte regular file (`meta` is its metadata, when it could be read).
+fn check_not_empty(path: &Path, meta: Option<&std::fs::Metadata>) -> Result<(), VideoError> {
+    match meta {
+        Some(m) if m.is_file() && m.len() == 0 => Err(VideoError::EmptyFile {
+            path: path.to_path_buf(),
+        }),
+        _ => Ok(()),
+    }
+}

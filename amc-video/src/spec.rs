@@ -1,0 +1,118 @@
+//! Plain descriptions of inputs and outputs: what is known about an input
+//! ([`VideoInfo`], [`Inspection`]), how to open one ([`InputOptions`]), what to
+//! write ([`OutputSpec`]), and the constants they refer to.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// Image file extensions read from an input directory (compared case-insensitively).
+pub const IMAGE_EXTENSIONS: &[&str] = &["png", "jpg", "jpeg", "bmp", "tif", "tiff"];
+
+/// The file in an image folder that states its frame rate (`{"fps": 60}`),
+/// written by `amc synth`.
+pub const FOLDER_META: &str = "meta.json";
+
+/// Frame rate of an image directory when none is given and it states none (frames per second).
+pub const DEFAULT_IMAGE_FPS: f64 = 30.0;
+
+/// What is known about an input before decoding it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VideoInfo {
+    /// Frame width in pixels (after the rotation ffmpeg applies on decode).
+    pub width: usize,
+    /// Frame height in pixels.
+    pub height: usize,
+    /// Average frame rate (frames per second).
+    pub fps: f64,
+    /// Number of frames, when the container says (or counting packets is possible).
+    pub frame_count: Option<u64>,
+    /// Duration in seconds, when known.
+    pub duration_s: Option<f64>,
+    /// Whether the input has an audio stream (never for image folders and `.y4m`).
+    pub has_audio: bool,
+    /// Whether `fps` is [`DEFAULT_IMAGE_FPS`] assumed for an image folder that
+    /// states no rate (no `--fps`, no `meta.json` or `gt.csv`): worth a warning.
+    pub fps_assumed: bool,
+}
+
+/// How to open an input.
+#[derive(Clone, Debug)]
+pub struct InputOptions {
+    /// Frame rate to use instead of the file's (frames per second, above 0 and
+    /// at most 10000): image folders default to [`DEFAULT_IMAGE_FPS`]; for
+    /// videos, timestamps become `i / fps`.
+    pub fps_override: Option<f64>,
+    /// The longest an ffmpeg/ffprobe child may keep us waiting (for probing,
+    /// for one frame, or for exiting) before it is killed. This bounds stalls,
+    /// not the total decoding time, so long videos are fine.
+    pub timeout: Duration,
+    /// Read a file at its own frame rate (ffmpeg `-re`), as a live feed would arrive.
+    pub realtime: bool,
+    /// Replay the file forever (ffmpeg `-stream_loop -1`); timestamps keep increasing.
+    pub looped: bool,
+}
+
+impl Default for InputOptions {
+    fn default() -> Self {
+        Self {
+            fps_override: None,
+            timeout: Duration::from_secs(120),
+            realtime: false,
+            looped: false,
+        }
+    }
+}
+
+/// What ffprobe says about a file, for checks before decoding it.
+#[derive(Clone, Debug)]
+pub struct Inspection {
+    /// Size, rate and length of the file's video stream.
+    pub info: VideoInfo,
+    /// ffmpeg's name for the container, e.g. `mov,mp4,m4a,3gp,3g2,mj2` or `png_pipe`.
+    pub format_name: String,
+}
+
+impl Inspection {
+    /// Whether the file is a still picture (a PNG, a JPEG...) rather than a video.
+    pub fn is_still_image(&self) -> bool {
+        let f = self.format_name.as_str();
+        f.ends_with("_pipe") || f == "image2" || f == "gif" && self.info.frame_count == Some(1)
+    }
+}
+
+/// What to write.
+#[derive(Clone, Debug)]
+pub struct OutputSpec {
+    /// Width in pixels of every frame given to [`FrameSink::write_frame`](crate::FrameSink::write_frame).
+    pub width: usize,
+    /// Height in pixels of every frame.
+    pub height: usize,
+    /// Frame rate of the output (frames per second): the rate of `.y4m`
+    /// outputs, which have no timestamps (video containers keep each frame's
+    /// own time).
+    pub fps: f64,
+    /// Copy the audio of this input into the output if it has audio
+    /// (ignored for `.y4m` and PNG outputs, which carry no audio).
+    pub audio_from: Option<PathBuf>,
+    /// The longest the encoder may keep us waiting (for one frame, or for
+    /// finishing the file) before it is killed.
+    pub timeout: Duration,
+    /// Quality for mp4/mkv (x264 CRF 0..=51, default 20) and webm (VP9 CRF
+    /// 0..=63, default 32): lower is better and larger. A value outside the
+    /// format's range is an error.
+    pub crf: Option<u8>,
+}
+
+impl OutputSpec {
+    /// A spec with no audio, the default timeout and default quality.
+    pub fn new(width: usize, height: usize, fps: f64) -> Self {
+        Self {
+            width,
+            height,
+            fps,
+            audio_from: None,
+            timeout: InputOptions::default().timeout,
+            crf: None,
+        }
+    }
+}
