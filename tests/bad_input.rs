@@ -1,7 +1,7 @@
 //! Bad input: every failure exits non-zero with one clear `error:` line (or clap's usage error),
 //! never panics, and leaves no partial output behind.
 
-use amc_e2e::fixtures::{ffprobe_frames, test_picture};
+use amc_e2e::fixtures::{ffmpeg, ffprobe_frames, test_picture};
 use amc_e2e::*;
 use std::path::{Path, PathBuf};
 
@@ -321,13 +321,20 @@ fn copy_jpegs(dir: &Path, n: usize) -> Vec<PathBuf> {
 fn bad_still_image_named_mp4() {
     let tmp = tempfile::tempdir().unwrap();
     let p = tmp.path().join("photo.mp4");
-    let st = Command::new("ffmpeg")
-        .args(["-v", "error", "-f", "lavfi", "-i", "testsrc=size=64x48"])
-        .args(["-frames:v", "1", "-f", "image2", "-c:v", "png"])
-        .arg(&p)
-        .status()
-        .expect("ffmpeg not found");
-    assert!(st.success());
+    // A PNG picture under a video's name.
+    ffmpeg(&[
+        "-f",
+        "lavfi",
+        "-i",
+        "testsrc2=size=64x48",
+        "-frames:v",
+        "1",
+        "-f",
+        "image2",
+        "-c:v",
+        "png",
+        &s(&p),
+    ]);
     let r = bad(
         "PNG named photo.mp4",
         &p,
