@@ -68,7 +68,7 @@ fn compare_short_synthetic_clip() {
     ] {
         assert!(md.contains(&format!("| {m} |")), "no row for {m}:\n{md}");
     }
-    assert!(md.contains("Machine:") && md.contains("Bars:"), "{md}");
+    assert!(md.contains("Machine:") && md.contains("Targets:"), "{md}");
 
     let json = read_json(&report.join("results.json"));
     let c = &json[0];
