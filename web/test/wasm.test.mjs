@@ -110,7 +110,7 @@ test('bad sizes and parameters are JS Errors naming the value and the allowed ra
   throwsMsg(() => new Stabilizer(W, H, '{"view":{"mode":"wobble"}}', 70), /unknown variant `wobble`/);
   throwsMsg(() => new Stabilizer(W, H, 'not json', 70), /invalid stabilizer parameters/);
   throwsMsg(() => new Stabilizer(W, H, '{}', 0), /invalid fov: "0" \(allowed: .*0 < DEG <= 179/);
-  throwsMsg(() => new Stabilizer(W, H, '{}', 400), /invalid fov: 400/);
+  throwsMsg(() => new Stabilizer(W, H, '{}', 400), /invalid fov: "400"/);
   throwsMsg(() => new Stabilizer(W, H, '{}', undefined), /invalid lens/);
   throwsMsg(() => new Stabilizer(W, H, '{}', '{"nonsense": true}'), /lens file/);
 });
@@ -219,8 +219,10 @@ test("the page's form ranges are the core's, and the server query sends smoothin
     assert.equal((p.render[id] ?? p.view[id]), f.def, `default of ${id}`);
     def.free();
   }
+  // fov: 0 < DEG <= 179, the minimum excluded.
   throwsMsg(() => new Stabilizer(W, H, '{}', field.fov.min), /invalid fov/);
-  throwsMsg(() => new Stabilizer(W, H, '{}', field.fov.max), /invalid fov/);
+  assert.doesNotThrow(() => new Stabilizer(W, H, '{}', field.fov.max).free());
+  throwsMsg(() => new Stabilizer(W, H, '{}', field.fov.max + 1e-6), /invalid fov/);
   const s = (rate_a, rate_b) => ({ params: { view: { mode: 'stabilize', rate_a, rate_b, lookahead: 0 }, render: { n_avg: 6, margin: 0.125 } }, fov: 70, format: 'mp4', lensFile: null });
   assert.equal(serverQuery(s(2, 40)).toString(), 'mode=stabilize&n_avg=6&margin=0.125&lookahead=0&format=mp4&fov=70');
   assert.equal(serverQuery(s(1.5, 40)).get('rate_a'), '1.5');
