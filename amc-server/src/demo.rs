@@ -196,7 +196,10 @@ pub fn run(args: &DemoConfig, say: &dyn Fn(&str)) -> Result<String, DemoError> {
         params.view.mode = mode;
         let output = out.join(format!("{name}.{ext}"));
         let telemetry = out.join(format!("{name}-telemetry.csv"));
-        say(&format!("{name}: {mode} mode"));
+        say(&format!(
+            "stabilizing in {mode} mode into {}",
+            output.display()
+        ));
         let run = engine::run(&RunConfig {
             input: &frames,
             output: Some(&output),

@@ -6,7 +6,8 @@
 //! * input ([`open_input`]): a directory of images, a `.y4m` file (parsed here),
 //!   or anything `ffmpeg` can decode (a child process piping raw RGB);
 //! * output ([`create_output`]): `.mp4`, `.webm`, `.mkv` (an `ffmpeg` child
-//!   reading raw RGB), `.y4m` (written here), or a directory of PNG files.
+//!   reading raw RGB frames with their timestamps as Matroska), `.y4m`
+//!   (written here), or a directory of PNG files.
 //!
 //! Outputs are written to a hidden temporary sibling and renamed onto the
 //! final path only by [`FrameSink::finish`], so an error or an interruption
@@ -29,12 +30,6 @@ mod y4m;
 
 #[cfg(test)]
 mod tests;
-// What the unit tests in `tests.rs` reach through `use super::*`.
-#[cfg(test)]
-use {
-    amc_core::image::Frame,
-    std::path::{Path, PathBuf},
-};
 
 pub use atomic::{write_atomic, AtomicDir, AtomicFile};
 pub use error::VideoError;

@@ -3,9 +3,10 @@
 //! ffprobe come from the end-to-end tests' fixtures (`amc_e2e::fixtures`).
 
 use super::*;
-use amc_core::image::PixelFormat;
+use amc_core::image::{Frame, PixelFormat};
 use amc_e2e::fixtures::{ffmpeg, ffprobe_stream_types, lavfi, test_clip, test_tone};
 use amc_e2e::list_dir;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// Whether ffmpeg is installed; tests that need it pass vacuously (with a note) otherwise.
