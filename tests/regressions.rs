@@ -259,3 +259,47 @@ fn every_output_gets_ordinary_file_permissions() {
         assert_eq!(mode(p), expected, "{}", p.display());
     }
 }
+
+#[test]
+fn decoding_and_encoding_on_their_own_threads_changes_no_byte() {
+    let d = tempfile::tempdir().unwrap();
+    let run = |threads: &str| {
+        let (out, tel) = (
+            d.path().join(format!("o{threads}.y4m")),
+            d.path().join(format!("t{threads}.csv")),
+        );
+        amc_ok(&[
+            "stabilize",
+            &s(&cup()),
+            "-o",
+            &s(&out),
+            "--fov",
+            "60",
+            "--telemetry",
+            &s(&tel),
+            "--threads",
+            threads,
+            "-q",
+        ]);
+        (std::fs::read(out).unwrap(), std::fs::read(tel).unwrap())
+    };
+    let one = run("1");
+    let three = run("3");
+    assert!(
+        one.0 == three.0,
+        "the video differs between --threads 1 and 3"
+    );
+    assert!(
+        one.1 == three.1,
+        "the telemetry differs between --threads 1 and 3"
+    );
+    let r = run_amc(&[
+        "stabilize",
+        &s(&cup()),
+        "-o",
+        &s(&d.path().join("x.y4m")),
+        "--threads",
+        "0",
+    ]);
+    assert_eq!(r.code, Some(2), "{}", r.stderr);
+}

@@ -44,6 +44,8 @@ pub struct EvalConfig {
     pub gt: Option<PathBuf>,
     /// Where to write the per-frame plot (PNG).
     pub plot: Option<PathBuf>,
+    /// Threads of each run (see [`RunConfig::threads`]).
+    pub threads: usize,
 }
 
 /// Why an evaluation stopped.
@@ -103,6 +105,7 @@ pub fn run(
             measure: true,
             control: None,
             progress: Some(&report),
+            threads: args.threads,
         };
         let run = engine::run(&cfg)?;
         let ground_truth = gt_rot

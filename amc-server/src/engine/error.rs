@@ -69,6 +69,12 @@ pub enum RunError {
         /// The limit, seconds.
         secs: f64,
     },
+    /// A decoder or encoder thread died (a bug: their failures are errors of their own).
+    #[error("internal error: the {stage} thread failed")]
+    ThreadFailed {
+        /// `decoder` or `encoder`.
+        stage: &'static str,
+    },
     /// The metrics thread died (a bug: it has no failure of its own).
     #[error("internal error: the metrics worker failed")]
     MetricsWorker,

@@ -12,6 +12,7 @@ mod lens;
 mod measure;
 mod paths;
 mod run;
+mod stages;
 mod telemetry;
 
 pub use control::RunControl;
@@ -22,3 +23,8 @@ pub use lens::{
 pub use paths::check_distinct;
 pub use run::{run, FrameRecord, Progress, RunConfig, RunSummary, TRUNCATED_SHARE};
 pub use telemetry::TELEMETRY_HEADER;
+
+/// The default for [`RunConfig::threads`]: every core the process may use.
+pub fn default_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}

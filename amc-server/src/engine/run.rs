@@ -5,6 +5,7 @@
 
 use super::control::RunControl;
 use super::measure::MetricsWorker;
+use super::stages::{Reader, Writer};
 use super::{paths, telemetry, RunError};
 use amc_core::metrics::{ClipMetrics, FrameMetrics, MotionAccumulator, MotionSummary};
 use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams, Telemetry};
@@ -43,6 +44,10 @@ pub struct RunConfig<'a> {
     pub control: Option<&'a RunControl>,
     /// Called after every output frame.
     pub progress: Option<&'a (dyn Fn(Progress) + Sync)>,
+    /// Threads of the run: 1 decodes, stabilizes and encodes on the caller's
+    /// thread; 2 or more decode and encode on threads of their own beside it
+    /// (see `stages`). Same output either way.
+    pub threads: usize,
 }
 
 /// How far a run is.
@@ -106,9 +111,10 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
     outputs.extend(cfg.also_writes.iter().copied());
     paths::check_distinct(&outputs)?;
 
-    let mut src: Box<dyn FrameSource> =
+    let src: Box<dyn FrameSource> =
         video::open_input(cfg.input, &super::input_options(cfg.fps, cfg.timeout))?;
     let info = src.info().clone();
+    let threaded = cfg.threads > 1;
     let mut stab = Stabilizer::new(&cfg.lens, info.width, info.height, cfg.params.clone())?;
     let (ow, oh) = stab.output_size();
     let mut sink = match cfg.output {
@@ -117,10 +123,11 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
             spec.audio_from = info.has_audio.then(|| cfg.input.to_path_buf());
             spec.timeout = cfg.timeout;
             spec.crf = cfg.crf;
-            Some(video::create_output(path, &spec)?)
+            Some(Writer::new(video::create_output(path, &spec)?, threaded))
         }
         None => None,
     };
+    let mut src = Reader::new(src, threaded);
     let mut telemetry = match cfg.telemetry {
         Some(p) => {
             let mut w = BufWriter::new(AtomicFile::create(p, "")?);

@@ -125,6 +125,7 @@ pub fn stabilize(
         measure: spec.options.measure,
         control: Some(control),
         progress: None,
+        threads: engine::default_threads(),
     })
     .map_err(|e| run_error(e, &spec.input))
     .and_then(|summary| {
@@ -156,9 +157,10 @@ pub fn run_error(e: RunError, input: &Path) -> ApiError {
         RunError::TimeLimit { secs } => ApiError::Unprocessable(format!(
             "processing took longer than the limit of {secs:.0} s (set by --job-time-limit)"
         )),
-        RunError::SamePath { .. } | RunError::Write { .. } | RunError::MetricsWorker => {
-            ApiError::Internal(e.to_string())
-        }
+        RunError::SamePath { .. }
+        | RunError::Write { .. }
+        | RunError::MetricsWorker
+        | RunError::ThreadFailed { .. } => ApiError::Internal(e.to_string()),
     }
 }
 

@@ -47,6 +47,19 @@ pub struct InputFlags {
     /// Longest time (seconds) an ffmpeg child may stall before it is killed.
     #[arg(long, default_value_t = 120)]
     pub timeout: u64,
+    /// Threads of a run: 1 decodes, stabilizes and encodes on one thread; 2 or
+    /// more decode and encode on threads of their own beside the stabilizer
+    /// (1..=256; default: every core).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
+    pub threads: Option<u16>,
+}
+
+impl InputFlags {
+    /// `--threads`, or every core.
+    pub fn threads(&self) -> usize {
+        self.threads
+            .map_or_else(amc_server::engine::default_threads, usize::from)
+    }
 }
 
 /// What every run over a clip takes: the lens file, the stabilizer's options

@@ -92,6 +92,7 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         measure: args.metrics.is_some(),
         control: Some(control),
         progress: Some(&report),
+        threads: args.run.input.threads(),
     })?;
     bar.finish();
     if run.looks_truncated() {
@@ -150,6 +151,7 @@ fn evaluate(a: args::EvalArgs) -> Result<(), CliError> {
         timeout,
         gt: a.gt,
         plot: a.plot.clone(),
+        threads: a.run.input.threads(),
     };
     let bars = progress::Bars::new(!quiet);
     let report = eval::run(&cfg, &|n| say_lens(n, quiet), &|mode, p| {
