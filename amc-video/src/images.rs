@@ -47,7 +47,7 @@ pub fn list_images(dir: &Path) -> Result<Vec<PathBuf>, VideoError> {
 /// The frame rate a folder states about itself: `meta.json`'s `fps` (written
 /// by `amc synth`), else the spacing of the `t` column of a ground-truth
 /// `gt.csv` (`frame,t,...`). `None` when it says nothing usable.
-fn folder_fps(dir: &Path) -> Option<f64> {
+pub fn folder_fps(dir: &Path) -> Option<f64> {
     let valid = |fps: f64| (fps.is_finite() && fps > 0.0 && fps <= 10_000.0).then_some(fps);
     if let Ok(text) = std::fs::read_to_string(dir.join(FOLDER_META)) {
         if let Some(fps) = serde_json::from_str::<serde_json::Value>(&text)

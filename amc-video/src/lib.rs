@@ -34,7 +34,7 @@ mod tests;
 pub use atomic::{write_atomic, AtomicDir, AtomicFile};
 pub use error::VideoError;
 pub use frame::{FrameSink, FrameSource};
-pub use images::list_images;
+pub use images::{folder_fps, list_images};
 pub use open::{create_output, ffmpeg_available, inspect, open_input, open_stream};
 pub use spec::{
     InputOptions, Inspection, OutputSpec, VideoInfo, DEFAULT_IMAGE_FPS, FOLDER_META,

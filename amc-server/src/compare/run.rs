@@ -309,14 +309,13 @@ fn resolve_clip(path: &Path, args: &CompareConfig) -> Result<Clip, CompareError>
             path.to_path_buf()
         };
         let gt_path = path.join("gt.csv");
-        let (gt, fps) = if gt_path.is_file() {
-            (
-                Some(gt::read_orientations(&gt_path)?),
-                synthetic::fps_from_gt(&gt_path)?,
-            )
+        let gt = if gt_path.is_file() {
+            Some(gt::read_orientations(&gt_path)?)
         } else {
-            (None, None)
+            None
         };
+        // The rate the folder states (meta.json or gt.csv), as image inputs read it.
+        let fps = video::folder_fps(path);
         return Ok(Clip {
             name: stem(path),
             input: frames,

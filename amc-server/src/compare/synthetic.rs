@@ -97,18 +97,3 @@ pub fn render(seq: &Sequence, args: &CompareConfig, work: &Path) -> Result<PathB
     synth::run(&synth, &|_, _| {})?;
     Ok(out)
 }
-
-/// Frame rate from the `t` column of a `gt.csv` (`frame,t,...`): `None` with fewer than two rows.
-pub fn fps_from_gt(path: &Path) -> Result<Option<f64>, CompareError> {
-    let text = std::fs::read_to_string(path).map_err(|e| CompareError::io(path, e))?;
-    let times: Vec<f64> = text
-        .lines()
-        .skip(1)
-        .take(2)
-        .filter_map(|l| l.split(',').nth(1)?.trim().parse::<f64>().ok())
-        .collect();
-    Ok(match times.as_slice() {
-        [a, b] if b > a => Some(1.0 / (b - a)),
-        _ => None,
-    })
-}
