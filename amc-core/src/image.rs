@@ -2,7 +2,9 @@
 //!
 //! The core never decodes or encodes files: callers hand it raw pixels.
 //! Colour frames are interleaved 8-bit RGB or RGBA, rows packed without padding
-//! (`stride = width * channels`). Grayscale working images are `f32` in `[0, 1]`.
+//! (`stride = width * channels`), or planar 8-bit YUV 4:2:0 as video decoders
+//! deliver it ([`PixelFormat::Yuv420p`]: half the bytes of RGB and no colour
+//! conversion on the way in or out). Grayscale working images are `f32` in `[0, 1]`.
 //! Pixel centres sit at integer coordinates (OpenCV convention): pixel `(u, v)`
 //! covers `[u - 0.5, u + 0.5] x [v - 0.5, v + 0.5]`.
 
@@ -17,16 +19,71 @@ pub enum PixelFormat {
     Rgb8,
     /// 4 bytes per pixel: R, G, B, A (alpha is ignored on input, 255 on output).
     Rgba8,
+    /// Planar 4:2:0 YUV (`yuv420p`, `I420`): the Y plane (`width x height`
+    /// bytes), then the U and V planes (`ceil(width/2) x ceil(height/2)` each),
+    /// rows packed without padding. Limited ("video") range: Y 16..=235 is
+    /// black..white, U = V = 128 is grey; chroma sits at the centre of each 2x2
+    /// block of luma pixels. Black borders are Y 16, U = V 128.
+    Yuv420p,
 }
 
 impl PixelFormat {
-    /// Bytes per pixel.
+    /// Bytes per pixel of the interleaved formats; 1 for [`PixelFormat::Yuv420p`]
+    /// (bytes per sample of each plane: use [`PixelFormat::buffer_len`] for sizes).
     pub const fn channels(self) -> usize {
         match self {
             PixelFormat::Rgb8 => 3,
             PixelFormat::Rgba8 => 4,
+            PixelFormat::Yuv420p => 1,
         }
     }
+
+    /// True for the planar formats.
+    pub const fn is_planar(self) -> bool {
+        matches!(self, PixelFormat::Yuv420p)
+    }
+
+    /// Bytes of a `width x height` frame, `None` on overflow.
+    pub fn buffer_len(self, width: usize, height: usize) -> Option<usize> {
+        match self {
+            PixelFormat::Rgb8 | PixelFormat::Rgba8 => width
+                .checked_mul(height)
+                .and_then(|n| n.checked_mul(self.channels())),
+            PixelFormat::Yuv420p => {
+                let (cw, ch) = chroma_size(width, height);
+                width
+                    .checked_mul(height)
+                    .and_then(|n| n.checked_add(cw.checked_mul(ch)?.checked_mul(2)?))
+            }
+        }
+    }
+}
+
+/// Size of a 4:2:0 chroma plane for a `width x height` frame: `ceil` of halves.
+pub const fn chroma_size(width: usize, height: usize) -> (usize, usize) {
+    (width.div_ceil(2), height.div_ceil(2))
+}
+
+/// The three planes of a [`PixelFormat::Yuv420p`] buffer: `(y, u, v)`.
+/// Panics when `data` is shorter than [`PixelFormat::buffer_len`].
+pub fn yuv_planes(width: usize, height: usize, data: &[u8]) -> (&[u8], &[u8], &[u8]) {
+    let (cw, ch) = chroma_size(width, height);
+    let (n, nc) = (width * height, cw * ch);
+    (&data[..n], &data[n..n + nc], &data[n + nc..n + 2 * nc])
+}
+
+/// The three planes of a [`PixelFormat::Yuv420p`] buffer, mutable: `(y, u, v)`.
+/// Panics when `data` is shorter than [`PixelFormat::buffer_len`].
+pub fn yuv_planes_mut(
+    width: usize,
+    height: usize,
+    data: &mut [u8],
+) -> (&mut [u8], &mut [u8], &mut [u8]) {
+    let (cw, ch) = chroma_size(width, height);
+    let (n, nc) = (width * height, cw * ch);
+    let (y, rest) = data.split_at_mut(n);
+    let (u, rest) = rest.split_at_mut(nc);
+    (y, u, &mut rest[..nc])
 }
 
 /// A borrowed colour frame.
@@ -38,12 +95,13 @@ pub struct FrameRef<'a> {
     pub height: usize,
     /// Pixel layout of `data`.
     pub format: PixelFormat,
-    /// Interleaved pixels, row by row without row padding (may carry tail padding).
+    /// Interleaved pixels, row by row without row padding, or the planes of a
+    /// planar format one after the other (may carry tail padding).
     pub data: &'a [u8],
 }
 
 impl<'a> FrameRef<'a> {
-    /// Wraps `data`, checking that its length matches `width * height * channels`.
+    /// Wraps `data`, checking that its length matches [`PixelFormat::buffer_len`].
     pub fn new(
         width: usize,
         height: usize,
@@ -53,9 +111,8 @@ impl<'a> FrameRef<'a> {
         if width == 0 || height == 0 {
             return Err(AmcError::EmptyFrame { width, height });
         }
-        let expected = width
-            .checked_mul(height)
-            .and_then(|n| n.checked_mul(format.channels()))
+        let expected = format
+            .buffer_len(width, height)
             .ok_or(AmcError::FrameTooLarge { width, height })?;
         if data.len() != expected {
             return Err(AmcError::BufferLength {
@@ -71,9 +128,14 @@ impl<'a> FrameRef<'a> {
         })
     }
 
-    /// Bytes per row.
+    /// Bytes per row (of the Y plane for planar formats).
     pub fn stride(&self) -> usize {
         self.width * self.format.channels()
+    }
+
+    /// The Y, U and V planes of a [`PixelFormat::Yuv420p`] frame.
+    pub fn yuv_planes(&self) -> (&'a [u8], &'a [u8], &'a [u8]) {
+        yuv_planes(self.width, self.height, self.data)
     }
 }
 
@@ -86,18 +148,38 @@ pub struct Frame {
     pub height: usize,
     /// Pixel layout of `data`.
     pub format: PixelFormat,
-    /// Interleaved pixels, row by row without row padding (may carry tail padding).
+    /// Interleaved pixels, row by row without row padding, or the planes of a
+    /// planar format one after the other (may carry tail padding).
     pub data: Vec<u8>,
 }
 
 impl Frame {
-    /// A black frame.
+    /// A black frame (all zeros; for [`PixelFormat::Yuv420p`] Y 16, U = V 128).
     pub fn new(width: usize, height: usize, format: PixelFormat) -> Self {
-        Self {
+        let mut f = Self {
             width,
             height,
             format,
-            data: vec![0; width * height * format.channels()],
+            data: Vec::new(),
+        };
+        f.reshape(width, height, format);
+        f
+    }
+
+    /// Gives the frame a size and format, reusing the allocation; the pixels
+    /// are black (see [`Frame::new`]).
+    pub fn reshape(&mut self, width: usize, height: usize, format: PixelFormat) {
+        self.width = width;
+        self.height = height;
+        self.format = format;
+        let len = format.buffer_len(width, height).unwrap_or(0);
+        self.data.clear();
+        match format {
+            PixelFormat::Yuv420p => {
+                self.data.resize(width * height, 16);
+                self.data.resize(len, 128);
+            }
+            _ => self.data.resize(len, 0),
         }
     }
 
@@ -186,9 +268,24 @@ impl GrayImage {
 /// Rec. 601 luma weights, the weights ffmpeg and OpenCV use for RGB -> gray.
 pub const LUMA_WEIGHTS: [f32; 3] = [0.299, 0.587, 0.114];
 
-/// Converts an interleaved colour frame to `[0, 1]` luma, into a reused buffer.
+/// Limited-range luma to `[0, 1]`: `(Y - 16) / 219`, the luma of the RGB a
+/// decoder converts the frame to (so tracking and metrics see the same
+/// intensities whichever format the frames arrive in).
+#[inline]
+pub fn y_to_unit(y: u8) -> f32 {
+    (y as f32 - 16.0) * (1.0 / 219.0)
+}
+
+/// Converts a colour frame to `[0, 1]` luma, into a reused buffer.
 pub fn luma_into(src: &FrameRef<'_>, dst: &mut GrayImage) {
     dst.resize(src.width, src.height);
+    if src.format == PixelFormat::Yuv420p {
+        let (y, _, _) = src.yuv_planes();
+        for (out, &v) in dst.data.iter_mut().zip(y) {
+            *out = y_to_unit(v).clamp(0.0, 1.0);
+        }
+        return;
+    }
     let c = src.format.channels();
     let k = [
         LUMA_WEIGHTS[0] / 255.0,

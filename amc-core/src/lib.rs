@@ -6,6 +6,7 @@
 #![deny(missing_docs)]
 
 pub mod camera;
+pub mod color;
 pub mod error;
 pub mod image;
 pub mod lens;

@@ -15,7 +15,8 @@
 //! ```
 //! Clip values pool the squares of all frames before the square root.
 
-use crate::image::{FrameRef, GrayImage, LUMA_WEIGHTS};
+use crate::color::yuv420p_to_rgb_into;
+use crate::image::{y_to_unit, FrameRef, GrayImage, PixelFormat, LUMA_WEIGHTS};
 use crate::stabilizer::Telemetry;
 use serde::{Deserialize, Serialize};
 
@@ -139,6 +140,8 @@ pub struct MetricsAccumulator {
     cur: GrayImage,
     /// One row of squared gradients (reused).
     row: Vec<f32>,
+    /// RGB of a planar frame (reused).
+    rgb: Vec<u8>,
     has_prev: bool,
     nf_sq: f64,
     nf_n: u64,
@@ -152,6 +155,17 @@ pub struct MetricsAccumulator {
 /// Luma of `frame` into `dst`, `NaN` where `coverage` is 0.
 pub fn masked_luma_into(frame: &FrameRef<'_>, coverage: &[u8], dst: &mut GrayImage) {
     dst.resize(frame.width, frame.height);
+    if frame.format == PixelFormat::Yuv420p {
+        let (y, _, _) = frame.yuv_planes();
+        for ((o, &v), &n) in dst.data.iter_mut().zip(y).zip(coverage) {
+            *o = if n == 0 {
+                f32::NAN
+            } else {
+                y_to_unit(v).clamp(0.0, 1.0)
+            };
+        }
+        return;
+    }
     let c = frame.format.channels();
     let k = LUMA_WEIGHTS.map(|w| w / 255.0);
     for ((o, px), &n) in dst
@@ -314,6 +328,21 @@ impl MetricsAccumulator {
             }
         }
         let mut chan = std::mem::take(&mut self.prev);
+        // Sharpness is defined over R, G and B: a planar frame is measured in
+        // the RGB a player would show.
+        let rgb_frame;
+        let frame = if frame.format.is_planar() {
+            yuv420p_to_rgb_into(w, h, frame.data, false, 3, &mut self.rgb);
+            rgb_frame = FrameRef {
+                width: w,
+                height: h,
+                format: PixelFormat::Rgb8,
+                data: &self.rgb,
+            };
+            &rgb_frame
+        } else {
+            frame
+        };
         let (s, n) = sharpness_sums(frame, coverage, &mut chan, &mut self.row);
         self.prev = chan;
         if n > 0 {

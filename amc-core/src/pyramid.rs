@@ -5,7 +5,7 @@
 //! pixel whose neighbourhood touches invalid data is itself invalid, and the
 //! tracker never has to consult a separate mask.
 
-use crate::image::{FrameRef, GrayImage, LUMA_WEIGHTS};
+use crate::image::{FrameRef, GrayImage, PixelFormat, LUMA_WEIGHTS};
 
 /// Box-downscales a colour frame by an integer factor `s` while converting it to
 /// `[0, 1]` luma. Output pixel `(u, v)` averages source pixels
@@ -15,6 +15,10 @@ pub fn luma_box_downscale_into(src: &FrameRef<'_>, s: usize, dst: &mut GrayImage
     let s = s.max(1);
     let (w, h) = (src.width / s, src.height / s);
     dst.resize(w, h);
+    if src.format == PixelFormat::Yuv420p {
+        y_box_downscale_into(src, s, dst);
+        return;
+    }
     let c = src.format.channels();
     let stride = src.stride();
     let norm = 1.0 / (255.0 * (s * s) as f32);
@@ -57,6 +61,34 @@ pub fn luma_box_downscale_into(src: &FrameRef<'_>, s: usize, dst: &mut GrayImage
                 }
             }
             *o = k[0] * a[0] as f32 + k[1] * a[1] as f32 + k[2] * a[2] as f32;
+        }
+    }
+}
+
+/// The Y plane's part of [`luma_box_downscale_into`]: block means of Y mapped
+/// to `[0, 1]` as [`crate::image::y_to_unit`] does (`dst` already sized).
+fn y_box_downscale_into(src: &FrameRef<'_>, s: usize, dst: &mut GrayImage) {
+    let (y, _, _) = src.yuv_planes();
+    let (w, sw) = (dst.width, src.width);
+    let norm = 1.0 / (219.0 * (s * s) as f32);
+    let bias = 16.0 * (s * s) as f32;
+    if s == 1 {
+        for (o, &v) in dst.data.iter_mut().zip(y) {
+            *o = (v as f32 - bias) * norm;
+        }
+        return;
+    }
+    let mut sums = vec![0u32; w];
+    for v in 0..dst.height {
+        sums.fill(0);
+        for dy in 0..s {
+            let row = &y[(v * s + dy) * sw..(v * s + dy + 1) * sw];
+            for (acc, block) in sums.iter_mut().zip(row.chunks_exact(s)) {
+                *acc += block.iter().map(|&b| b as u32).sum::<u32>();
+            }
+        }
+        for (o, &a) in dst.data[v * w..(v + 1) * w].iter_mut().zip(&sums) {
+            *o = (a as f32 - bias) * norm;
         }
     }
 }

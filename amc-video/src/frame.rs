@@ -115,6 +115,17 @@ pub(crate) fn as_rgb<'a>(frame: &'a FrameRef<'_>, scratch: &'a mut Vec<u8>) -> &
             }
             scratch
         }
+        amc_core::image::PixelFormat::Yuv420p => {
+            amc_core::color::yuv420p_to_rgb_into(
+                frame.width,
+                frame.height,
+                frame.data,
+                false,
+                3,
+                scratch,
+            );
+            scratch
+        }
     }
 }
 

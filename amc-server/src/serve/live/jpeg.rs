@@ -16,12 +16,24 @@ pub fn encode_jpeg(
             frame.width, frame.height
         ));
     };
-    let color = match frame.format {
-        PixelFormat::Rgb8 => jpeg_encoder::ColorType::Rgb,
-        PixelFormat::Rgba8 => jpeg_encoder::ColorType::Rgba,
+    let mut rgb = Vec::new();
+    let (data, color) = match frame.format {
+        PixelFormat::Rgb8 => (frame.data, jpeg_encoder::ColorType::Rgb),
+        PixelFormat::Rgba8 => (frame.data, jpeg_encoder::ColorType::Rgba),
+        PixelFormat::Yuv420p => {
+            amc_core::color::yuv420p_to_rgb_into(
+                frame.width,
+                frame.height,
+                frame.data,
+                false,
+                3,
+                &mut rgb,
+            );
+            (&rgb[..], jpeg_encoder::ColorType::Rgb)
+        }
     };
     jpeg_encoder::Encoder::new(out, quality)
-        .encode(frame.data, w, h, color)
+        .encode(data, w, h, color)
         .map_err(|e| e.to_string())
 }
 
