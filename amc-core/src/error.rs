@@ -35,10 +35,18 @@ pub enum AmcError {
     /// A frame buffer's length does not match its size and pixel format.
     #[error("frame buffer has {actual} bytes, expected {expected}")]
     BufferLength {
-        /// `width * height * channels`, bytes.
+        /// [`crate::PixelFormat::buffer_len`] of the frame, bytes.
         expected: usize,
         /// Length of the buffer, bytes.
         actual: usize,
+    },
+    /// A frame's pixel format differs from the clip's first frame.
+    #[error("pixel format changed from {expected:?} to {actual:?}; every frame of a clip must have the same format")]
+    FormatChanged {
+        /// The first frame's format.
+        expected: crate::PixelFormat,
+        /// This frame's format.
+        actual: crate::PixelFormat,
     },
     /// A frame's size differs from the clip's first frame.
     #[error("frame size changed from {expected_w}x{expected_h} to {actual_w}x{actual_h}; every frame of a clip must have the same size")]

@@ -1,7 +1,9 @@
 //! # amc-core
 //!
 //! Artificial Microsaccade Compensation (AMC): rotation-only video stabilization.
-//! Pure library: no I/O, no threads, no async; builds for `wasm32-unknown-unknown`.
+//! Pure library: no I/O, no threads of its own, no async; builds for
+//! `wasm32-unknown-unknown`. With the `parallel` feature the renderer splits
+//! each frame's rows across the caller's rayon pool (same bytes as one thread).
 
 #![deny(missing_docs)]
 

@@ -78,17 +78,19 @@ fn y_box_downscale_into(src: &FrameRef<'_>, s: usize, dst: &mut GrayImage) {
         }
         return;
     }
-    let mut sums = vec![0u32; w];
+    // Block sums in the output row itself (integers below 2^24: exact in f32),
+    // so nothing is allocated per frame.
     for v in 0..dst.height {
-        sums.fill(0);
+        let out = &mut dst.data[v * w..(v + 1) * w];
+        out.fill(0.0);
         for dy in 0..s {
             let row = &y[(v * s + dy) * sw..(v * s + dy + 1) * sw];
-            for (acc, block) in sums.iter_mut().zip(row.chunks_exact(s)) {
-                *acc += block.iter().map(|&b| b as u32).sum::<u32>();
+            for (acc, block) in out.iter_mut().zip(row.chunks_exact(s)) {
+                *acc += block.iter().map(|&b| b as u32).sum::<u32>() as f32;
             }
         }
-        for (o, &a) in dst.data[v * w..(v + 1) * w].iter_mut().zip(&sums) {
-            *o = (a as f32 - bias) * norm;
+        for o in out.iter_mut() {
+            *o = (*o - bias) * norm;
         }
     }
 }

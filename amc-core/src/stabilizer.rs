@@ -15,7 +15,7 @@ use crate::error::AmcError;
 use crate::frontend::TrackingFrontend;
 use crate::image::{Frame, FrameRef, PixelFormat};
 use crate::pyramid::Pyramid;
-use crate::render::{Accumulator, RenderParams, WarpedFrame, Warper};
+use crate::render::{chroma_camera, Accumulator, RenderParams, WarpedFrame, Warper};
 use crate::so3::{self, Rot};
 use crate::tracker::{TrackInfo, Tracker, TrackerParams};
 use crate::view::{backward_pass, Mode, ViewParams};
@@ -109,7 +109,12 @@ pub struct Stabilizer {
     frontend: TrackingFrontend,
     tracker: Tracker,
     pyr: Pyramid,
+    /// Renders colour frames, or the Y plane of planar ones.
     warper: Warper,
+    /// Renders the U and V planes of 4:2:0 frames (the chroma cameras).
+    chroma: Warper,
+    /// Coverage of the chroma planes (reused; the luma's is reported).
+    chroma_cov: Vec<u8>,
     out_cam: CameraModel,
     ring: VecDeque<Buffered>,
     spare: Vec<Frame>,
@@ -167,6 +172,7 @@ impl Stabilizer {
         let tracker = Tracker::new(frontend.camera(), params.tracker.clone())?;
         let out_cam = params.render.output_camera(&cam)?;
         let warper = Warper::new(&cam, &out_cam);
+        let chroma = Warper::new(&chroma_camera(&cam), &chroma_camera(&out_cam));
         Ok(Self {
             width,
             height,
@@ -175,6 +181,8 @@ impl Stabilizer {
             tracker,
             pyr: Pyramid::default(),
             warper,
+            chroma,
+            chroma_cov: Vec::new(),
             out_cam,
             ring: VecDeque::new(),
             spare: Vec::new(),
@@ -220,9 +228,11 @@ impl Stabilizer {
         self.output.as_ref()
     }
 
-    /// Per-pixel count of frames averaged into the latest output (0 = black border).
+    /// Per-pixel count of frames averaged into the latest output (0 = black
+    /// border); for planar frames, of its luma pixels.
     pub fn output_coverage(&self) -> &[u8] {
-        &self.acc.count
+        let n = self.out_cam.width * self.out_cam.height;
+        &self.acc.count[..n.min(self.acc.count.len())]
     }
 
     /// Pushes frame `t` seconds into the clip. Returns the telemetry of the
@@ -237,7 +247,20 @@ impl Stabilizer {
                 actual_h: frame.height,
             });
         }
-        let expected = self.width * self.height * frame.format.channels();
+        if let Some(format) = self.format.filter(|&f| f != frame.format) {
+            return Err(AmcError::FormatChanged {
+                expected: format,
+                actual: frame.format,
+            });
+        }
+        let expected =
+            frame
+                .format
+                .buffer_len(self.width, self.height)
+                .ok_or(AmcError::FrameTooLarge {
+                    width: self.width,
+                    height: self.height,
+                })?;
         if frame.data.len() != expected {
             return Err(AmcError::BufferLength {
                 expected,
@@ -335,12 +358,14 @@ impl Stabilizer {
             Mode::Saccade => *self.saccade_view.get_or_insert(r_est),
         };
 
-        let channels = self.output.format.channels();
+        let format = self.output.format;
+        let channels = format.channels();
+        let (ow, oh) = (self.out_cam.width, self.out_cam.height);
         let valid_fraction;
         if mode == Mode::Saccade {
             self.saccade_update(first, pos, &r_view);
             let full = self.slots.len() as u8;
-            let mut vf = self.acc.finish_into(&mut self.output.data, channels, full);
+            let mut vf = self.finish_saccade(full);
             // After a saccade the older frames of the window cannot cover the new
             // view; coverage by every averaged frame recovers only once the
             // window has refilled, so the next saccade waits `n_avg` frames
@@ -356,7 +381,7 @@ impl Stabilizer {
                 self.slots.drain(..).for_each(|s| self.spare_slots.push(s));
                 self.saccade_update(first, pos, &r_est);
                 let full = self.slots.len() as u8;
-                vf = self.acc.finish_into(&mut self.output.data, channels, full);
+                vf = self.finish_saccade(full);
             }
             valid_fraction = vf;
         } else {
@@ -367,13 +392,46 @@ impl Stabilizer {
                     .map(|b| b.r_est.matrix().transpose() * r_view.matrix()),
             );
             let ring = &self.ring;
-            valid_fraction = self.warper.average_into(
-                |i| ring[first + i].frame.as_ref(),
-                &self.rotations,
-                &mut self.output.data,
-                channels,
-                &mut self.acc.count,
-            );
+            valid_fraction = if format.is_planar() {
+                // One geometry, three planes: Y through the luma cameras, U and V
+                // through the chroma cameras, all with the same rotations.
+                let (w, h) = (self.width, self.height);
+                let (cw, ch) = crate::image::chroma_size(w, h);
+                let (n, nc) = (w * h, cw * ch);
+                let (oy, ou, ov) = crate::image::yuv_planes_mut(ow, oh, &mut self.output.data);
+                // Each plane is passed with what follows it in the buffer (the
+                // next planes, then the tail padding) for the kernels' gathers.
+                let plane = |i: usize, at: usize| &ring[first + i].frame.data[at..];
+                let complete = self.warper.average_plane_into(
+                    |i| plane(i, 0),
+                    w,
+                    h,
+                    &self.rotations,
+                    oy,
+                    &mut self.acc.count,
+                    16,
+                );
+                for (at, out) in [(n, ou), (n + nc, ov)] {
+                    self.chroma.average_plane_into(
+                        |i| plane(i, at),
+                        cw,
+                        ch,
+                        &self.rotations,
+                        out,
+                        &mut self.chroma_cov,
+                        128,
+                    );
+                }
+                complete as f64 / (ow * oh).max(1) as f64
+            } else {
+                self.warper.average_into(
+                    |i| ring[first + i].frame.as_ref(),
+                    &self.rotations,
+                    &mut self.output.data,
+                    channels,
+                    &mut self.acc.count,
+                )
+            };
         }
         let r_view = if saccade { r_est } else { r_view };
 
@@ -399,14 +457,35 @@ impl Stabilizer {
         }
     }
 
+    /// Writes the saccade sums into the output frame; returns the share of
+    /// pixels covered by `full` frames.
+    fn finish_saccade(&mut self, full: u8) -> f64 {
+        let (ow, oh) = (self.out_cam.width, self.out_cam.height);
+        if self.output.format.is_planar() {
+            self.acc
+                .finish_yuv420_into(&mut self.output.data, ow, oh, full)
+        } else {
+            let channels = self.output.format.channels();
+            self.acc.finish_into(&mut self.output.data, channels, full)
+        }
+    }
+
     /// Saccade mode's recursive update: keeps one warped slot per frame of the
     /// window, warps only frames not yet warped into `view`, and maintains the
     /// running sum by adding the newest and subtracting the oldest.
     fn saccade_update(&mut self, first: usize, pos: usize, view: &Rot) {
-        let n_px = self.out_cam.width * self.out_cam.height;
+        let (ow, oh) = (self.out_cam.width, self.out_cam.height);
+        let n_px = ow * oh;
+        let planar = self.output.format.is_planar();
+        let (cw, ch) = crate::image::chroma_size(ow, oh);
+        let nc = cw * ch;
         let first_index = self.ring[first].index;
         if self.slots.is_empty() {
-            self.acc.reset(n_px);
+            if planar {
+                self.acc.reset_to(n_px + 2 * nc, n_px + nc);
+            } else {
+                self.acc.reset(n_px);
+            }
         }
         while self.slots.front().is_some_and(|s| s.index < first_index) {
             if let Some(old) = self.slots.pop_front() {
@@ -425,8 +504,35 @@ impl Stabilizer {
             }
             let m = b.r_est.matrix().transpose() * view.matrix();
             let mut slot = self.spare_slots.pop().unwrap_or_default();
-            self.warper
-                .warp_into_slot(&b.frame.as_ref(), &m, &mut slot, b.index);
+            if planar {
+                let (w, h) = (self.width, self.height);
+                let (scw, sch) = crate::image::chroma_size(w, h);
+                let (n, snc) = (w * h, scw * sch);
+                slot.index = b.index;
+                slot.value.clear();
+                slot.value.resize(n_px + 2 * nc, 0);
+                slot.covered.clear();
+                slot.covered.resize(n_px + nc, 0);
+                self.chroma_cov.resize(nc, 0);
+                let (vy, vc) = slot.value.split_at_mut(n_px);
+                let (vu, vv) = vc.split_at_mut(nc);
+                let (cy, cc) = slot.covered.split_at_mut(n_px);
+                let data = &b.frame.data;
+                self.warper.warp_plane_into(data, w, h, &m, vy, cy);
+                self.chroma
+                    .warp_plane_into(&data[n..], scw, sch, &m, vu, cc);
+                self.chroma.warp_plane_into(
+                    &data[n + snc..],
+                    scw,
+                    sch,
+                    &m,
+                    vv,
+                    &mut self.chroma_cov,
+                );
+            } else {
+                self.warper
+                    .warp_into_slot(&b.frame.as_ref(), &m, &mut slot, b.index);
+            }
             slot.apply(&mut self.acc, true);
             self.slots.push_back(slot);
         }

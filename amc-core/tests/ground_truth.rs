@@ -32,6 +32,8 @@ struct Case {
     /// RMS angular speed of the shake, degrees per second.
     shake_dps: f64,
     seed: u64,
+    /// How the frames reach the stabilizer (RGB, or 4:2:0 planes as decoders give them).
+    format: PixelFormat,
     /// Bound on the median per-frame error, degrees.
     max_median_frame_deg: f64,
     /// Bound on the orientation error at the last frame, degrees.
@@ -146,12 +148,20 @@ fn run(case: &Case, pano_full: &Frame) -> Errors {
         r_est[j] = Some(so3::exp(&Tangent::from(tel.r_est)));
     };
     let mut frame = Frame::new(cam.width, cam.height, PixelFormat::Rgb8);
+    let mut planar = Frame::new(cam.width, cam.height, PixelFormat::Yuv420p);
     for j in 0..n {
         let t = j as f64 / FPS;
         renderer
             .render_into(&pano.as_ref(), &shake.orientation_at(t), &mut frame)
             .expect("frame renders");
-        if let Some(tel) = stab.push(frame.as_ref(), t).expect("frame accepted") {
+        let pushed = if case.format == PixelFormat::Yuv420p {
+            let (w, h) = (cam.width, cam.height);
+            amc_core::color::rgb_to_yuv420p_into(w, h, 3, &frame.data, &mut planar.data);
+            &planar
+        } else {
+            &frame
+        };
+        if let Some(tel) = stab.push(pushed.as_ref(), t).expect("frame accepted") {
             record(tel);
         }
     }
@@ -204,6 +214,7 @@ fn estimate_matches_ground_truth() {
             camera: CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
             shake_dps: 100.0,
             seed: 1,
+            format: PixelFormat::Rgb8,
             max_median_frame_deg: 0.01,
             max_final_deg: 0.5,
             max_orientation_deg: 0.5,
@@ -213,6 +224,17 @@ fn estimate_matches_ground_truth() {
             camera: CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
             shake_dps: 300.0,
             seed: 2,
+            format: PixelFormat::Rgb8,
+            max_median_frame_deg: 0.01,
+            max_final_deg: 0.5,
+            max_orientation_deg: 1.0,
+        },
+        Case {
+            name: "pinhole 90 deg, 300 deg/s, yuv420p",
+            camera: CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
+            shake_dps: 300.0,
+            seed: 2,
+            format: PixelFormat::Yuv420p,
             max_median_frame_deg: 0.01,
             max_final_deg: 0.5,
             max_orientation_deg: 1.0,
@@ -222,6 +244,17 @@ fn estimate_matches_ground_truth() {
             camera: CameraModel::fisheye_hfov(w, h, 150.0, [0.05, -0.01, 0.002, -0.0005]).unwrap(),
             shake_dps: 100.0,
             seed: 3,
+            format: PixelFormat::Rgb8,
+            max_median_frame_deg: 0.01,
+            max_final_deg: 0.2,
+            max_orientation_deg: 0.5,
+        },
+        Case {
+            name: "fisheye 150 deg, 100 deg/s, yuv420p",
+            camera: CameraModel::fisheye_hfov(w, h, 150.0, [0.05, -0.01, 0.002, -0.0005]).unwrap(),
+            shake_dps: 100.0,
+            seed: 3,
+            format: PixelFormat::Yuv420p,
             max_median_frame_deg: 0.01,
             max_final_deg: 0.2,
             max_orientation_deg: 0.5,

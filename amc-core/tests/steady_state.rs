@@ -58,6 +58,41 @@ fn no_allocation_per_frame_in_steady_state() {
             out
         })
         .collect();
+    let yuv: Vec<Frame> = frames
+        .iter()
+        .map(|f| {
+            let mut y = Frame::new(160, 96, PixelFormat::Yuv420p);
+            amc_core::color::rgb_to_yuv420p_into(160, 96, 3, &f.data, &mut y.data);
+            y
+        })
+        .collect();
+    // One thread: nothing at all. On a rayon pool of several (the `parallel`
+    // feature), rayon's job queue allocates a block now and then (amortized,
+    // freed again): bounded, but not zero.
+    #[cfg(feature = "parallel")]
+    let pools: Vec<(usize, usize)> = vec![(1, 0), (2, 240 / 16)];
+    #[cfg(not(feature = "parallel"))]
+    let pools: Vec<(usize, usize)> = vec![(1, 0)];
+    for (threads, allowed) in pools {
+        for clip in [&frames, &yuv] {
+            let run = || check_steady_state(&cam, clip, allowed);
+            #[cfg(feature = "parallel")]
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(run);
+            #[cfg(not(feature = "parallel"))]
+            {
+                let _ = threads;
+                run();
+            }
+        }
+    }
+}
+
+/// Pushes 240 frames after a warm-up in every mode; at most `allowed` allocations.
+fn check_steady_state(cam: &CameraModel, frames: &[Frame], allowed: usize) {
     for (mode, lookahead) in [
         (Mode::Stabilize, 0),
         (Mode::Stabilize, 5),
@@ -68,7 +103,7 @@ fn no_allocation_per_frame_in_steady_state() {
         params.track_width = 160;
         params.view.mode = mode;
         params.view.lookahead = lookahead;
-        let mut stab = Stabilizer::new(&cam, 160, 96, params).unwrap();
+        let mut stab = Stabilizer::new(cam, 160, 96, params).unwrap();
         // Warm up: fill the window, the lookahead and every reusable buffer.
         for j in 0..60 {
             stab.push(frames[j % 40].as_ref(), j as f64 / 60.0).unwrap();
@@ -78,9 +113,10 @@ fn no_allocation_per_frame_in_steady_state() {
             stab.push(frames[j % 40].as_ref(), j as f64 / 60.0).unwrap();
         }
         let allocs = ALLOCATIONS.load(Ordering::Relaxed) - before;
-        assert_eq!(
-            allocs, 0,
-            "{mode} (lookahead {lookahead}): {allocs} allocations in 240 frames"
+        let format = frames[0].format;
+        assert!(
+            allocs <= allowed,
+            "{mode} (lookahead {lookahead}, {format:?}): {allocs} allocations in 240 frames"
         );
     }
 }

@@ -5,21 +5,59 @@
 //! [`WarpedFrame::fill`]), nothing here warps.
 
 /// Per-pixel sums of warped frames: the averaging buffer.
+///
+/// Interleaved frames: 3 sums and 1 count per pixel. Planar 4:2:0 frames of
+/// `n` luma and `nc` chroma pixels: sums of Y (`n`), U (`nc`), V (`nc`) one
+/// after the other, counts of Y (`n`) then of the chroma planes (`nc`, shared
+/// by U and V). [`WarpedFrame`]s use the same layout, so adding and removing
+/// them never needs to know which.
 #[derive(Clone, Debug, Default)]
 pub struct Accumulator {
-    /// 8.8 fixed-point channel sums, 3 per pixel.
+    /// 8.8 fixed-point sums.
     pub sum: Vec<u32>,
-    /// Frames that covered each pixel.
+    /// Frames that covered each pixel (the first `width * height` are the
+    /// output's luma or colour pixels).
     pub count: Vec<u8>,
 }
 
 impl Accumulator {
-    /// Zeroes the buffer for `n` pixels.
+    /// Zeroes the buffer for `n` interleaved pixels.
     pub fn reset(&mut self, n: usize) {
+        self.reset_to(3 * n, n);
+    }
+
+    /// Zeroes the buffer for `sums` sums and `counts` counts.
+    pub fn reset_to(&mut self, sums: usize, counts: usize) {
         self.sum.clear();
-        self.sum.resize(3 * n, 0);
+        self.sum.resize(sums, 0);
         self.count.clear();
-        self.count.resize(n, 0);
+        self.count.resize(counts, 0);
+    }
+
+    /// Writes the average into a planar 4:2:0 frame buffer of `width x height`
+    /// (uncovered pixels black: Y 16, U = V 128). Returns the share of luma
+    /// pixels covered by `full` frames.
+    pub fn finish_yuv420_into(&self, out: &mut [u8], width: usize, height: usize, full: u8) -> f64 {
+        let (cw, ch) = crate::image::chroma_size(width, height);
+        let (n, nc) = (width * height, cw * ch);
+        let (oy, ou, ov) = crate::image::yuv_planes_mut(width, height, out);
+        let (cy, cc) = self.count.split_at(n);
+        let planes = [
+            (oy, &self.sum[..n], cy, 16u8),
+            (ou, &self.sum[n..n + nc], cc, 128),
+            (ov, &self.sum[n + nc..n + 2 * nc], cc, 128),
+        ];
+        for (dst, sum, count, fill) in planes {
+            for ((o, &s), &k) in dst.iter_mut().zip(sum).zip(count) {
+                *o = if k == 0 {
+                    fill
+                } else {
+                    (s as f32 * (1.0 / (256.0 * k as f32)) + 0.5) as u8
+                };
+            }
+        }
+        let complete = cy.iter().filter(|&&k| k >= full).count();
+        complete as f64 / n.max(1) as f64
     }
 
     /// Writes the average into an interleaved frame buffer (`channels` 3 or 4);
@@ -49,11 +87,12 @@ impl Accumulator {
 }
 
 /// One frame warped into the (fixed) saccade view, kept to subtract it later.
+/// Laid out as the [`Accumulator`] it is added to.
 #[derive(Clone, Debug, Default)]
 pub struct WarpedFrame {
     /// Source frame index this slot holds.
     pub index: u64,
-    /// 8.8 fixed-point samples (3 per pixel) of covered pixels.
+    /// 8.8 fixed-point samples of covered pixels (0 elsewhere).
     pub value: Vec<u16>,
     /// 1 where the frame covered the pixel.
     pub covered: Vec<u8>,

@@ -33,4 +33,4 @@ mod warper;
 
 pub use accumulator::{Accumulator, WarpedFrame};
 pub use params::RenderParams;
-pub use warper::{Warper, GRID_STEP};
+pub use warper::{chroma_camera, Warper, GRID_STEP};

@@ -1,6 +1,15 @@
 //! The warper: maps output rows to source coordinates (an exact homography for
 //! pinhole sources, an interpolated grid of the exact lens map otherwise) and
 //! samples every frame there, through the row kernels.
+//!
+//! Interleaved frames (RGB, RGBA) are sampled three channels at a time; planar
+//! frames one plane at a time, each plane by a warper whose cameras are that
+//! plane's (the chroma planes of 4:2:0 frames by one built for the half-size
+//! cameras, [`chroma_camera`]): one geometry, three planes.
+//!
+//! Output rows are independent. With the `parallel` feature, a frame's rows
+//! are rendered in bands on the current rayon pool (each band with row buffers
+//! of its own); the bytes are the same whatever the number of threads.
 
 use super::accumulator::WarpedFrame;
 use super::kernels::{Geometry, Kernel, RowCoords, FRAME_PADDING};
@@ -11,6 +20,24 @@ use nalgebra::{Matrix3, Vector2, Vector3};
 /// Grid spacing (output pixels) of the exact lens map for distorted sources.
 pub const GRID_STEP: usize = 8;
 
+/// The camera of a 4:2:0 chroma plane of frames seen through `cam`: half the
+/// focal length, and chroma sample `u` at luma position `2 u + 0.5` (centred
+/// siting), so `c' = (c - 0.5) / 2`; the size is the chroma plane's
+/// (`ceil` of halves). Lens distortion acts on normalized coordinates and is kept.
+pub fn chroma_camera(cam: &CameraModel) -> CameraModel {
+    let (w, h) = crate::image::chroma_size(cam.width, cam.height);
+    CameraModel {
+        width: w,
+        height: h,
+        fx: cam.fx / 2.0,
+        fy: cam.fy / 2.0,
+        cx: (cam.cx - 0.5) / 2.0,
+        cy: (cam.cy - 0.5) / 2.0,
+        skew: cam.skew / 2.0,
+        distortion: cam.distortion.clone(),
+    }
+}
+
 /// How one frame's source coordinates are produced along output rows.
 #[derive(Clone, Debug, Default)]
 struct RowMap {
@@ -18,9 +45,34 @@ struct RowMap {
     h: Matrix3<f32>,
     /// Exact source coordinates at the grid nodes (distorted sources).
     grid: Vec<[f32; 2]>,
-    /// Source coordinates `(xs[u], ys[u])` of the current output row (NaN: none).
-    xs: Vec<f32>,
-    ys: Vec<f32>,
+}
+
+/// Per-row working buffers: one set per band of rows being rendered.
+#[derive(Clone, Debug, Default)]
+struct RowScratch {
+    /// Source coordinates `(xs[f][u], ys[f][u])` of the current row per frame (NaN: none).
+    xs: Vec<Vec<f32>>,
+    ys: Vec<Vec<f32>>,
+    /// Per-channel sums of the vectorized path (1 or 3 used).
+    sums: [Vec<u32>; 3],
+    /// Frames covering each pixel of the row.
+    count: Vec<u32>,
+}
+
+impl RowScratch {
+    /// Sizes the buffers for `frames` frames of rows `width` wide.
+    fn fit(&mut self, frames: usize, width: usize, tables: bool) {
+        if tables {
+            self.xs.resize_with(frames, Vec::new);
+            self.ys.resize_with(frames, Vec::new);
+            for t in self.xs.iter_mut().chain(self.ys.iter_mut()) {
+                t.resize(width, 0.0);
+            }
+        }
+        for buf in self.sums.iter_mut().chain(std::iter::once(&mut self.count)) {
+            buf.resize(width, 0);
+        }
+    }
 }
 
 /// Samples source frames along rotated output rays.
@@ -36,19 +88,27 @@ pub struct Warper {
     /// The row kernel: a vectorized one (AVX2 on this CPU, or wasm `simd128`)
     /// or the scalar reference, which leaves every pixel to the per-pixel path.
     kernel: Kernel,
-    /// Per-row accumulators of the vectorized path.
-    acc_r: Vec<u32>,
-    acc_g: Vec<u32>,
-    acc_b: Vec<u32>,
-    acc_n: Vec<u32>,
-    /// Per-row 8-bit averages, R then G then B (vectorized finalize).
-    out8: Vec<u8>,
-    /// Output row being rendered (for the kernel's homography rows).
-    current_row: usize,
+    /// Row buffers of the sequential path.
+    scratch: RowScratch,
+    /// Row buffers of the bands of the parallel path (one per band, kept so
+    /// that a warmed-up render allocates nothing).
+    band_scratch: Vec<RowScratch>,
 }
 
 /// Most frames one output may average (the range of `n_avg`).
 const MAX_FRAMES: usize = 64;
+
+/// What is fixed for every row of one render: the frames, their maps, the
+/// kernel's share of each row.
+struct Pass<'m, 'd> {
+    maps: &'m [RowMap],
+    datas: &'m [&'d [u8]],
+    geom: Geometry,
+    /// Pixels per row the vector kernel handles (a multiple of 8, 0 = none).
+    n8: usize,
+    /// Whether per-frame coordinate tables are needed.
+    tables: bool,
+}
 
 impl Warper {
     /// A warper from frames of `src` into `out` (a pinhole).
@@ -72,12 +132,8 @@ impl Warper {
             grid_h,
             maps: Vec::new(),
             kernel: Kernel::detect(),
-            acc_r: Vec::new(),
-            acc_g: Vec::new(),
-            acc_b: Vec::new(),
-            acc_n: Vec::new(),
-            current_row: 0,
-            out8: Vec::new(),
+            scratch: RowScratch::default(),
+            band_scratch: Vec::new(),
         }
     }
 
@@ -86,10 +142,13 @@ impl Warper {
         self.kernel = if on { Kernel::detect() } else { Kernel::Scalar };
     }
 
+    /// Output size.
+    pub fn output_size(&self) -> (usize, usize) {
+        (self.out.width, self.out.height)
+    }
+
     /// Prepares `map` for rotation `m` (output ray -> source ray).
     fn prepare_map(&self, map: &mut RowMap, m: &Matrix3<f64>) {
-        map.xs.resize(self.out.width, 0.0);
-        map.ys.resize(self.out.width, 0.0);
         if self.src.is_pinhole() {
             let k_out_inv = self
                 .out
@@ -109,42 +168,86 @@ impl Warper {
         }
     }
 
-    /// Sizes the row accumulators and decides the split of each row: the first
-    /// `n8` pixels (a multiple of 8) go to the AVX2 kernel when it is available
-    /// and every frame carries the gathers' padding; the rest are scalar.
-    /// Returns `(n8, need_tables)`: the kernel evaluates pinhole homographies
-    /// itself, so coordinate tables are needed only for distorted sources and
-    /// for scalar pixels.
-    fn begin_rows(&mut self, padded: bool) -> (usize, bool) {
+    /// Maps for `rotations`, in `self.maps` (taken out: give them back after).
+    fn prepare_maps(&mut self, rotations: &[Matrix3<f64>]) -> Vec<RowMap> {
+        let mut maps = std::mem::take(&mut self.maps);
+        maps.resize_with(rotations.len(), RowMap::default);
+        for (map, m) in maps.iter_mut().zip(rotations) {
+            self.prepare_map(map, m);
+        }
+        maps
+    }
+
+    /// The pass over `datas` (frames or planes with geometry `geom`): the first
+    /// `n8` pixels of a row (a multiple of 8) go to the vector kernel when it is
+    /// available and every buffer carries the gathers' padding; the rest are
+    /// scalar. The kernel evaluates pinhole homographies itself, so coordinate
+    /// tables are needed only for distorted sources and for scalar pixels.
+    fn pass<'m, 'd>(
+        &self,
+        maps: &'m [RowMap],
+        datas: &'m [&'d [u8]],
+        geom: Geometry,
+        rows: usize,
+    ) -> Pass<'m, 'd> {
         let ow = self.out.width;
+        let padded = datas
+            .iter()
+            .all(|d| d.len() >= geom.stride * rows + FRAME_PADDING);
         let n8 = if self.kernel.is_vectorized() && padded {
             ow / 8 * 8
         } else {
             0
         };
-        for buf in [
-            &mut self.acc_r,
-            &mut self.acc_g,
-            &mut self.acc_b,
-            &mut self.acc_n,
-        ] {
-            buf.resize(ow, 0);
+        Pass {
+            maps,
+            datas,
+            geom,
+            n8,
+            tables: !self.src.is_pinhole() || n8 < ow,
         }
-        (n8, !self.src.is_pinhole() || n8 < ow)
     }
 
-    /// Vectorized accumulation of the first `n8` pixels of the current row over all frames.
-    fn accumulate_row_simd(
-        &mut self,
-        maps: &[RowMap],
-        datas: &[&[u8]],
-        geom: &Geometry,
-        n8: usize,
-    ) {
+    /// Fills `xs`/`ys` with the source coordinates of output row `v` under `map`.
+    fn fill_row(&self, map: &RowMap, v: usize, xs: &mut [f32], ys: &mut [f32]) {
+        if self.src.is_pinhole() {
+            let h = &map.h;
+            let vf = v as f32;
+            let (x0, y0, z0) = (
+                h[(0, 1)] * vf + h[(0, 2)],
+                h[(1, 1)] * vf + h[(1, 2)],
+                h[(2, 1)] * vf + h[(2, 2)],
+            );
+            let (dx, dy, dz) = (h[(0, 0)], h[(1, 0)], h[(2, 0)]);
+            // Branch-free so it vectorizes; rays behind the camera become NaN.
+            for (u, (xo, yo)) in xs.iter_mut().zip(ys.iter_mut()).enumerate() {
+                let uf = u as f32;
+                let z = z0 + dz * uf;
+                let iz = if z > 1e-6 { 1.0 / z } else { f32::NAN };
+                *xo = (x0 + dx * uf) * iz;
+                *yo = (y0 + dy * uf) * iz;
+            }
+        } else {
+            interpolate_grid_row(&map.grid, self.grid_w, self.grid_h, v, xs, ys);
+        }
+    }
+
+    /// Runs the vector kernel over the first `n8` pixels of row `v` of every
+    /// frame of `pass`, into `scratch.sums` (three channels, or one when
+    /// `gray`) and `scratch.count`, after filling the coordinate tables.
+    fn accumulate_row(&self, pass: &Pass<'_, '_>, v: usize, scratch: &mut RowScratch, gray: bool) {
+        if pass.tables {
+            for (f, map) in pass.maps.iter().enumerate() {
+                self.fill_row(map, v, &mut scratch.xs[f], &mut scratch.ys[f]);
+            }
+        }
+        if pass.n8 == 0 {
+            return;
+        }
         let mut coords = [RowCoords::Table(&[], &[]); MAX_FRAMES];
-        let n = maps.len().min(datas.len());
-        let vf = self.current_row as f32;
-        for (f, map) in maps.iter().enumerate().take(n) {
+        let n = pass.maps.len().min(pass.datas.len()).min(MAX_FRAMES);
+        let vf = v as f32;
+        for (f, map) in pass.maps.iter().enumerate().take(n) {
             coords[f] = if self.src.is_pinhole() {
                 let h = &map.h;
                 RowCoords::Homography {
@@ -156,65 +259,100 @@ impl Warper {
                     dz: h[(2, 0)],
                 }
             } else {
-                RowCoords::Table(&map.xs, &map.ys)
+                RowCoords::Table(&scratch.xs[f], &scratch.ys[f])
             };
         }
+        let [r, g, b] = &mut scratch.sums;
         // SAFETY: `self.kernel` comes from `Kernel::detect` (vectorized only when
-        // `n8 > 0`, a multiple of 8); the caller checked every frame's padding
-        // (so each holds at least `FRAME_PADDING` bytes); all row buffers hold
+        // `n8 > 0`, a multiple of 8); `pass` checked every buffer's padding (the
+        // whole frame or plane plus `FRAME_PADDING` bytes); all row buffers hold
         // `ow >= n8` values.
         unsafe {
-            self.kernel.accumulate_row(
-                &datas[..n],
-                geom,
-                &coords[..n],
-                n8,
-                &mut self.acc_r,
-                &mut self.acc_g,
-                &mut self.acc_b,
-                &mut self.acc_n,
-            );
+            if gray {
+                self.kernel.accumulate_row_gray(
+                    &pass.datas[..n],
+                    &pass.geom,
+                    &coords[..n],
+                    pass.n8,
+                    r,
+                    &mut scratch.count,
+                );
+            } else {
+                self.kernel.accumulate_row(
+                    &pass.datas[..n],
+                    &pass.geom,
+                    &coords[..n],
+                    pass.n8,
+                    r,
+                    g,
+                    b,
+                    &mut scratch.count,
+                );
+            }
         }
     }
 
-    /// Fills `map.xs`/`map.ys` with the source coordinates of output row `v`.
-    fn fill_row(&self, map: &mut RowMap, v: usize) {
-        if self.src.is_pinhole() {
-            let h = &map.h;
-            let vf = v as f32;
-            let (x0, y0, z0) = (
-                h[(0, 1)] * vf + h[(0, 2)],
-                h[(1, 1)] * vf + h[(1, 2)],
-                h[(2, 1)] * vf + h[(2, 2)],
-            );
-            let (dx, dy, dz) = (h[(0, 0)], h[(1, 0)], h[(2, 0)]);
-            // Branch-free so it vectorizes; rays behind the camera become NaN.
-            for (u, (xo, yo)) in map.xs.iter_mut().zip(map.ys.iter_mut()).enumerate() {
-                let uf = u as f32;
-                let z = z0 + dz * uf;
-                let iz = if z > 1e-6 { 1.0 / z } else { f32::NAN };
-                *xo = (x0 + dx * uf) * iz;
-                *yo = (y0 + dy * uf) * iz;
+    /// Calls `row(scratch, v, out_row, coverage_row)` for every output row and
+    /// sums what it returns: in bands on the rayon pool with the `parallel`
+    /// feature and more than one thread, else in order with the warper's buffers.
+    fn for_each_row<F>(
+        &mut self,
+        out: &mut [u8],
+        row_bytes: usize,
+        coverage: &mut [u8],
+        row: F,
+    ) -> usize
+    where
+        F: Fn(&Self, &mut RowScratch, usize, &mut [u8], &mut [u8]) -> usize + Sync,
+    {
+        let (ow, oh) = (self.out.width, self.out.height);
+        let out = &mut out[..row_bytes * oh];
+        let coverage = &mut coverage[..ow * oh];
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            let threads = rayon::current_num_threads();
+            if threads > 1 && oh >= 2 * threads {
+                // A few bands per thread, so a band that samples slowly (strong
+                // rotation, cache misses) does not leave the others idle.
+                let band = oh.div_ceil(4 * threads);
+                let mut scratches = std::mem::take(&mut self.band_scratch);
+                scratches.resize_with(oh.div_ceil(band), RowScratch::default);
+                let this = &*self;
+                let complete = out
+                    .par_chunks_mut(band * row_bytes)
+                    .zip(coverage.par_chunks_mut(band * ow))
+                    .zip(scratches.par_iter_mut())
+                    .enumerate()
+                    .map(|(b, ((o, c), scratch))| {
+                        o.chunks_mut(row_bytes)
+                            .zip(c.chunks_mut(ow))
+                            .enumerate()
+                            .map(|(i, (orow, crow))| row(this, scratch, b * band + i, orow, crow))
+                            .sum::<usize>()
+                    })
+                    .sum();
+                self.band_scratch = scratches;
+                return complete;
             }
-        } else {
-            interpolate_grid_row(
-                &map.grid,
-                self.grid_w,
-                self.grid_h,
-                v,
-                &mut map.xs,
-                &mut map.ys,
-            );
         }
+        let mut scratch = std::mem::take(&mut self.scratch);
+        let complete = out
+            .chunks_mut(row_bytes)
+            .zip(coverage.chunks_mut(ow))
+            .enumerate()
+            .map(|(v, (orow, crow))| row(self, &mut scratch, v, orow, crow))
+            .sum();
+        self.scratch = scratch;
+        complete
     }
 
     /// Renders the average of frames `frame_at(0..n)` (with `rotations[i]`, the
-    /// output->source rotation of frame `i`)
-    /// into `out` (interleaved, `channels` 3 or 4) in one pass: per output row
-    /// the source coordinates of every frame are computed into small row
-    /// buffers, then each pixel samples all frames and is written once.
-    /// `coverage` receives the per-pixel count of covering frames. Returns the
-    /// share of pixels covered by every frame.
+    /// output->source rotation of frame `i`) into `out` (interleaved, `channels`
+    /// 3 or 4) in one pass: per output row the source coordinates of every
+    /// frame are computed into small row buffers, then each pixel samples all
+    /// frames and is written once. `coverage` receives the per-pixel count of
+    /// covering frames. Returns the share of pixels covered by every frame.
     pub fn average_into<'a, F: Fn(usize) -> FrameRef<'a>>(
         &mut self,
         frame_at: F,
@@ -226,123 +364,82 @@ impl Warper {
         let (ow, oh) = (self.out.width, self.out.height);
         coverage.clear();
         coverage.resize(ow * oh, 0);
-        let mut maps = std::mem::take(&mut self.maps);
-        maps.resize_with(rotations.len(), RowMap::default);
-        for (map, m) in maps.iter_mut().zip(rotations) {
-            self.prepare_map(map, m);
-        }
-        let mut inv = [0f32; 65];
-        for (k, v) in inv.iter_mut().enumerate().skip(1) {
-            *v = 1.0 / (256.0 * k as f32);
-        }
+        let maps = self.prepare_maps(rotations);
         let full = rotations.len() as u8;
         let n_frames = rotations.len().min(MAX_FRAMES);
         // Hoist each frame's pixels out of the per-pixel loop.
         let mut datas: [&[u8]; MAX_FRAMES] = [&[]; MAX_FRAMES];
         let first = frame_at(0);
-        let geom = Geometry::of(&first);
         for (f, d) in datas.iter_mut().enumerate().take(n_frames) {
             let fr = frame_at(f);
             if fr.width == first.width && fr.height == first.height && fr.format == first.format {
                 *d = fr.data;
             }
         }
-        let mut complete = 0usize;
-        // Pixels per row the AVX2 kernel handles (multiples of 8), when every
-        // frame carries the padding its gathers need.
-        let padded = datas[..n_frames]
-            .iter()
-            .all(|d| d.len() >= geom.stride * (first.height) + FRAME_PADDING);
-        let (n8, need_tables) = self.begin_rows(padded);
-        self.out8.resize(3 * ow, 0);
-        for v in 0..oh {
-            self.current_row = v;
-            if need_tables {
-                for map in maps.iter_mut() {
-                    self.fill_row(map, v);
-                }
-            }
-            if n8 > 0 {
-                self.accumulate_row_simd(&maps[..n_frames], &datas[..n_frames], &geom, n8);
-            }
-            let out_row = &mut out[v * ow * channels..(v + 1) * ow * channels];
-            let cov_row = &mut coverage[v * ow..(v + 1) * ow];
-            // Kernels with a finishing pass (wasm simd128) finish RGBA rows in one go.
-            let finished = channels == 4 && n8 > 0 && {
-                // SAFETY: the row sums hold `ow >= n8` values, `out_row` `4 ow` bytes.
-                unsafe {
-                    self.kernel.finish_row_rgba(
-                        &self.acc_r,
-                        &self.acc_g,
-                        &self.acc_b,
-                        &self.acc_n,
-                        out_row,
-                        n8,
-                    )
-                }
-            };
-            // Averages in vectorizable passes (SoA), then interleave.
-            let (r8, rest) = self.out8.split_at_mut(ow);
-            let (g8, rest) = rest.split_at_mut(ow);
-            let (b8, _) = rest.split_at_mut(ow);
-            for u in 0..if finished { 0 } else { n8 } {
-                // 1 / (256 n); n = 0 gives inf and 0 * inf = NaN, which `as u8` maps to 0.
-                let k = 1.0 / (256.0 * self.acc_n[u] as f32);
-                r8[u] = (self.acc_r[u] as f32 * k + 0.5) as u8;
-                g8[u] = (self.acc_g[u] as f32 * k + 0.5) as u8;
-                b8[u] = (self.acc_b[u] as f32 * k + 0.5) as u8;
-            }
-            for u in 0..n8 {
-                let n = self.acc_n[u] as u8;
-                cov_row[u] = n;
-                complete += (n == full) as usize;
-            }
-            if finished {
-            } else if channels == 3 {
-                for (u, px) in out_row[..3 * n8].chunks_exact_mut(3).enumerate() {
-                    px[0] = r8[u];
-                    px[1] = g8[u];
-                    px[2] = b8[u];
-                }
-            } else {
-                for (u, px) in out_row[..4 * n8].chunks_exact_mut(4).enumerate() {
-                    px[0] = r8[u];
-                    px[1] = g8[u];
-                    px[2] = b8[u];
-                    px[3] = 255;
-                }
-            }
-            for u in n8..ow {
-                let mut acc = [0u32; 3];
-                let mut n = 0u8;
-                for (map, data) in maps.iter().zip(&datas[..n_frames]) {
-                    let (sx, sy) = (map.xs[u], map.ys[u]);
-                    if let Some(rgb) = geom.sample(data, sx, sy) {
-                        acc[0] += rgb[0];
-                        acc[1] += rgb[1];
-                        acc[2] += rgb[2];
-                        n += 1;
-                    }
-                }
-                let k = inv[n as usize];
-                let px = &mut out_row[u * channels..u * channels + channels];
-                px[0] = (acc[0] as f32 * k + 0.5) as u8;
-                px[1] = (acc[1] as f32 * k + 0.5) as u8;
-                px[2] = (acc[2] as f32 * k + 0.5) as u8;
-                if channels == 4 {
-                    px[3] = 255;
-                }
-                cov_row[u] = n;
-                complete += (n == full) as usize;
-            }
-        }
+        let pass = self.pass(
+            &maps[..n_frames],
+            &datas[..n_frames],
+            Geometry::of(&first),
+            first.height,
+        );
+        let complete = self.for_each_row(
+            out,
+            ow * channels,
+            coverage,
+            |w, scratch, v, out_row, cov_row| {
+                scratch.fit(n_frames, ow, pass.tables);
+                w.accumulate_row(&pass, v, scratch, false);
+                finish_rgb_row(w.kernel, &pass, scratch, out_row, cov_row, channels, full)
+            },
+        );
         self.maps = maps;
         complete as f64 / (ow * oh).max(1) as f64
     }
 
-    /// Output size.
-    pub fn output_size(&self) -> (usize, usize) {
-        (self.out.width, self.out.height)
+    /// Renders the average of one plane of several planar frames: `plane_at(i)`
+    /// is frame `i`'s plane (`width x height` bytes, rows packed, followed by at
+    /// least [`FRAME_PADDING`] readable bytes for the vector kernel, else it
+    /// runs scalar), sampled with this warper's cameras (the plane's) through
+    /// `rotations[i]`. Writes the rounded average into `out` (this warper's
+    /// output size) and the covering frames per pixel into `coverage` (resized);
+    /// pixels no frame covers get `fill`. Returns how many pixels every frame covers.
+    #[allow(clippy::too_many_arguments)]
+    pub fn average_plane_into<'a, F: Fn(usize) -> &'a [u8]>(
+        &mut self,
+        plane_at: F,
+        width: usize,
+        height: usize,
+        rotations: &[Matrix3<f64>],
+        out: &mut [u8],
+        coverage: &mut Vec<u8>,
+        fill: u8,
+    ) -> usize {
+        let (ow, oh) = (self.out.width, self.out.height);
+        coverage.clear();
+        coverage.resize(ow * oh, 0);
+        let maps = self.prepare_maps(rotations);
+        let full = rotations.len() as u8;
+        let n_frames = rotations.len().min(MAX_FRAMES);
+        let mut datas: [&[u8]; MAX_FRAMES] = [&[]; MAX_FRAMES];
+        for (f, d) in datas.iter_mut().enumerate().take(n_frames) {
+            let p = plane_at(f);
+            if p.len() >= width * height {
+                *d = p;
+            }
+        }
+        let pass = self.pass(
+            &maps[..n_frames],
+            &datas[..n_frames],
+            Geometry::plane(width, height, 1),
+            height,
+        );
+        let complete = self.for_each_row(out, ow, coverage, |w, scratch, v, out_row, cov_row| {
+            scratch.fit(n_frames, ow, pass.tables);
+            w.accumulate_row(&pass, v, scratch, true);
+            finish_gray_row(&pass, scratch, out_row, cov_row, full, fill)
+        });
+        self.maps = maps;
+        complete
     }
 
     /// Warps `frame` by `m` (output ray -> source ray) and calls
@@ -359,18 +456,216 @@ impl Warper {
             return;
         }
         let geom = Geometry::of(frame);
-        let ow = self.out.width;
+        let (ow, oh) = (self.out.width, self.out.height);
         let mut map = RowMap::default();
         self.prepare_map(&mut map, m);
-        for v in 0..self.out.height {
-            self.fill_row(&mut map, v);
-            for (u, (&sx, &sy)) in map.xs.iter().zip(&map.ys).enumerate() {
+        let (mut xs, mut ys) = (vec![0f32; ow], vec![0f32; ow]);
+        for v in 0..oh {
+            self.fill_row(&map, v, &mut xs, &mut ys);
+            for (u, (&sx, &sy)) in xs.iter().zip(&ys).enumerate() {
                 if let Some(rgb) = geom.sample(frame.data, sx, sy) {
                     f(v * ow + u, rgb);
                 }
             }
         }
     }
+
+    /// Warps one interleaved frame into a saccade slot: 8.8 fixed-point samples
+    /// (3 per pixel) and a coverage flag per pixel (0 where the frame does not
+    /// cover it), the slot resized to this warper's output.
+    pub fn warp_into_slot(
+        &mut self,
+        frame: &FrameRef<'_>,
+        m: &Matrix3<f64>,
+        slot: &mut WarpedFrame,
+        index: u64,
+    ) {
+        let (ow, oh) = (self.out.width, self.out.height);
+        slot.index = index;
+        slot.value.clear();
+        slot.value.resize(3 * ow * oh, 0);
+        slot.covered.clear();
+        slot.covered.resize(ow * oh, 0);
+        let maps = self.prepare_maps(std::slice::from_ref(m));
+        let datas = [frame.data];
+        let pass = self.pass(&maps, &datas, Geometry::of(frame), frame.height);
+        let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.fit(1, ow, pass.tables);
+        for v in 0..oh {
+            self.accumulate_row(&pass, v, &mut scratch, false);
+            let vals = &mut slot.value[3 * v * ow..3 * (v + 1) * ow];
+            let cov = &mut slot.covered[v * ow..(v + 1) * ow];
+            let [r, g, b] = &scratch.sums;
+            for u in 0..pass.n8 {
+                vals[3 * u] = r[u] as u16;
+                vals[3 * u + 1] = g[u] as u16;
+                vals[3 * u + 2] = b[u] as u16;
+                cov[u] = scratch.count[u] as u8;
+            }
+            for u in pass.n8..ow {
+                if let Some(rgb) = pass
+                    .geom
+                    .sample(frame.data, scratch.xs[0][u], scratch.ys[0][u])
+                {
+                    vals[3 * u] = rgb[0] as u16;
+                    vals[3 * u + 1] = rgb[1] as u16;
+                    vals[3 * u + 2] = rgb[2] as u16;
+                    cov[u] = 1;
+                }
+            }
+        }
+        self.scratch = scratch;
+        self.maps = maps;
+    }
+
+    /// Warps one plane (`width x height`, followed by padding as for
+    /// [`Warper::average_plane_into`]) into `values` (8.8 fixed-point samples)
+    /// and `covered` (1 where the plane covers the output pixel), both this
+    /// warper's output size; uncovered pixels get 0.
+    pub fn warp_plane_into(
+        &mut self,
+        plane: &[u8],
+        width: usize,
+        height: usize,
+        m: &Matrix3<f64>,
+        values: &mut [u16],
+        covered: &mut [u8],
+    ) {
+        let ow = self.out.width;
+        let maps = self.prepare_maps(std::slice::from_ref(m));
+        let datas = [plane];
+        let pass = self.pass(&maps, &datas, Geometry::plane(width, height, 1), height);
+        let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.fit(1, ow, pass.tables);
+        for (v, (vals, cov)) in values
+            .chunks_mut(ow)
+            .zip(covered.chunks_mut(ow))
+            .enumerate()
+        {
+            self.accumulate_row(&pass, v, &mut scratch, true);
+            for u in 0..pass.n8 {
+                vals[u] = scratch.sums[0][u] as u16;
+                cov[u] = scratch.count[u] as u8;
+            }
+            for u in pass.n8..ow {
+                let s = pass
+                    .geom
+                    .sample_gray(plane, scratch.xs[0][u], scratch.ys[0][u]);
+                vals[u] = s.unwrap_or(0) as u16;
+                cov[u] = s.is_some() as u8;
+            }
+        }
+        self.scratch = scratch;
+        self.maps = maps;
+    }
+}
+
+/// `round(sum / (256 n))`, 0 where `n = 0`: `1 / (256 n)` is inf there and
+/// `0 * inf = NaN`, which `as u8` maps to 0.
+#[inline(always)]
+fn average(sum: u32, n: u32) -> u8 {
+    (sum as f32 * (1.0 / (256.0 * n as f32)) + 0.5) as u8
+}
+
+/// Writes one interleaved output row from the kernel's sums (pixels `..n8`)
+/// and the scalar path (the rest); returns the pixels every frame covers.
+fn finish_rgb_row(
+    kernel: Kernel,
+    pass: &Pass<'_, '_>,
+    scratch: &RowScratch,
+    out_row: &mut [u8],
+    cov_row: &mut [u8],
+    channels: usize,
+    full: u8,
+) -> usize {
+    let (n8, ow) = (pass.n8, cov_row.len());
+    let [r, g, b] = &scratch.sums;
+    let n = &scratch.count;
+    let mut complete = 0usize;
+    // Kernels with a finishing pass (wasm simd128) finish RGBA rows in one go.
+    // SAFETY: the row sums hold `ow >= n8` values, `out_row` `4 ow` bytes.
+    let finished =
+        channels == 4 && n8 > 0 && unsafe { kernel.finish_row_rgba(r, g, b, n, out_row, n8) };
+    if !finished {
+        for (u, px) in out_row[..channels * n8]
+            .chunks_exact_mut(channels)
+            .enumerate()
+        {
+            px[0] = average(r[u], n[u]);
+            px[1] = average(g[u], n[u]);
+            px[2] = average(b[u], n[u]);
+            if channels == 4 {
+                px[3] = 255;
+            }
+        }
+    }
+    for u in 0..n8 {
+        let c = n[u] as u8;
+        cov_row[u] = c;
+        complete += (c == full) as usize;
+    }
+    for u in n8..ow {
+        let (mut acc, mut c) = ([0u32; 3], 0u32);
+        for (f, data) in pass.datas.iter().enumerate() {
+            if let Some(rgb) = pass.geom.sample(data, scratch.xs[f][u], scratch.ys[f][u]) {
+                acc[0] += rgb[0];
+                acc[1] += rgb[1];
+                acc[2] += rgb[2];
+                c += 1;
+            }
+        }
+        let px = &mut out_row[u * channels..u * channels + channels];
+        px[0] = average(acc[0], c);
+        px[1] = average(acc[1], c);
+        px[2] = average(acc[2], c);
+        if channels == 4 {
+            px[3] = 255;
+        }
+        cov_row[u] = c as u8;
+        complete += (c as u8 == full) as usize;
+    }
+    complete
+}
+
+/// Writes one single-channel output row (uncovered pixels `fill`); returns the
+/// pixels every frame covers.
+fn finish_gray_row(
+    pass: &Pass<'_, '_>,
+    scratch: &RowScratch,
+    out_row: &mut [u8],
+    cov_row: &mut [u8],
+    full: u8,
+    fill: u8,
+) -> usize {
+    let (n8, ow) = (pass.n8, cov_row.len());
+    let (sum, n) = (&scratch.sums[0], &scratch.count);
+    let mut complete = 0usize;
+    for u in 0..n8 {
+        out_row[u] = if n[u] == 0 {
+            fill
+        } else {
+            average(sum[u], n[u])
+        };
+        let c = n[u] as u8;
+        cov_row[u] = c;
+        complete += (c == full) as usize;
+    }
+    for u in n8..ow {
+        let (mut acc, mut c) = (0u32, 0u32);
+        for (f, data) in pass.datas.iter().enumerate() {
+            if let Some(s) = pass
+                .geom
+                .sample_gray(data, scratch.xs[f][u], scratch.ys[f][u])
+            {
+                acc += s;
+                c += 1;
+            }
+        }
+        out_row[u] = if c == 0 { fill } else { average(acc, c) };
+        cov_row[u] = c as u8;
+        complete += (c as u8 == full) as usize;
+    }
+    complete
 }
 
 /// Bilinear interpolation of a node grid (`grid_w x grid_h`, spacing
@@ -397,57 +692,6 @@ fn interpolate_grid_row(
         let p = lerp2(top, bot, fy);
         *xo = p[0];
         *yo = p[1];
-    }
-}
-
-impl Warper {
-    /// Warps one frame into a saccade slot: 8.8 fixed-point samples and a
-    /// coverage flag per pixel (0 where the frame does not cover it).
-    pub fn warp_into_slot(
-        &mut self,
-        frame: &FrameRef<'_>,
-        m: &Matrix3<f64>,
-        slot: &mut WarpedFrame,
-        index: u64,
-    ) {
-        let (ow, oh) = (self.out.width, self.out.height);
-        slot.index = index;
-        slot.value.clear();
-        slot.value.resize(3 * ow * oh, 0);
-        slot.covered.clear();
-        slot.covered.resize(ow * oh, 0);
-        let geom = Geometry::of(frame);
-        let padded = frame.data.len() >= geom.stride * frame.height + FRAME_PADDING;
-        let (n8, need_tables) = self.begin_rows(padded);
-        let mut maps = std::mem::take(&mut self.maps);
-        maps.resize_with(1, RowMap::default);
-        self.prepare_map(&mut maps[0], m);
-        for v in 0..oh {
-            self.current_row = v;
-            if need_tables {
-                self.fill_row(&mut maps[0], v);
-            }
-            let vals = &mut slot.value[3 * v * ow..3 * (v + 1) * ow];
-            let cov = &mut slot.covered[v * ow..(v + 1) * ow];
-            if n8 > 0 {
-                self.accumulate_row_simd(&maps[..1], &[frame.data], &geom, n8);
-                for u in 0..n8 {
-                    vals[3 * u] = self.acc_r[u] as u16;
-                    vals[3 * u + 1] = self.acc_g[u] as u16;
-                    vals[3 * u + 2] = self.acc_b[u] as u16;
-                    cov[u] = self.acc_n[u] as u8;
-                }
-            }
-            for u in n8..ow {
-                if let Some(rgb) = geom.sample(frame.data, maps[0].xs[u], maps[0].ys[u]) {
-                    vals[3 * u] = rgb[0] as u16;
-                    vals[3 * u + 1] = rgb[1] as u16;
-                    vals[3 * u + 2] = rgb[2] as u16;
-                    cov[u] = 1;
-                }
-            }
-        }
-        self.maps = maps;
     }
 }
 

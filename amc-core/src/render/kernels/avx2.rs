@@ -167,3 +167,134 @@ pub(super) unsafe fn accumulate_row(
         u += 8;
     }
 }
+
+/// Source coordinates of output pixels `u..u + 8` of one frame's row: loaded
+/// from its table, or evaluated from its homography exactly as the scalar
+/// formula does (no FMA, same operation order: bit-exact).
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn row_coords8(coord: &RowCoords<'_>, u: usize) -> (__m256, __m256) {
+    match *coord {
+        RowCoords::Table(xs, ys) => (
+            _mm256_loadu_ps(xs.as_ptr().add(u)),
+            _mm256_loadu_ps(ys.as_ptr().add(u)),
+        ),
+        RowCoords::Homography {
+            x0,
+            y0,
+            z0,
+            dx,
+            dy,
+            dz,
+        } => {
+            let lane = _mm256_setr_ps(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0);
+            let uf = _mm256_add_ps(_mm256_set1_ps(u as f32), lane);
+            let z = _mm256_add_ps(_mm256_set1_ps(z0), _mm256_mul_ps(_mm256_set1_ps(dz), uf));
+            let iz = _mm256_blendv_ps(
+                _mm256_set1_ps(f32::NAN),
+                _mm256_div_ps(_mm256_set1_ps(1.0), z),
+                _mm256_cmp_ps(z, _mm256_set1_ps(1e-6), _CMP_GT_OQ),
+            );
+            let x = _mm256_add_ps(_mm256_set1_ps(x0), _mm256_mul_ps(_mm256_set1_ps(dx), uf));
+            let y = _mm256_add_ps(_mm256_set1_ps(y0), _mm256_mul_ps(_mm256_set1_ps(dy), uf));
+            (_mm256_mul_ps(x, iz), _mm256_mul_ps(y, iz))
+        }
+    }
+}
+
+/// The single-channel twin of [`accumulate_row`] for the planes of planar
+/// frames (Y at full resolution, U and V at theirs): two gathers per pixel and
+/// frame instead of four, each dword holding a tap and its right neighbour.
+/// For `u in 0..n8` (a multiple of 8), `acc[u] = sum_f sample_f(coords[f] at u)`
+/// and `count[u]` = frames whose coordinate lies inside the plane.
+///
+/// # Safety
+/// The CPU must support AVX2; every `datas[f]` must hold the whole plane plus
+/// 2 readable bytes ([`super::FRAME_PADDING`] covers it); coordinate tables and
+/// the outputs must have at least `n8` elements.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn accumulate_row_gray(
+    datas: &[&[u8]],
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    n8: usize,
+    acc: &mut [u32],
+    count: &mut [u32],
+) {
+    debug_assert!(n8 % 8 == 0 && datas.len() == coords.len());
+    debug_assert!(acc.len() >= n8 && count.len() >= n8);
+    let zero_ps = _mm256_setzero_ps();
+    let max_x = _mm256_set1_ps(g.max_x);
+    let max_y = _mm256_set1_ps(g.max_y);
+    let lo = _mm256_set1_ps(-EDGE_TOLERANCE);
+    let hi_x = _mm256_set1_ps(g.max_x + EDGE_TOLERANCE);
+    let hi_y = _mm256_set1_ps(g.max_y + EDGE_TOLERANCE);
+    let max_x0 = _mm256_set1_epi32(g.max_x0);
+    let max_y0 = _mm256_set1_epi32(g.max_y0);
+    let stride = _mm256_set1_epi32(g.stride);
+    let c256 = _mm256_set1_ps(256.0);
+    let half = _mm256_set1_ps(0.5);
+    let i256 = _mm256_set1_epi32(256);
+    let i128 = _mm256_set1_epi32(128);
+    let byte = _mm256_set1_epi32(0xFF);
+    let hi_byte = _mm256_set1_epi32(0xFF_0000);
+    let one = _mm256_set1_epi32(1);
+    let mut u = 0;
+    while u < n8 {
+        let (mut sum, mut sum_n) = (_mm256_setzero_si256(), _mm256_setzero_si256());
+        for (data, coord) in datas.iter().zip(coords) {
+            let base = data.as_ptr() as *const i32;
+            let (sx, sy) = row_coords8(coord, u);
+            let valid = _mm256_and_ps(
+                _mm256_and_ps(
+                    _mm256_cmp_ps(sx, lo, _CMP_GE_OQ),
+                    _mm256_cmp_ps(sy, lo, _CMP_GE_OQ),
+                ),
+                _mm256_and_ps(
+                    _mm256_cmp_ps(sx, hi_x, _CMP_LE_OQ),
+                    _mm256_cmp_ps(sy, hi_y, _CMP_LE_OQ),
+                ),
+            );
+            let mask = _mm256_castps_si256(valid);
+            if _mm256_testz_si256(mask, mask) != 0 {
+                continue;
+            }
+            let sxv = _mm256_min_ps(_mm256_max_ps(_mm256_and_ps(sx, valid), zero_ps), max_x);
+            let syv = _mm256_min_ps(_mm256_max_ps(_mm256_and_ps(sy, valid), zero_ps), max_y);
+            let x0 = _mm256_min_epi32(_mm256_cvttps_epi32(sxv), max_x0);
+            let y0 = _mm256_min_epi32(_mm256_cvttps_epi32(syv), max_y0);
+            let fx = _mm256_sub_ps(sxv, _mm256_cvtepi32_ps(x0));
+            let fy = _mm256_sub_ps(syv, _mm256_cvtepi32_ps(y0));
+            let ax = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(fx, c256), half));
+            let ay = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(fy, c256), half));
+            let bx = _mm256_sub_epi32(i256, ax);
+            let by = _mm256_sub_epi32(i256, ay);
+            let i0 = _mm256_add_epi32(_mm256_mullo_epi32(y0, stride), x0);
+            let i1 = _mm256_add_epi32(i0, stride);
+            let z = _mm256_setzero_si256();
+            let p0 = _mm256_mask_i32gather_epi32::<1>(z, base, i0, mask);
+            let p1 = _mm256_mask_i32gather_epi32::<1>(z, base, i1, mask);
+            // Bytes (left, right) of each dword spread to 16-bit lanes for madd.
+            let wx = _mm256_or_si256(bx, _mm256_slli_epi32::<16>(ax));
+            macro_rules! pair {
+                ($p:expr) => {
+                    _mm256_or_si256(
+                        _mm256_and_si256($p, byte),
+                        _mm256_and_si256(_mm256_slli_epi32::<8>($p), hi_byte),
+                    )
+                };
+            }
+            let top = _mm256_madd_epi16(pair!(p0), wx);
+            let bot = _mm256_madd_epi16(pair!(p1), wx);
+            let v = _mm256_add_epi32(
+                _mm256_add_epi32(_mm256_mullo_epi32(top, by), _mm256_mullo_epi32(bot, ay)),
+                i128,
+            );
+            sum = _mm256_add_epi32(sum, _mm256_and_si256(_mm256_srli_epi32::<8>(v), mask));
+            sum_n = _mm256_add_epi32(sum_n, _mm256_and_si256(mask, one));
+        }
+        _mm256_storeu_si256(acc.as_mut_ptr().add(u) as *mut __m256i, sum);
+        _mm256_storeu_si256(count.as_mut_ptr().add(u) as *mut __m256i, sum_n);
+        u += 8;
+    }
+}

@@ -16,7 +16,8 @@ use crate::image::FrameRef;
 pub const EDGE_TOLERANCE: f32 = 1.0 / 512.0;
 
 /// Bytes a frame buffer must have past its last pixel for the gathers: the
-/// last tap reads a whole dword starting at the last pixel (3 bytes for RGB).
+/// last tap reads a whole dword starting at the last pixel (3 bytes for RGB,
+/// 2 past the last pair of a single-channel plane).
 pub const FRAME_PADDING: usize = 4;
 
 /// Frame geometry, hoisted out of sampling loops.
@@ -37,17 +38,46 @@ pub(crate) struct Geometry {
 }
 
 impl Geometry {
-    /// The geometry of `frame` (frames narrower or lower than 2 pixels are treated as 2).
+    /// The geometry of an interleaved `frame` (frames narrower or lower than 2
+    /// pixels are treated as 2).
     pub(crate) fn of(frame: &FrameRef<'_>) -> Self {
-        let (sw, sh) = (frame.width.max(2), frame.height.max(2));
+        Self::plane(frame.width, frame.height, frame.format.channels())
+    }
+
+    /// The geometry of a packed `width x height` plane of `channels` bytes per
+    /// pixel (planes narrower or lower than 2 pixels are treated as 2).
+    pub(crate) fn plane(width: usize, height: usize, channels: usize) -> Self {
+        let (sw, sh) = (width.max(2), height.max(2));
         Self {
-            channels: frame.format.channels(),
-            stride: frame.stride(),
+            channels,
+            stride: width * channels,
             max_x0: sw - 2,
             max_y0: sh - 2,
             max_x: (sw - 1) as f32,
             max_y: (sh - 1) as f32,
         }
+    }
+
+    /// Bilinear 8.8 fixed-point sample of a single-channel plane at `(sx, sy)`;
+    /// `None` outside it. The same arithmetic as [`Geometry::sample`], one channel.
+    #[inline(always)]
+    pub(crate) fn sample_gray(&self, data: &[u8], sx: f32, sy: f32) -> Option<u32> {
+        let tol = EDGE_TOLERANCE;
+        if !(sx >= -tol && sy >= -tol && sx <= self.max_x + tol && sy <= self.max_y + tol) {
+            return None;
+        }
+        let (sx, sy) = (sx.max(0.0).min(self.max_x), sy.max(0.0).min(self.max_y));
+        let x0 = (sx as usize).min(self.max_x0);
+        let y0 = (sy as usize).min(self.max_y0);
+        let ax = ((sx - x0 as f32) * 256.0 + 0.5) as u32;
+        let ay = ((sy - y0 as f32) * 256.0 + 0.5) as u32;
+        let (bx, by) = (256 - ax, 256 - ay);
+        let i = y0 * self.stride + x0;
+        let s = self.stride;
+        let taps = data.get(i..i + s + 2)?;
+        let top = taps[0] as u32 * bx + taps[1] as u32 * ax;
+        let bot = taps[s] as u32 * bx + taps[s + 1] as u32 * ax;
+        Some((top * by + bot * ay + 128) >> 8)
     }
 
     /// Bilinear 8.8 fixed-point RGB sample of `data` at `(sx, sy)`; `None`

@@ -132,6 +132,47 @@ impl Kernel {
         }
     }
 
+    /// The single-channel form of [`Kernel::accumulate_row`], for the planes of
+    /// planar frames: for `u in 0..n`, `acc[u] = sum_f sample_f(coords[f] at u)`
+    /// and `count[u]` = frames whose coordinate lies inside the plane.
+    ///
+    /// # Safety
+    /// As [`Kernel::accumulate_row`], with `datas[f]` a single-channel plane
+    /// followed by at least 2 readable bytes.
+    #[inline]
+    pub(crate) unsafe fn accumulate_row_gray(
+        self,
+        datas: &[&[u8]],
+        geom: &Geometry,
+        coords: &[RowCoords<'_>],
+        n: usize,
+        acc: &mut [u32],
+        count: &mut [u32],
+    ) {
+        debug_assert_eq!(geom.channels, 1);
+        match self {
+            Kernel::Scalar => scalar::accumulate_row_gray(datas, geom, coords, n, acc, count),
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2 => avx2::accumulate_row_gray(
+                datas,
+                common::KernelGeometry::of(geom),
+                coords,
+                n,
+                acc,
+                count,
+            ),
+            #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+            Kernel::Simd128 => simd128::accumulate_row_gray(
+                datas,
+                common::KernelGeometry::of(geom),
+                coords,
+                n,
+                acc,
+                count,
+            ),
+        }
+    }
+
     /// Finishes `n` pixels of an RGBA output row from [`Kernel::accumulate_row`]'s
     /// sums when this kernel has a finishing pass (`simd128`): `round(sum / (256 n))`
     /// per channel, alpha 255, 0 where no frame covers the pixel. Returns whether it
@@ -241,6 +282,25 @@ mod tests {
             // Some pixels are covered by every frame, some by at most one.
             assert!(reference[3].iter().any(|&c| c <= 1) && reference[3].contains(&3));
             assert_eq!(run(Kernel::detect()), reference, "{:?}", Kernel::detect());
+            // The same frames read as single-channel planes of `channels` times
+            // the width: the gray kernel against its scalar reference.
+            let gray = Geometry::plane(w * channels, h, 1);
+            let run_gray = |kernel: Kernel| {
+                let (mut acc, mut count) = (vec![0u32; n], vec![0u32; n]);
+                // SAFETY: as above; each plane has FRAME_PADDING >= 2 bytes past it.
+                unsafe {
+                    kernel.accumulate_row_gray(&datas, &gray, &coords, n, &mut acc, &mut count)
+                };
+                (acc, count)
+            };
+            let reference = run_gray(Kernel::Scalar);
+            assert!(reference.1.iter().any(|&c| c <= 1) && reference.1.contains(&3));
+            assert_eq!(
+                run_gray(Kernel::detect()),
+                reference,
+                "gray {:?}",
+                Kernel::detect()
+            );
         }
     }
 }

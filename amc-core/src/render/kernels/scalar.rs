@@ -36,3 +36,28 @@ pub(crate) fn accumulate_row(
         count[u] = covered;
     }
 }
+
+/// The single-channel contract, pixel by pixel: for `u in 0..n`,
+/// `acc[u] = sum_f sample_f(coords[f] at u)` and `count[u]` = frames whose
+/// coordinate lies inside the plane.
+pub(crate) fn accumulate_row_gray(
+    datas: &[&[u8]],
+    geom: &Geometry,
+    coords: &[RowCoords<'_>],
+    n: usize,
+    acc: &mut [u32],
+    count: &mut [u32],
+) {
+    for u in 0..n {
+        let (mut sum, mut covered) = (0u32, 0u32);
+        for (data, coord) in datas.iter().zip(coords) {
+            let (sx, sy) = coord.at(u);
+            if let Some(v) = geom.sample_gray(data, sx, sy) {
+                sum += v;
+                covered += 1;
+            }
+        }
+        acc[u] = sum;
+        count[u] = covered;
+    }
+}

@@ -268,3 +268,132 @@ pub(super) unsafe fn finish_row_rgba(
         u += 4;
     }
 }
+
+/// The single-channel twin of [`accumulate_row`] for the planes of planar
+/// frames: four output pixels at a time, frame-outer; each lane's taps are two
+/// 16-bit loads (a tap and its right neighbour, in the row and the row below).
+/// Bit-exact with the scalar `accumulate_row_gray`.
+///
+/// # Safety
+/// Every `datas[f]` must hold the whole plane plus 2 readable bytes
+/// ([`super::FRAME_PADDING`] covers it); coordinate tables and the outputs must
+/// have at least `n8` elements (`n8` a multiple of 4).
+pub(super) unsafe fn accumulate_row_gray(
+    datas: &[&[u8]],
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    n8: usize,
+    acc: &mut [u32],
+    count: &mut [u32],
+) {
+    debug_assert!(n8 % 4 == 0 && datas.len() == coords.len());
+    debug_assert!(acc.len() >= n8 && count.len() >= n8);
+    let zero_ps = f32x4_splat(0.0);
+    let max_x = f32x4_splat(g.max_x);
+    let max_y = f32x4_splat(g.max_y);
+    let lo = f32x4_splat(-EDGE_TOLERANCE);
+    let hi_x = f32x4_splat(g.max_x + EDGE_TOLERANCE);
+    let hi_y = f32x4_splat(g.max_y + EDGE_TOLERANCE);
+    let max_x0 = f32x4_splat(g.max_x0 as f32);
+    let max_y0 = f32x4_splat(g.max_y0 as f32);
+    let stride = i32x4_splat(g.stride);
+    let c256 = f32x4_splat(256.0);
+    let half = f32x4_splat(0.5);
+    let i256 = i32x4_splat(256);
+    let i128 = i32x4_splat(128);
+    let byte = i32x4_splat(0xFF);
+    let hi_byte = i32x4_splat(0xFF_0000);
+    let one = i32x4_splat(1);
+    let lane = f32x4(0.0, 1.0, 2.0, 3.0);
+    let eps = f32x4_splat(1e-6);
+    let one_ps = f32x4_splat(1.0);
+    let nan = f32x4_splat(f32::NAN);
+    let magic = f32x4_splat(8_388_608.0);
+    let magic_bits = i32x4_splat(0x4B00_0000);
+    let to_int = |t: v128| i32x4_sub(f32x4_add(t, magic), magic_bits);
+    let s = g.stride as usize;
+    let stride_f = f32x4_splat(g.stride as f32);
+    let small_frame = (g.max_y0 as i64 * g.stride as i64 + g.max_x0 as i64) < (1 << 23);
+    acc[..n8].fill(0);
+    count[..n8].fill(0);
+    for f in 0..datas.len() {
+        let base = datas[f].as_ptr();
+        let coord = coords[f];
+        let mut u = 0;
+        while u < n8 {
+            let (sx, sy) = match coord {
+                RowCoords::Table(xs, ys) => (
+                    v128_load(xs.as_ptr().add(u) as *const v128),
+                    v128_load(ys.as_ptr().add(u) as *const v128),
+                ),
+                RowCoords::Homography {
+                    x0,
+                    y0,
+                    z0,
+                    dx,
+                    dy,
+                    dz,
+                } => {
+                    let uf = f32x4_add(f32x4_splat(u as f32), lane);
+                    let z = f32x4_add(f32x4_splat(z0), f32x4_mul(f32x4_splat(dz), uf));
+                    let iz = v128_bitselect(f32x4_div(one_ps, z), nan, f32x4_gt(z, eps));
+                    let x = f32x4_add(f32x4_splat(x0), f32x4_mul(f32x4_splat(dx), uf));
+                    let y = f32x4_add(f32x4_splat(y0), f32x4_mul(f32x4_splat(dy), uf));
+                    (f32x4_mul(x, iz), f32x4_mul(y, iz))
+                }
+            };
+            let valid = v128_and(
+                v128_and(f32x4_ge(sx, lo), f32x4_ge(sy, lo)),
+                v128_and(f32x4_le(sx, hi_x), f32x4_le(sy, hi_y)),
+            );
+            if !v128_any_true(valid) {
+                u += 4;
+                continue;
+            }
+            let sxv = f32x4_pmin(f32x4_pmax(v128_and(sx, valid), zero_ps), max_x);
+            let syv = f32x4_pmin(f32x4_pmax(v128_and(sy, valid), zero_ps), max_y);
+            let x0f = f32x4_pmin(f32x4_trunc(sxv), max_x0);
+            let y0f = f32x4_pmin(f32x4_trunc(syv), max_y0);
+            let fx = f32x4_sub(sxv, x0f);
+            let fy = f32x4_sub(syv, y0f);
+            let ax = to_int(f32x4_trunc(f32x4_add(f32x4_mul(fx, c256), half)));
+            let ay = to_int(f32x4_trunc(f32x4_add(f32x4_mul(fy, c256), half)));
+            let bx = i32x4_sub(i256, ax);
+            let by = i32x4_sub(i256, ay);
+            let i00 = if small_frame {
+                to_int(f32x4_add(f32x4_mul(y0f, stride_f), x0f))
+            } else {
+                i32x4_add(i32x4_mul(to_int(y0f), stride), to_int(x0f))
+            };
+            let load = |i: usize| (base.add(i) as *const u16).read_unaligned() as u32;
+            macro_rules! taps {
+                ($l:literal) => {{
+                    let i = i32x4_extract_lane::<$l>(i00) as usize;
+                    (load(i), load(i + s))
+                }};
+            }
+            let (a0, a1) = taps!(0);
+            let (b0, b1) = taps!(1);
+            let (c0, c1) = taps!(2);
+            let (d0, d1) = taps!(3);
+            // (left, right) bytes to 16-bit lanes, then the dot product with
+            // (bx, ax); invalid lanes get zero weights and come out 0.
+            let spread = |p: v128| v128_or(v128_and(p, byte), v128_and(i32x4_shl(p, 8), hi_byte));
+            let wx = v128_and(v128_or(bx, i32x4_shl(ax, 16)), valid);
+            let top = i32x4_dot_i16x8(spread(u32x4(a0, b0, c0, d0)), wx);
+            let bot = i32x4_dot_i16x8(spread(u32x4(a1, b1, c1, d1)), wx);
+            let v = u32x4_shr(
+                i32x4_add(i32x4_add(i32x4_mul(top, by), i32x4_mul(bot, ay)), i128),
+                8,
+            );
+            for (dst, v) in [
+                (acc.as_mut_ptr(), v),
+                (count.as_mut_ptr(), v128_and(valid, one)),
+            ] {
+                let p = dst.add(u) as *mut v128;
+                v128_store(p, i32x4_add(v128_load(p), v));
+            }
+            u += 4;
+        }
+    }
+}
