@@ -92,6 +92,7 @@ pub struct Warper {
     scratch: RowScratch,
     /// Row buffers of the bands of the parallel path (one per band, kept so
     /// that a warmed-up render allocates nothing).
+    #[cfg_attr(not(feature = "parallel"), allow(dead_code))]
     band_scratch: Vec<RowScratch>,
 }
 
