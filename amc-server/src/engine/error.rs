@@ -75,6 +75,9 @@ pub enum RunError {
         /// `decoder` or `encoder`.
         stage: &'static str,
     },
+    /// The render threads could not be started (the system refused them).
+    #[error("cannot start the render threads: {0}")]
+    Threads(String),
     /// The metrics thread died (a bug: it has no failure of its own).
     #[error("internal error: the metrics worker failed")]
     MetricsWorker,

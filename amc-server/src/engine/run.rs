@@ -46,7 +46,8 @@ pub struct RunConfig<'a> {
     pub progress: Option<&'a (dyn Fn(Progress) + Sync)>,
     /// Threads of the run: 1 decodes, stabilizes and encodes on the caller's
     /// thread; 2 or more decode and encode on threads of their own beside it
-    /// (see `stages`). Same output either way.
+    /// (see `stages`) and render each frame's rows on a pool of this many
+    /// threads. Same output either way.
     pub threads: usize,
 }
 
@@ -102,6 +103,15 @@ impl RunSummary {
 /// (declared counts can be a few frames off: edit lists, priming frames).
 pub const TRUNCATED_SHARE: f64 = 0.95;
 
+/// The pool a run renders on: `threads` threads (1: the rows in order, on it).
+pub(crate) fn render_pool(threads: usize) -> Result<rayon::ThreadPool, RunError> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .thread_name(|i| format!("amc-render-{i}"))
+        .build()
+        .map_err(|e| RunError::Threads(e.to_string()))
+}
+
 /// Runs the stabilizer over the whole input.
 pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
     cfg.params.validate()?;
@@ -115,6 +125,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         video::open_input(cfg.input, &super::input_options(cfg.fps, cfg.timeout))?;
     let info = src.info().clone();
     let threaded = cfg.threads > 1;
+    let pool = render_pool(cfg.threads)?;
     let mut stab = Stabilizer::new(&cfg.lens, info.width, info.height, cfg.params.clone())?;
     let (ow, oh) = stab.output_size();
     let mut sink = match cfg.output {
@@ -184,11 +195,12 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
     let check = || cfg.control.map_or(Ok(()), RunControl::check);
     while let Some(t) = src.next_frame(&mut frame)? {
         check()?;
-        if let Some(tel) = stab.push(frame.as_ref(), t)? {
+        // On the pool, so that the renderer's row bands use its threads.
+        if let Some(tel) = pool.install(|| stab.push(frame.as_ref(), t))? {
             emit(&stab, tel)?;
         }
     }
-    while let Some(tel) = stab.finish() {
+    while let Some(tel) = pool.install(|| stab.finish()) {
         check()?;
         emit(&stab, tel)?;
     }

@@ -157,6 +157,8 @@ pub fn run_error(e: RunError, input: &Path) -> ApiError {
         RunError::TimeLimit { secs } => ApiError::Unprocessable(format!(
             "processing took longer than the limit of {secs:.0} s (set by --job-time-limit)"
         )),
+        // Out of threads is the machine being busy: try again later.
+        RunError::Threads(_) => ApiError::Saturated(e.to_string()),
         RunError::SamePath { .. }
         | RunError::Write { .. }
         | RunError::MetricsWorker
