@@ -2,8 +2,17 @@
 //!
 //! Frames are rendered in memory from a procedural equirectangular scene with
 //! flapping-wing shake (100 deg/s RMS, 12-20 Hz, 60 fps), so the numbers need
-//! no data files. Each iteration processes one frame; criterion reports
-//! frames/s as "elem/s".
+//! no data files; with ffmpeg and `../shared/data/karma/karma.mp4` present, the
+//! same work is also measured on that real handheld footage (`*-karma`).
+//! Each iteration processes one frame; criterion reports frames/s as "elem/s".
+//!
+//! Kept honest against the whole process (`bench/e2e.sh`): the clips are long
+//! enough (240 frames) that at 720p the frames do not fit in any cache, as in a
+//! real run; they are played forwards then backwards, so the motion stays
+//! continuous (a wrap-around would be a jump the tracker has to recover from);
+//! and frames come as the decoder delivers them, planar 4:2:0 (`yuv420p`), as
+//! well as RGB. What the whole process adds on top (decoding, encoding, pipe
+//! copies) is measured there, not here.
 
 use amc_core::camera::CameraModel;
 use amc_core::frontend::TrackingFrontend;
@@ -16,7 +25,7 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 
 const FPS: f64 = 60.0;
-const CLIP_FRAMES: usize = 60;
+const CLIP_FRAMES: usize = 240;
 
 /// A 2048x1024 scene of random rectangles over a textured background.
 fn panorama() -> Frame {
@@ -51,6 +60,61 @@ fn panorama() -> Frame {
     f
 }
 
+/// Frame `j` of a run over a clip played forwards, then backwards, and again.
+fn ping_pong(frames: &[Frame], j: usize) -> &Frame {
+    let n = frames.len();
+    let k = j % (2 * n - 2);
+    &frames[if k < n { k } else { 2 * n - 2 - k }]
+}
+
+/// The frames converted to planar 4:2:0.
+fn to_yuv(frames: &[Frame]) -> Vec<Frame> {
+    frames
+        .iter()
+        .map(|f| {
+            let mut y = Frame::new(f.width, f.height, PixelFormat::Yuv420p);
+            amc_core::color::rgb_to_yuv420p_into(f.width, f.height, 3, &f.data, &mut y.data);
+            y
+        })
+        .collect()
+}
+
+/// `CLIP_FRAMES` frames of karma.mp4 (real handheld footage) at `width x height`,
+/// planar 4:2:0, decoded by ffmpeg; `None` when either is missing.
+fn karma(width: usize, height: usize) -> Option<Vec<Frame>> {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/data/karma/karma.mp4"
+    );
+    if !std::path::Path::new(path).exists() {
+        return None;
+    }
+    let out = std::process::Command::new("ffmpeg")
+        .args(["-v", "error", "-i", path, "-frames:v"])
+        .arg(CLIP_FRAMES.to_string())
+        .args([
+            "-vf",
+            &format!("scale={width}:{height}"),
+            "-pix_fmt",
+            "yuv420p",
+        ])
+        .args(["-f", "rawvideo", "-"])
+        .output()
+        .ok()?;
+    let len = PixelFormat::Yuv420p.buffer_len(width, height)?;
+    let frames: Vec<Frame> = out
+        .stdout
+        .chunks_exact(len)
+        .map(|c| Frame {
+            width,
+            height,
+            format: PixelFormat::Yuv420p,
+            data: c.to_vec(),
+        })
+        .collect();
+    (frames.len() >= 2).then_some(frames)
+}
+
 /// A shaky clip of `CLIP_FRAMES` frames at `width x height` (90 deg pinhole).
 fn clip(width: usize, height: usize) -> (CameraModel, Vec<Frame>) {
     let cam = CameraModel::pinhole_hfov(width, height, 90.0).expect("camera");
@@ -81,7 +145,7 @@ fn bench_tracking(c: &mut Criterion) {
         let mut pyr = Pyramid::default();
         let mut j = 0usize;
         b.iter(|| {
-            let f = &frames[j % CLIP_FRAMES];
+            let f = ping_pong(&frames, j);
             frontend.prepare(&f.as_ref(), &mut pyr, tracker.levels());
             black_box(tracker.track(&pyr, j as f64 / FPS));
             j += 1;
@@ -93,23 +157,33 @@ fn bench_tracking(c: &mut Criterion) {
 fn bench_stabilize(c: &mut Criterion) {
     let mut g = c.benchmark_group("stabilize");
     g.throughput(Throughput::Elements(1));
-    for (name, w, h, mode) in [
-        ("320x180", 320, 180, Mode::Stabilize),
-        ("320x180-saccade", 320, 180, Mode::Saccade),
-        ("1280x720", 1280, 720, Mode::Stabilize),
-    ] {
-        let (cam, frames) = clip(w, h);
-        g.bench_function(name, |b| {
-            let mut params = StabilizerParams::default();
-            params.view.mode = mode;
-            let mut stab = Stabilizer::new(&cam, w, h, params).expect("stabilizer");
-            let mut j = 0usize;
-            b.iter(|| {
-                let f = &frames[j % CLIP_FRAMES];
-                black_box(stab.push(f.as_ref(), j as f64 / FPS).expect("push"));
-                j += 1;
-            })
-        });
+    for (w, h) in [(320, 180), (1280, 720)] {
+        let (cam, rgb) = clip(w, h);
+        let yuv = to_yuv(&rgb);
+        let real = karma(w, h);
+        let mut runs: Vec<(String, Mode, &[Frame])> = vec![
+            (format!("{w}x{h}-rgb"), Mode::Stabilize, &rgb),
+            (format!("{w}x{h}-yuv420p"), Mode::Stabilize, &yuv),
+        ];
+        if w == 320 {
+            runs.push((format!("{w}x{h}-saccade-yuv420p"), Mode::Saccade, &yuv));
+        }
+        if let Some(real) = real.as_deref() {
+            runs.push((format!("{w}x{h}-yuv420p-karma"), Mode::Stabilize, real));
+        }
+        for (name, mode, frames) in runs {
+            g.bench_function(&name, |b| {
+                let mut params = StabilizerParams::default();
+                params.view.mode = mode;
+                let mut stab = Stabilizer::new(&cam, w, h, params).expect("stabilizer");
+                let mut j = 0usize;
+                b.iter(|| {
+                    let f = ping_pong(frames, j);
+                    black_box(stab.push(f.as_ref(), j as f64 / FPS).expect("push"));
+                    j += 1;
+                })
+            });
+        }
     }
     g.finish();
 }

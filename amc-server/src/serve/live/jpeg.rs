@@ -16,25 +16,81 @@ pub fn encode_jpeg(
             frame.width, frame.height
         ));
     };
-    let mut rgb = Vec::new();
-    let (data, color) = match frame.format {
-        PixelFormat::Rgb8 => (frame.data, jpeg_encoder::ColorType::Rgb),
-        PixelFormat::Rgba8 => (frame.data, jpeg_encoder::ColorType::Rgba),
+    let mut encoder = jpeg_encoder::Encoder::new(out, quality);
+    let done = match frame.format {
+        PixelFormat::Rgb8 => encoder.encode(frame.data, w, h, jpeg_encoder::ColorType::Rgb),
+        PixelFormat::Rgba8 => encoder.encode(frame.data, w, h, jpeg_encoder::ColorType::Rgba),
         PixelFormat::Yuv420p => {
-            amc_core::color::yuv420p_to_rgb_into(
-                frame.width,
-                frame.height,
-                frame.data,
-                false,
-                3,
-                &mut rgb,
-            );
-            (&rgb[..], jpeg_encoder::ColorType::Rgb)
+            // JPEG is YCbCr too: the planes go in as they are (range expanded),
+            // no round trip through RGB.
+            encoder.set_sampling_factor(jpeg_encoder::SamplingFactor::F_2_2);
+            encoder.encode_image(Yuv420pImage::new(frame, w, h))
         }
     };
-    jpeg_encoder::Encoder::new(out, quality)
-        .encode(data, w, h, color)
-        .map_err(|e| e.to_string())
+    done.map_err(|e| e.to_string())
+}
+
+/// A limited-range planar 4:2:0 frame as the full-range YCbCr rows JPEG
+/// (JFIF) stores: `Y' = (Y - 16) 255 / 219`, `C' = 128 + (C - 128) 255 / 224`.
+struct Yuv420pImage<'a> {
+    y: &'a [u8],
+    u: &'a [u8],
+    v: &'a [u8],
+    width: u16,
+    height: u16,
+    luma: [u8; 256],
+    chroma: [u8; 256],
+}
+
+impl<'a> Yuv420pImage<'a> {
+    fn new(frame: &amc_core::FrameRef<'a>, width: u16, height: u16) -> Self {
+        let (y, u, v) = frame.yuv_planes();
+        let expand = |k: f64, off: f64, mid: f64| {
+            let mut t = [0u8; 256];
+            for (i, o) in t.iter_mut().enumerate() {
+                *o = (mid + (i as f64 - off) * k).round().clamp(0.0, 255.0) as u8;
+            }
+            t
+        };
+        Self {
+            y,
+            u,
+            v,
+            width,
+            height,
+            luma: expand(255.0 / 219.0, 16.0, 0.0),
+            chroma: expand(255.0 / 224.0, 128.0, 128.0),
+        }
+    }
+}
+
+impl jpeg_encoder::ImageBuffer for Yuv420pImage<'_> {
+    fn get_jpeg_color_type(&self) -> jpeg_encoder::JpegColorType {
+        jpeg_encoder::JpegColorType::Ycbcr
+    }
+
+    fn width(&self) -> u16 {
+        self.width
+    }
+
+    fn height(&self) -> u16 {
+        self.height
+    }
+
+    fn fill_buffers(&self, row: u16, buffers: &mut [Vec<u8>; 4]) {
+        let (w, r) = (self.width as usize, row as usize);
+        let cw = w.div_ceil(2);
+        let ys = &self.y[r * w..(r + 1) * w];
+        let (us, vs) = (
+            &self.u[(r / 2) * cw..(r / 2 + 1) * cw],
+            &self.v[(r / 2) * cw..(r / 2 + 1) * cw],
+        );
+        for (x, &y) in ys.iter().enumerate() {
+            buffers[0].push(self.luma[y as usize]);
+            buffers[1].push(self.chroma[us[x / 2] as usize]);
+            buffers[2].push(self.chroma[vs[x / 2] as usize]);
+        }
+    }
 }
 
 pub fn decode_jpeg(bytes: &[u8], into: &mut Frame) -> Result<(), image::ImageError> {
@@ -45,4 +101,41 @@ pub fn decode_jpeg(bytes: &[u8], into: &mut Frame) -> Result<(), image::ImageErr
     into.format = PixelFormat::Rgb8;
     into.data = img.into_raw();
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A planar frame encodes to the same picture as its RGB: a gradient with
+    /// colour, compared after decoding (JPEG is lossy: a few codes apart).
+    #[test]
+    fn planar_frames_encode_like_their_rgb() {
+        let (w, h) = (64usize, 48usize);
+        let mut rgb = Frame::new(w, h, PixelFormat::Rgb8);
+        for (i, px) in rgb.data.chunks_exact_mut(3).enumerate() {
+            let (x, y) = (i % w, i / w);
+            px.copy_from_slice(&[(x * 4) as u8, (y * 5) as u8, 200 - (x + y) as u8]);
+        }
+        let mut yuv = Frame::new(w, h, PixelFormat::Yuv420p);
+        amc_core::color::rgb_to_yuv420p_into(w, h, 3, &rgb.data, &mut yuv.data);
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        encode_jpeg(&rgb.as_ref(), 95, &mut a).unwrap();
+        encode_jpeg(&yuv.as_ref(), 95, &mut b).unwrap();
+        let (mut da, mut db) = (
+            Frame::new(0, 0, PixelFormat::Rgb8),
+            Frame::new(0, 0, PixelFormat::Rgb8),
+        );
+        decode_jpeg(&a, &mut da).unwrap();
+        decode_jpeg(&b, &mut db).unwrap();
+        assert_eq!((db.width, db.height), (w, h));
+        let mean_abs = da
+            .data
+            .iter()
+            .zip(&db.data)
+            .map(|(&p, &q)| (p as f64 - q as f64).abs())
+            .sum::<f64>()
+            / da.data.len() as f64;
+        assert!(mean_abs < 3.0, "mean abs difference {mean_abs:.2}");
+    }
 }
