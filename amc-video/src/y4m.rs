@@ -84,7 +84,8 @@ pub(crate) struct Y4mSource {
     info: VideoInfo,
     /// The format frames are handed out in (RGB8 or YUV 4:2:0).
     format: PixelFormat,
-    /// Raw planes of the current frame (reused) when they need converting.
+    /// Raw planes of the current frame when they need converting (reused;
+    /// empty while frames are read straight into the caller's buffer).
     planes: Vec<u8>,
     line: Vec<u8>,
     index: u64,
@@ -129,7 +130,7 @@ impl Y4mSource {
                 fps_assumed: false,
             },
             format: opts.pixel_format,
-            planes: vec![0; layout.frame_bytes()],
+            planes: Vec::new(),
             line,
             index: 0,
         })
@@ -186,6 +187,7 @@ impl FrameSource for Y4mSource {
             let read = self.reader.read_exact(&mut buf.data);
             self.check_read(read)?;
         } else {
+            self.planes.resize(self.layout.frame_bytes(), 0);
             let read = self.reader.read_exact(&mut self.planes);
             self.check_read(read)?;
             match self.format {
