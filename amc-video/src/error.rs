@@ -148,6 +148,17 @@ pub enum VideoError {
         /// The timeout that ran out, in seconds.
         secs: f64,
     },
+    /// A source asked to decode to a pixel format sources do not produce.
+    #[error(
+        "{}: cannot decode frames as {format:?}; sources decode to Rgb8 or Yuv420p",
+        path.display()
+    )]
+    UnsupportedPixelFormat {
+        /// The input.
+        path: PathBuf,
+        /// The format asked for.
+        format: amc_core::PixelFormat,
+    },
     /// A frame or output specification that does not fit (wrong size, zero frames, bad fps, bad CRF).
     #[error("{}: {detail}", path.display())]
     BadFrame {

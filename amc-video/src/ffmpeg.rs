@@ -1,22 +1,33 @@
-//! Decoding and encoding through ffmpeg child processes piping raw RGB.
+//! Decoding and encoding through ffmpeg child processes piping raw frames.
 //!
 //! Decoding: `ffmpeg -i IN -map 0:V -vf showinfo -fps_mode passthrough -f rawvideo
-//! -pix_fmt rgb24 pipe:1`. Frames are read straight into the caller's buffer.
+//! -pix_fmt rgb24 pipe:1`, or for [`PixelFormat::Yuv420p`] `-vf
+//! showinfo,scale=out_range=tv ... -pix_fmt yuv420p`: ffmpeg does every
+//! conversion (10-bit, 4:2:2, 4:4:4, full range to 8-bit limited-range 4:2:0;
+//! nothing for the usual 4:2:0 video). Frames are read straight into the
+//! caller's buffer.
 //! Presentation timestamps come from the `showinfo` filter's log lines on
 //! stderr, which ffmpeg writes before the frame itself reaches stdout, so each
 //! frame gets its real timestamp (variable frame rate clips exist) without a
 //! second pass over the file.
 //!
-//! Encoding: `ffmpeg -f rawvideo -pix_fmt rgb24 -i pipe:0 [-i AUDIO_SRC] ... TMP`,
-//! renamed onto the output path once ffmpeg has succeeded.
+//! Encoding: `ffmpeg -f matroska -i pipe:0 [-i AUDIO_SRC] ... -pix_fmt yuv420p TMP`,
+//! renamed onto the output path once ffmpeg has succeeded. The pipe carries
+//! raw frames with their timestamps (see `mkv`), as I420 when the spec's
+//! [`OutputSpec::pixel_format`] is YUV 4:2:0 (nothing left for ffmpeg to
+//! convert), else RGB24 (converted to yuv420p by ffmpeg); frames of the other
+//! kind are converted here before they are piped.
 
 use crate::atomic::AtomicFile;
 use crate::error::VideoError;
-use crate::frame::{as_rgb, check_frame, extension, no_frames, shape_rgb, FrameSink, FrameSource};
+use crate::frame::{
+    as_rgb, as_yuv420p, check_frame, extension, no_frames, shape, FrameSink, FrameSource,
+};
+use crate::mkv::RawFormat;
 use crate::probe::{probe, probe_device, probe_with, Probe};
 use crate::process::{run_capture, Proc};
 use crate::spec::{InputOptions, Inspection, OutputSpec, VideoInfo};
-use amc_core::image::{Frame, FrameRef};
+use amc_core::image::{Frame, FrameRef, PixelFormat};
 use std::ffi::OsString;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -74,6 +85,8 @@ pub(crate) struct FfmpegSource {
     /// Whether timestamps come from `pts_rx` (false: `i / fps`).
     use_pts: bool,
     fps_override: Option<f64>,
+    /// The format frames are decoded to (RGB8 or YUV 4:2:0).
+    format: PixelFormat,
     /// Raw timestamp of the first frame (timestamps are relative to it).
     first_pts: Option<f64>,
     last_t: f64,
@@ -132,6 +145,18 @@ impl FfmpegSource {
             info.duration_s = info.frame_count.map(|n| n as f64 / fps);
         }
         let caps = caps();
+        let showinfo = if caps.showinfo_checksum {
+            "showinfo=checksum=0"
+        } else {
+            "showinfo"
+        };
+        let (filters, pix_fmt) = match opts.pixel_format {
+            // The scaler converts a full-range source to limited range only
+            // when told: `yuvj420p` is converted anyway, but a `yuv420p`
+            // stream merely tagged full range would pass through unchanged.
+            PixelFormat::Yuv420p => (format!("{showinfo},scale=out_range=tv"), "yuv420p"),
+            _ => (showinfo.to_string(), "rgb24"),
+        };
         let mut args = os_args(&[
             "-hide_banner",
             "-nostdin",
@@ -158,11 +183,7 @@ impl FfmpegSource {
             "-map",
             &format!("0:{video_index}"),
             "-vf",
-            if caps.showinfo_checksum {
-                "showinfo=checksum=0"
-            } else {
-                "showinfo"
-            },
+            &filters,
             // One output frame per decoded frame: no duplicates or drops to
             // force a constant rate.
             if caps.fps_mode { "-fps_mode" } else { "-vsync" },
@@ -170,7 +191,7 @@ impl FfmpegSource {
             "-f",
             "rawvideo",
             "-pix_fmt",
-            "rgb24",
+            pix_fmt,
             "pipe:1",
         ]));
         let (tx, pts_rx) = channel();
@@ -181,6 +202,10 @@ impl FfmpegSource {
             pts_rx,
             use_pts: opts.fps_override.is_none(),
             fps_override: opts.fps_override,
+            format: match opts.pixel_format {
+                PixelFormat::Yuv420p => PixelFormat::Yuv420p,
+                _ => PixelFormat::Rgb8,
+            },
             first_pts: None,
             last_t: 0.0,
             index: 0,
@@ -254,7 +279,7 @@ impl FrameSource for FfmpegSource {
         if self.done {
             return Ok(None);
         }
-        shape_rgb(buf, self.info.width, self.info.height);
+        shape(buf, self.info.width, self.info.height, self.format);
         self.proc.arm();
         let read = match self.proc.stdout.as_mut() {
             Some(stdout) => read_full(stdout, &mut buf.data),
@@ -442,7 +467,11 @@ pub(crate) struct FfmpegSink {
     path: PathBuf,
     width: usize,
     height: usize,
+    /// The pixel format of the pipe, fixed by the spec.
+    raw: RawFormat,
     scratch: Vec<u8>,
+    /// An odd-sized I420 frame padded to even sizes, reused.
+    padded: Vec<u8>,
     /// A frame's Matroska cluster header, reused.
     block_header: Vec<u8>,
     frames: u64,
@@ -488,8 +517,14 @@ impl FfmpegSink {
         } else {
             more.extend(["-map", "0:v:0"].map(String::from));
         }
-        if spec.width % 2 == 1 || spec.height % 2 == 1 {
+        let raw = match spec.pixel_format {
+            PixelFormat::Yuv420p => RawFormat::I420,
+            PixelFormat::Rgb8 | PixelFormat::Rgba8 => RawFormat::Rgb24,
+        };
+        let odd = spec.width % 2 == 1 || spec.height % 2 == 1;
+        if odd && raw == RawFormat::Rgb24 {
             // yuv420p needs even sizes: add one black row/column rather than fail.
+            // (I420 frames are padded before piping: see `pad_to_even`.)
             more.extend(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2"].map(String::from));
         }
         more.extend(container.video_args(spec.crf));
@@ -523,7 +558,14 @@ impl FfmpegSink {
         // ffmpeg names the file it writes in its errors: that is the hidden
         // temporary sibling, which means nothing to the user.
         proc.alias(temp.partial_path(), path);
-        let header = crate::mkv::header(spec.width, spec.height);
+        let (pipe_w, pipe_h) = match raw {
+            RawFormat::I420 => (
+                spec.width.next_multiple_of(2),
+                spec.height.next_multiple_of(2),
+            ),
+            RawFormat::Rgb24 => (spec.width, spec.height),
+        };
+        let header = crate::mkv::header(pipe_w, pipe_h, raw);
         if let Some(stdin) = proc.stdin.as_mut() {
             // A failure shows on the first frame, with ffmpeg's own message.
             let _ = stdin.write_all(&header);
@@ -534,7 +576,9 @@ impl FfmpegSink {
             path: path.to_path_buf(),
             width: spec.width,
             height: spec.height,
+            raw,
             scratch: Vec::new(),
+            padded: Vec::new(),
             block_header: Vec::new(),
             frames: 0,
             failed: false,
@@ -553,6 +597,26 @@ impl FfmpegSink {
     }
 }
 
+/// Pads a `width x height` YUV 4:2:0 frame with an odd side to the next even
+/// size by repeating its last luma column and row: the encoder's `yuv420p`
+/// needs even sizes, and ffmpeg's `pad` filter would drop that column and row
+/// (it rounds a 4:2:0 input's size down to the chroma grid). The chroma planes
+/// already cover the added pixels (they are `ceil(side / 2)` samples), so the
+/// copies keep the colour of the pixels they repeat.
+fn pad_to_even(width: usize, height: usize, planes: &[u8], out: &mut Vec<u8>) {
+    let (ew, eh) = (width.next_multiple_of(2), height.next_multiple_of(2));
+    let (y, u, v) = amc_core::image::yuv_planes(width, height, planes);
+    out.clear();
+    for row in (0..height).chain((height < eh).then_some(height - 1)) {
+        let line = &y[row * width..][..width];
+        out.extend_from_slice(line);
+        out.extend(line.last().filter(|_| width < ew));
+    }
+    out.extend_from_slice(u);
+    out.extend_from_slice(v);
+    debug_assert_eq!(Some(out.len()), PixelFormat::Yuv420p.buffer_len(ew, eh));
+}
+
 /// The audio codec of the input `src`, when it is a file with audio.
 fn audio_codec_of(src: &Path, timeout: Duration) -> Result<Option<String>, VideoError> {
     if src.is_dir() || extension(src).as_deref() == Some("y4m") {
@@ -567,10 +631,21 @@ impl FrameSink for FfmpegSink {
         if self.failed {
             return Err(self.proc.failure(None));
         }
-        let rgb = as_rgb(frame, &mut self.scratch);
+        let pixels = match self.raw {
+            RawFormat::Rgb24 => as_rgb(frame, &mut self.scratch),
+            RawFormat::I420 => {
+                let planes = as_yuv420p(frame, &mut self.scratch);
+                if self.width % 2 == 1 || self.height % 2 == 1 {
+                    pad_to_even(self.width, self.height, planes, &mut self.padded);
+                    &self.padded
+                } else {
+                    planes
+                }
+            }
+        };
         self.proc.arm();
         let written = match self.proc.stdin.as_mut() {
-            Some(stdin) => crate::mkv::write_frame(stdin, t, rgb, &mut self.block_header),
+            Some(stdin) => crate::mkv::write_frame(stdin, t, pixels, &mut self.block_header),
             None => Err(std::io::ErrorKind::BrokenPipe.into()),
         };
         self.proc.disarm();

@@ -1,14 +1,19 @@
 //! Directories of still images as video: input from image files in natural
 //! order (`frame-9` before `frame-10`), output as `frame-000000.png`, ...
+//!
+//! Images decode to RGB; a source asked for YUV 4:2:0 converts each with
+//! `amc_core::color::rgb_to_yuv420p_into`, and the PNG sink converts YUV 4:2:0
+//! frames back to RGB with `yuv420p_to_rgb_into`.
 
 use crate::atomic::AtomicDir;
 use crate::error::VideoError;
-use crate::frame::{as_rgb, check_frame, extension, no_frames, shape_rgb, FrameSink, FrameSource};
+use crate::frame::{as_rgb, check_frame, extension, no_frames, FrameSink, FrameSource};
 use crate::process::run_capture;
 use crate::spec::{
     InputOptions, OutputSpec, VideoInfo, DEFAULT_IMAGE_FPS, FOLDER_META, IMAGE_EXTENSIONS,
 };
-use amc_core::image::{Frame, FrameRef};
+use amc_core::color::rgb_to_yuv420p_into;
+use amc_core::image::{Frame, FrameRef, PixelFormat};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
@@ -78,6 +83,8 @@ pub(crate) struct ImageDirSource {
     first: Option<Vec<u8>>,
     index: usize,
     timeout: std::time::Duration,
+    /// The format frames are handed out in (RGB8 or YUV 4:2:0).
+    format: PixelFormat,
 }
 
 impl ImageDirSource {
@@ -106,6 +113,7 @@ impl ImageDirSource {
             first: Some(first),
             index: 0,
             timeout: opts.timeout,
+            format: opts.pixel_format,
         })
     }
 }
@@ -137,9 +145,17 @@ impl FrameSource for ImageDirSource {
                 data
             }
         };
-        // The decoder hands us a fresh buffer anyway: take it instead of copying.
-        buf.data = data;
-        shape_rgb(buf, w, h);
+        match self.format {
+            PixelFormat::Yuv420p => {
+                rgb_to_yuv420p_into(w, h, 3, &data, &mut buf.data);
+                (buf.width, buf.height, buf.format) = (w, h, PixelFormat::Yuv420p);
+            }
+            _ => {
+                // The decoder hands us a fresh buffer anyway: take it instead of copying.
+                buf.data = data;
+                (buf.width, buf.height, buf.format) = (w, h, PixelFormat::Rgb8);
+            }
+        }
         let t = self.index as f64 / self.info.fps;
         self.index += 1;
         Ok(Some(t))

@@ -1,13 +1,16 @@
 //! Video input and output.
 //!
-//! The stabilizer works on decoded RGB frames; this module turns files into
-//! frames and frames back into files:
+//! The stabilizer works on decoded frames, packed RGB or planar YUV 4:2:0
+//! (`amc_core::PixelFormat`); this module turns files into frames and frames
+//! back into files:
 //!
 //! * input ([`open_input`]): a directory of images, a `.y4m` file (parsed here),
-//!   or anything `ffmpeg` can decode (a child process piping raw RGB);
+//!   or anything `ffmpeg` can decode (a child process piping raw frames), in
+//!   the format asked for by [`InputOptions::pixel_format`];
 //! * output ([`create_output`]): `.mp4`, `.webm`, `.mkv` (an `ffmpeg` child
-//!   reading raw RGB frames with their timestamps as Matroska), `.y4m`
-//!   (written here), or a directory of PNG files.
+//!   reading raw frames with their timestamps as Matroska, YUV 4:2:0 when
+//!   [`OutputSpec::pixel_format`] says so, else RGB), `.y4m` (written here),
+//!   or a directory of PNG files. Sinks take RGB8, RGBA8 and YUV 4:2:0 frames.
 //!
 //! Outputs are written to a hidden temporary sibling and renamed onto the
 //! final path only by [`FrameSink::finish`], so an error or an interruption

@@ -1,5 +1,6 @@
-//! A minimal Matroska writer for raw RGB frames with their timestamps, the
-//! stream our encoder child reads from its stdin.
+//! A minimal Matroska writer for raw frames (RGB24 or planar YUV 4:2:0) with
+//! their timestamps, the stream our encoder child reads from its stdin. It
+//! converts nothing: the frames arrive in the track's [`RawFormat`].
 //!
 //! A raw pipe (`-f rawvideo`) has no timestamps, so every frame would be
 //! placed at `i / fps`: a variable-frame-rate input (phones, screen captures,
@@ -7,8 +8,9 @@
 //! timestamp per block and can be streamed: the segment has an unknown size
 //! (as in live WebM), and each frame is one cluster holding one `SimpleBlock`.
 //! Only the elements ffmpeg's demuxer needs are written (EBML header, `Info`
-//! with a microsecond `TimestampScale`, one `V_UNCOMPRESSED` video track with
-//! the `RGB\x18` colour space, which ffmpeg maps to `rgb24`).
+//! with a microsecond `TimestampScale`, one `V_UNCOMPRESSED` video track whose
+//! `ColourSpace` FourCC ffmpeg maps to a pixel format: `RGB\x18` to `rgb24`,
+//! `I420` to `yuv420p`).
 //!
 //! Element layout (RFC 8794 EBML, RFC 9559 Matroska): ID bytes, the data size
 //! as a variable-length integer (a length marker bit, then the value), data.
@@ -17,6 +19,26 @@ use std::io::{self, Write};
 
 /// `TimestampScale`: timestamps count microseconds.
 const TIMESTAMP_SCALE_NS: u64 = 1000;
+
+/// The layout of the raw frames of the track.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum RawFormat {
+    /// Packed 8-bit RGB (ffmpeg's `rgb24`).
+    Rgb24,
+    /// Planar YUV 4:2:0, Y then U then V (ffmpeg's `yuv420p`).
+    I420,
+}
+
+impl RawFormat {
+    /// The `ColourSpace` FourCC by which ffmpeg's demuxer knows the layout
+    /// (its raw pixel-format tag table).
+    fn fourcc(self) -> &'static [u8; 4] {
+        match self {
+            RawFormat::Rgb24 => b"RGB\x18",
+            RawFormat::I420 => b"I420",
+        }
+    }
+}
 
 /// Appends an element with `data`.
 fn element(out: &mut Vec<u8>, id: u32, data: &[u8]) {
@@ -47,8 +69,8 @@ fn size_vint(out: &mut Vec<u8>, n: u64) {
 }
 
 /// The stream header: EBML header, the start of a segment of unknown size,
-/// `Info` and `Tracks` for one `width` x `height` RGB24 video track.
-pub(crate) fn header(width: usize, height: usize) -> Vec<u8> {
+/// `Info` and `Tracks` for one `width` x `height` video track of raw `format` frames.
+pub(crate) fn header(width: usize, height: usize, format: RawFormat) -> Vec<u8> {
     let mut out = Vec::new();
     let mut ebml = Vec::new();
     uint_element(&mut ebml, 0x4286, 1); // EBMLVersion
@@ -73,7 +95,7 @@ pub(crate) fn header(width: usize, height: usize) -> Vec<u8> {
     let mut video = Vec::new();
     uint_element(&mut video, 0xB0, width as u64); // PixelWidth
     uint_element(&mut video, 0xBA, height as u64); // PixelHeight
-    element(&mut video, 0x2E_B524, b"RGB\x18"); // ColourSpace (FourCC)
+    element(&mut video, 0x2E_B524, format.fourcc()); // ColourSpace (FourCC)
     let mut track = Vec::new();
     uint_element(&mut track, 0xD7, 1); // TrackNumber
     uint_element(&mut track, 0x73C5, 1); // TrackUID
@@ -92,7 +114,7 @@ pub(crate) fn header(width: usize, height: usize) -> Vec<u8> {
 pub(crate) fn write_frame(
     out: &mut impl Write,
     t: f64,
-    rgb: &[u8],
+    pixels: &[u8],
     scratch: &mut Vec<u8>,
 ) -> io::Result<()> {
     let us = (t.max(0.0) * 1e6).round() as u64;
@@ -100,7 +122,7 @@ pub(crate) fn write_frame(
     uint_element(&mut timestamp, 0xE7, us); // Cluster Timestamp
                                             // SimpleBlock: track number 1 (vint 0x81), relative timestamp 0 (int16), flags: keyframe.
     let block_header = [0x81u8, 0x00, 0x00, 0x80];
-    let block_len = (block_header.len() + rgb.len()) as u64;
+    let block_len = (block_header.len() + pixels.len()) as u64;
     let mut block_prefix = Vec::with_capacity(16);
     id_bytes(&mut block_prefix, 0xA3);
     size_vint(&mut block_prefix, block_len);
@@ -112,7 +134,7 @@ pub(crate) fn write_frame(
     scratch.extend_from_slice(&block_prefix);
     scratch.extend_from_slice(&block_header);
     out.write_all(scratch)?;
-    out.write_all(rgb)
+    out.write_all(pixels)
 }
 
 #[cfg(test)]
@@ -131,9 +153,10 @@ mod tests {
 
     #[test]
     fn header_starts_with_the_ebml_magic() {
-        let h = header(64, 48);
+        let h = header(64, 48, RawFormat::I420);
         assert_eq!(&h[..4], &[0x1A, 0x45, 0xDF, 0xA3]);
         let needle = b"V_UNCOMPRESSED";
         assert!(h.windows(needle.len()).any(|w| w == needle));
+        assert!(h.windows(4).any(|w| w == b"I420"));
     }
 }

@@ -2,7 +2,7 @@
 //! [`inspect`] choose a format for a path and hand over to its module.
 
 use crate::error::VideoError;
-use crate::frame::{check_fps, extension, FrameSink, FrameSource};
+use crate::frame::{check_fps, check_source_format, extension, FrameSink, FrameSource};
 use crate::spec::{InputOptions, Inspection, OutputSpec};
 use crate::{ffmpeg, images, probe, y4m};
 use std::path::Path;
@@ -26,17 +26,19 @@ pub fn open_stream(
     format: Option<&str>,
     opts: &InputOptions,
 ) -> Result<Box<dyn FrameSource>, VideoError> {
+    check_source_format(Path::new(source), opts.pixel_format)?;
     Ok(Box::new(ffmpeg::FfmpegSource::open_stream(
         source, format, opts,
     )?))
 }
 
 /// Opens `path` for decoding: a directory of images, a `.y4m` file, or any
-/// video ffmpeg can read.
+/// video ffmpeg can read, its frames in `opts.pixel_format`.
 pub fn open_input(path: &Path, opts: &InputOptions) -> Result<Box<dyn FrameSource>, VideoError> {
     if let Some(fps) = opts.fps_override {
         check_fps(path, fps)?;
     }
+    check_source_format(path, opts.pixel_format)?;
     let meta = std::fs::metadata(path).map_err(|e| match e.kind() {
         std::io::ErrorKind::NotFound => VideoError::NotFound {
             path: path.to_path_buf(),

@@ -2,6 +2,7 @@
 //! ([`VideoInfo`], [`Inspection`]), how to open one ([`InputOptions`]), what to
 //! write ([`OutputSpec`]), and the constants they refer to.
 
+use amc_core::PixelFormat;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -50,6 +51,14 @@ pub struct InputOptions {
     pub realtime: bool,
     /// Replay the file forever (ffmpeg `-stream_loop -1`); timestamps keep increasing.
     pub looped: bool,
+    /// The format [`FrameSource::next_frame`](crate::FrameSource::next_frame)
+    /// fills frames in: [`PixelFormat::Rgb8`] (the default) or
+    /// [`PixelFormat::Yuv420p`] (limited range; what video decoders deliver, so
+    /// videos and 4:2:0 `.y4m` files need no colour conversion). Other inputs
+    /// are converted: 10-bit, 4:2:2, 4:4:4 and full-range videos by ffmpeg,
+    /// `.y4m` and image folders here. [`PixelFormat::Rgba8`] is refused with
+    /// [`VideoError::UnsupportedPixelFormat`](crate::VideoError::UnsupportedPixelFormat).
+    pub pixel_format: PixelFormat,
 }
 
 impl Default for InputOptions {
@@ -59,6 +68,7 @@ impl Default for InputOptions {
             timeout: Duration::from_secs(120),
             realtime: false,
             looped: false,
+            pixel_format: PixelFormat::Rgb8,
         }
     }
 }
@@ -101,6 +111,13 @@ pub struct OutputSpec {
     /// 0..=63, default 32): lower is better and larger. A value outside the
     /// format's range is an error.
     pub crf: Option<u8>,
+    /// The format of the frames the caller will give (default
+    /// [`PixelFormat::Rgb8`]). It fixes the pixel format of the pipe to an
+    /// ffmpeg encoder: [`PixelFormat::Yuv420p`] frames then reach it as they
+    /// are (and the encoder's `yuv420p` needs no conversion), other formats go
+    /// as RGB24. A frame of another format is still accepted, converted. `.y4m`
+    /// and PNG outputs ignore it (they convert each frame as needed).
+    pub pixel_format: PixelFormat,
 }
 
 impl OutputSpec {
@@ -113,6 +130,7 @@ impl OutputSpec {
             audio_from: None,
             timeout: InputOptions::default().timeout,
             crf: None,
+            pixel_format: PixelFormat::Rgb8,
         }
     }
 }

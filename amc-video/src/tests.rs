@@ -4,7 +4,9 @@
 
 use super::*;
 use amc_core::image::{Frame, PixelFormat};
-use amc_e2e::fixtures::{ffmpeg, ffprobe_stream_types, lavfi, test_clip, test_tone};
+use amc_e2e::fixtures::{
+    ffmpeg, ffprobe_frame_times, ffprobe_stream_types, lavfi, test_clip, test_tone,
+};
 use amc_e2e::list_dir;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -18,7 +20,7 @@ fn have_ffmpeg() -> bool {
     ok
 }
 
-/// Decodes a whole input: info, frames and timestamps.
+/// Decodes a whole input: info, frames (in `opts.pixel_format`) and timestamps.
 fn read_all(path: &Path, opts: &InputOptions) -> (VideoInfo, Vec<Frame>, Vec<f64>) {
     let mut src = open_input(path, opts).unwrap_or_else(|e| panic!("open {}: {e}", path.display()));
     let info = src.info().clone();
@@ -27,9 +29,10 @@ fn read_all(path: &Path, opts: &InputOptions) -> (VideoInfo, Vec<Frame>, Vec<f64
     while let Some(t) = src.next_frame(&mut buf).unwrap() {
         assert_eq!(
             (buf.width, buf.height, buf.format),
-            (info.width, info.height, PixelFormat::Rgb8)
+            (info.width, info.height, opts.pixel_format)
         );
-        assert_eq!(buf.data.len(), info.width * info.height * 3);
+        let len = opts.pixel_format.buffer_len(info.width, info.height);
+        assert_eq!(Some(buf.data.len()), len);
         frames.push(buf.clone());
         times.push(t);
     }
@@ -156,13 +159,19 @@ fn keeps_variable_frame_rate_timestamps() {
             "libx264",
         ],
     );
-    let (_, frames, times) = read_all(&clip, &InputOptions::default());
-    assert_eq!(frames.len(), 8);
-    assert_timestamps(&times);
-    assert!(
-        (times[2] - 0.2).abs() < 1e-3 && (times[3] - 0.5).abs() < 1e-3,
-        "{times:?}"
-    );
+    for pixel_format in [PixelFormat::Rgb8, PixelFormat::Yuv420p] {
+        let opts = InputOptions {
+            pixel_format,
+            ..Default::default()
+        };
+        let (_, frames, times) = read_all(&clip, &opts);
+        assert_eq!(frames.len(), 8);
+        assert_timestamps(&times);
+        assert!(
+            (times[2] - 0.2).abs() < 1e-3 && (times[3] - 0.5).abs() < 1e-3,
+            "{pixel_format:?}: {times:?}"
+        );
+    }
 }
 
 #[test]
@@ -520,4 +529,411 @@ fn reads_karma_sample_video_stream_only() {
     assert_eq!(frames.len(), 362);
     assert_timestamps(&times);
     assert!((times[1] - 1001.0 / 30000.0).abs() < 1e-3, "{}", times[1]);
+}
+
+// ------------------------------------------------------------- YUV 4:2:0
+
+/// Options asking for YUV 4:2:0 frames.
+fn yuv_opts() -> InputOptions {
+    InputOptions {
+        pixel_format: PixelFormat::Yuv420p,
+        ..Default::default()
+    }
+}
+
+/// The bytes after a `.y4m` file's header line: its frames.
+fn y4m_body(path: &Path) -> Vec<u8> {
+    let bytes = std::fs::read(path).unwrap();
+    let start = bytes.iter().position(|&b| b == b'\n').unwrap() + 1;
+    bytes[start..].to_vec()
+}
+
+/// The frames as ffmpeg itself decodes `path` to `yuv420p`, concatenated.
+fn ffmpeg_yuv420p(path: &Path, dir: &Path) -> Vec<u8> {
+    let raw = dir.join("ffmpeg.yuv");
+    ffmpeg(&[
+        "-i",
+        path.to_str().unwrap(),
+        "-pix_fmt",
+        "yuv420p",
+        "-f",
+        "rawvideo",
+        raw.to_str().unwrap(),
+    ]);
+    std::fs::read(raw).unwrap()
+}
+
+/// PSNR (dB) between the first `a.len()` bytes of two sample buffers.
+fn psnr(a: &[u8], b: &[u8]) -> f64 {
+    let se: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(&p, &q)| (p as f64 - q as f64).powi(2))
+        .sum();
+    let mse = se / a.len() as f64;
+    10.0 * (255.0f64.powi(2) / mse.max(1e-12)).log10()
+}
+
+/// The `(y, u, v)` planes of a `w x h` YUV frame cropped from a larger one
+/// (an encoder pads odd sizes to even ones), concatenated.
+fn crop_yuv(f: &Frame, w: usize, h: usize) -> Vec<u8> {
+    let (y, u, v) = f.as_ref().yuv_planes();
+    let (cw, ch) = amc_core::image::chroma_size(w, h);
+    let (fcw, _) = amc_core::image::chroma_size(f.width, f.height);
+    let mut out = Vec::new();
+    for row in 0..h {
+        out.extend_from_slice(&y[row * f.width..][..w]);
+    }
+    for plane in [u, v] {
+        for row in 0..ch {
+            out.extend_from_slice(&plane[row * fcw..][..cw]);
+        }
+    }
+    out
+}
+
+/// `synthetic` frames as YUV 4:2:0.
+fn synthetic_yuv(width: usize, height: usize, n: usize) -> Vec<Frame> {
+    synthetic(width, height, n, PixelFormat::Rgb8)
+        .into_iter()
+        .map(|f| {
+            let mut yuv = Frame::new(width, height, PixelFormat::Yuv420p);
+            amc_core::color::rgb_to_yuv420p_into(width, height, 3, &f.data, &mut yuv.data);
+            yuv
+        })
+        .collect()
+}
+
+#[test]
+fn y4m_420_round_trips_byte_for_byte_as_yuv() {
+    if !have_ffmpeg() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for (w, h) in [(66, 50), (33, 25)] {
+        let src = dir.path().join(format!("in-{w}.y4m"));
+        if w % 2 == 0 {
+            lavfi(
+                &src,
+                &[&format!("testsrc2=size={w}x{h}:rate=25")],
+                &["-frames:v", "4", "-pix_fmt", "yuv420p"],
+            );
+        } else {
+            // ffmpeg rounds odd 4:2:0 sizes down: write this one by hand.
+            let len = PixelFormat::Yuv420p.buffer_len(w, h).unwrap();
+            let mut bytes = format!("YUV4MPEG2 W{w} H{h} F25:1 Ip A1:1 C420jpeg\n").into_bytes();
+            for i in 0..4 * len {
+                if i % len == 0 {
+                    bytes.extend_from_slice(b"FRAME\n");
+                }
+                bytes.push((16 + i * 7 % 220) as u8);
+            }
+            std::fs::write(&src, bytes).unwrap();
+        }
+        let (info, frames, _) = read_all(&src, &yuv_opts());
+        assert_eq!((info.width, info.height, frames.len()), (w, h, 4));
+        // Straight copies of ffmpeg's planes...
+        let all: Vec<u8> = frames.iter().flat_map(|f| f.data.clone()).collect();
+        assert_eq!(all, ffmpeg_yuv420p(&src, dir.path()), "{w}x{h}");
+        // ...written back unchanged.
+        let out = dir.path().join(format!("out-{w}.y4m"));
+        let spec = OutputSpec {
+            pixel_format: PixelFormat::Yuv420p,
+            ..OutputSpec::new(info.width, info.height, info.fps)
+        };
+        write_all(&out, &spec, &frames);
+        assert_eq!(y4m_body(&out), y4m_body(&src), "{w}x{h}");
+    }
+}
+
+#[test]
+fn decodes_h264_as_ffmpegs_own_yuv420p() {
+    if !have_ffmpeg() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let clip = make_clip(dir.path());
+    let (info, frames, times) = read_all(&clip, &yuv_opts());
+    assert_eq!((info.width, info.height, frames.len()), (64, 48, 30));
+    assert_timestamps(&times);
+    let ours: Vec<u8> = frames.iter().flat_map(|f| f.data.clone()).collect();
+    assert!(ours == ffmpeg_yuv420p(&clip, dir.path()), "planes differ");
+}
+
+#[test]
+fn decodes_full_range_and_10_bit_video_to_limited_yuv420p() {
+    if !have_ffmpeg() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let white = "color=white:size=32x16:rate=10";
+    // Full range as `yuvj420p`, as `yuv420p` merely tagged full range, as
+    // 10-bit 4:2:2 and 4:4:4: white is Y 235, grey chroma, whatever the source.
+    for (name, args) in [
+        ("j.mp4", &["-pix_fmt", "yuvj420p", "-c:v", "libx264"][..]),
+        (
+            "pc.mkv",
+            &[
+                "-vf",
+                "scale=out_range=pc",
+                "-pix_fmt",
+                "yuv420p",
+                "-color_range",
+                "pc",
+                "-c:v",
+                "ffv1",
+            ][..],
+        ),
+        (
+            "10bit.mkv",
+            &["-pix_fmt", "yuv422p10le", "-c:v", "ffv1"][..],
+        ),
+        ("444.mkv", &["-pix_fmt", "yuv444p", "-c:v", "ffv1"][..]),
+    ] {
+        let clip = dir.path().join(name);
+        let mut args = args.to_vec();
+        args.extend(["-frames:v", "2"]);
+        lavfi(&clip, &[white], &args);
+        let (_, frames, _) = read_all(&clip, &yuv_opts());
+        assert_eq!(frames.len(), 2, "{name}");
+        let (y, u, v) = frames[0].as_ref().yuv_planes();
+        let near = |p: &[u8], want: u8| p.iter().all(|&s| s.abs_diff(want) <= 1);
+        assert!(
+            near(y, 235) && near(u, 128) && near(v, 128),
+            "{name}: {y:?} {u:?}"
+        );
+    }
+}
+
+/// A `.y4m` file of one frame: `header` then `planes`.
+fn y4m_file(dir: &Path, name: &str, header: &str, planes: &[u8]) -> PathBuf {
+    let path = dir.join(name);
+    let mut bytes = format!("YUV4MPEG2 {header}\nFRAME\n").into_bytes();
+    bytes.extend_from_slice(planes);
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+#[test]
+fn reads_other_y4m_layouts_as_limited_range_yuv420p() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let one = |path: &Path| read_all(path, &yuv_opts()).1.remove(0).data;
+    // Full range: black, white and mid grey luma; extreme chroma.
+    let luma = [0u8, 255, 128, 64, 0, 255, 128, 64];
+    let full = y4m_file(
+        d,
+        "full.y4m",
+        "W4 H2 F25:1 C420jpeg XCOLORRANGE=FULL",
+        &[&luma[..], &[0, 128], &[255, 64]].concat(),
+    );
+    let y = [16u8, 235, 126, 71, 16, 235, 126, 71];
+    assert_eq!(one(&full), [&y[..], &[16, 128], &[240, 72]].concat());
+    // The same planes in limited range are taken as they are.
+    let limited = y4m_file(
+        d,
+        "lim.y4m",
+        "W4 H2 C420",
+        &[&luma[..], &[0, 128], &[255, 64]].concat(),
+    );
+    assert_eq!(one(&limited), [&luma[..], &[0, 128], &[255, 64]].concat());
+    // 4:4:4: each 2x2 block of chroma is averaged (rounded).
+    let u444 = [10u8, 20, 30, 41, 50, 60, 70, 80];
+    let v444 = [128u8; 8];
+    let c444 = y4m_file(
+        d,
+        "444.y4m",
+        "W4 H2 C444",
+        &[&luma[..], &u444, &v444].concat(),
+    );
+    assert_eq!(one(&c444), [&luma[..], &[35, 55], &[128, 128]].concat());
+    // 4:2:2: vertical pairs are averaged; odd sizes keep their last row.
+    let c422 = y4m_file(
+        d,
+        "422.y4m",
+        "W3 H3 C422",
+        &[
+            &[100u8; 9][..],
+            &[10, 20, 30, 41, 50, 60],
+            &[1, 2, 3, 4, 5, 6],
+        ]
+        .concat(),
+    );
+    assert_eq!(
+        one(&c422),
+        [&[100u8; 9][..], &[20, 31, 50, 60], &[2, 3, 5, 6]].concat()
+    );
+    // Mono: grey chroma.
+    let mono = y4m_file(d, "mono.y4m", "W2 H2 Cmono", &[20, 40, 60, 80]);
+    assert_eq!(one(&mono), [20, 40, 60, 80, 128, 128]);
+    // Full-range 4:4:4 white and black.
+    let full444 = y4m_file(
+        d,
+        "full444.y4m",
+        "W2 H2 C444 XCOLORRANGE=FULL",
+        &[&[255u8, 0, 255, 0][..], &[0; 4], &[255; 4]].concat(),
+    );
+    assert_eq!(one(&full444), [235, 16, 235, 16, 16, 240]);
+}
+
+#[test]
+fn refuses_to_decode_as_rgba() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = y4m_file(dir.path(), "a.y4m", "W2 H2 Cmono", &[0; 4]);
+    let opts = InputOptions {
+        pixel_format: PixelFormat::Rgba8,
+        ..Default::default()
+    };
+    let e = open_input(&path, &opts).err().unwrap();
+    assert!(
+        matches!(
+            e,
+            VideoError::UnsupportedPixelFormat {
+                format: PixelFormat::Rgba8,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains("Rgba8"), "{e}");
+}
+
+#[test]
+fn encodes_yuv420p_frames_through_ffmpeg() {
+    if !have_ffmpeg() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for (w, h) in [(64, 48), (33, 25)] {
+        let frames = synthetic_yuv(w, h, 6);
+        let spec = OutputSpec {
+            pixel_format: PixelFormat::Yuv420p,
+            ..OutputSpec::new(w, h, 30.0)
+        };
+        // Lossless x264 (CRF 0) gives the planes back exactly.
+        let mkv = dir.path().join(format!("lossless-{w}.mkv"));
+        write_all(
+            &mkv,
+            &OutputSpec {
+                crf: Some(0),
+                ..spec.clone()
+            },
+            &frames,
+        );
+        let (_, back, _) = read_all(&mkv, &yuv_opts());
+        assert_eq!(back.len(), frames.len());
+        for (a, b) in frames.iter().zip(&back) {
+            // The odd size comes back padded to 34x26 (the last column and
+            // row repeated); the frame's own area is exact.
+            assert_eq!(
+                (b.width, b.height),
+                (w.next_multiple_of(2), h.next_multiple_of(2))
+            );
+            assert!(
+                a.data == crop_yuv(b, w, h),
+                "{w}x{h}: lossless planes differ"
+            );
+        }
+        // Lossy mp4 and webm at their default quality.
+        for name in ["lossy.mp4", "lossy.webm"] {
+            let path = dir.path().join(format!("{w}-{name}"));
+            write_all(&path, &spec, &frames);
+            let (_, back, _) = read_all(&path, &yuv_opts());
+            assert_eq!(back.len(), frames.len());
+            for (a, b) in frames.iter().zip(&back) {
+                let db = psnr(&a.data, &crop_yuv(b, w, h));
+                eprintln!("{w}x{h} {name}: PSNR {db:.1} dB");
+                assert!(db > 45.0, "{w}x{h} {name}: PSNR {db:.1} dB");
+            }
+        }
+    }
+}
+
+#[test]
+fn ffmpeg_sink_converts_frames_of_the_other_format() {
+    if !have_ffmpeg() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let yuv = synthetic_yuv(32, 16, 2);
+    let rgb = synthetic(32, 16, 2, PixelFormat::Rgb8);
+    // RGB frames into a YUV pipe, YUV frames into an RGB pipe: both lossless
+    // encodes decode close to the frames given.
+    for (pipe, given) in [(PixelFormat::Yuv420p, &rgb), (PixelFormat::Rgb8, &yuv)] {
+        let path = dir.path().join(format!("{pipe:?}.mkv"));
+        let spec = OutputSpec {
+            pixel_format: pipe,
+            crf: Some(0),
+            ..OutputSpec::new(32, 16, 30.0)
+        };
+        write_all(&path, &spec, given);
+        let (_, back, _) = read_all(&path, &yuv_opts());
+        for (a, b) in yuv.iter().zip(&back) {
+            let db = psnr(&a.data, &b.data);
+            assert!(db > 40.0, "{pipe:?} pipe: PSNR {db:.1} dB");
+        }
+    }
+}
+
+#[test]
+fn yuv420p_output_keeps_variable_frame_rate_timestamps() {
+    if !have_ffmpeg() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let frames = synthetic_yuv(32, 32, 6);
+    let times = [0.0, 0.1, 0.2, 0.5, 0.6, 0.7];
+    let spec = OutputSpec {
+        pixel_format: PixelFormat::Yuv420p,
+        ..OutputSpec::new(32, 32, 10.0)
+    };
+    for name in ["vfr.mp4", "vfr.mkv", "vfr.webm"] {
+        let path = dir.path().join(name);
+        let mut sink = create_output(&path, &spec).unwrap();
+        for (f, &t) in frames.iter().zip(&times) {
+            sink.write_frame(&f.as_ref(), t).unwrap();
+        }
+        sink.finish().unwrap();
+        let probed = ffprobe_frame_times(&path);
+        assert_eq!(probed.len(), times.len(), "{name}: {probed:?}");
+        let t0 = probed[0];
+        for (p, t) in probed.iter().zip(&times) {
+            assert!((p - t0 - t).abs() < 2e-3, "{name}: {probed:?}");
+        }
+        let (_, _, read) = read_all(&path, &yuv_opts());
+        for (r, t) in read.iter().zip(&times) {
+            assert!((r - t).abs() < 2e-3, "{name}: {read:?}");
+        }
+    }
+}
+
+#[test]
+fn yuv420p_frames_reach_pngs_and_images_become_yuv420p() {
+    let dir = tempfile::tempdir().unwrap();
+    let colour = [200u8, 30, 90];
+    let rgb: Vec<u8> = colour.iter().copied().cycle().take(6 * 4 * 3).collect();
+    let mut frame = Frame::new(6, 4, PixelFormat::Yuv420p);
+    amc_core::color::rgb_to_yuv420p_into(6, 4, 3, &rgb, &mut frame.data);
+    // Tail padding, as the core's frames may carry, is not written.
+    let mut padded = frame.clone();
+    padded.data.extend_from_slice(&[0; 16]);
+    let pngs = dir.path().join("pngs");
+    write_all(
+        &pngs,
+        &OutputSpec::new(6, 4, 30.0),
+        &[frame.clone(), padded],
+    );
+    let (_, back, _) = read_all(&pngs, &InputOptions::default());
+    for f in &back {
+        for px in f.data.chunks_exact(3) {
+            for (a, b) in px.iter().zip(&colour) {
+                assert!(a.abs_diff(*b) <= 2, "{px:?} vs {colour:?}");
+            }
+        }
+    }
+    // Read back as YUV: the core's conversion of the PNG's RGB.
+    let (_, yuv, _) = read_all(&pngs, &yuv_opts());
+    let mut want = Vec::new();
+    amc_core::color::rgb_to_yuv420p_into(6, 4, 3, &back[0].data, &mut want);
+    assert_eq!(yuv[0].data, want);
 }

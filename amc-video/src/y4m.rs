@@ -4,14 +4,26 @@
 //!
 //! A file is a header line `YUV4MPEG2 W640 H480 F30000:1001 Ip A1:1 C420jpeg`
 //! followed by frames, each a `FRAME` line and the raw planes (Y, then Cb, Cr).
-//! Colours are converted with BT.601 limited-range matrices, as ffmpeg does by
-//! default (full range when the header says `XCOLORRANGE=FULL`).
+//!
+//! Reading as [`PixelFormat::Yuv420p`]: 8-bit limited-range 4:2:0 planes are
+//! read straight into the frame, unconverted. Other files are converted here:
+//! full range (`XCOLORRANGE=FULL`) is scaled to limited range, 4:2:2 and 4:4:4
+//! chroma is averaged down to 4:2:0, mono gets grey chroma. Reading as RGB
+//! uses BT.601 matrices, as ffmpeg does by default (limited range unless the
+//! header says full): `amc_core::color` for 4:2:0, a local conversion for the
+//! other layouts.
+//!
+//! Writing: YUV 4:2:0 frames are written as they are; RGB frames are
+//! converted with `amc_core::color::rgb_to_yuv420p_into`.
 
 use crate::atomic::AtomicFile;
 use crate::error::VideoError;
-use crate::frame::{check_frame, fps_rational, no_frames, shape_rgb, FrameSink, FrameSource};
+use crate::frame::{
+    as_yuv420p, check_frame, fps_rational, no_frames, shape, FrameSink, FrameSource,
+};
 use crate::spec::{InputOptions, OutputSpec, VideoInfo, DEFAULT_IMAGE_FPS};
-use amc_core::image::{Frame, FrameRef};
+use amc_core::color::yuv420p_to_rgb_into;
+use amc_core::image::{yuv_planes_mut, Frame, FrameRef, PixelFormat};
 use std::fs::File;
 use std::io::{BufRead, BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
@@ -56,6 +68,12 @@ impl Layout {
     fn frame_bytes(&self) -> usize {
         self.width * self.height + self.chroma_size().map_or(0, |(cw, ch)| 2 * cw * ch)
     }
+
+    /// Whether the planes are laid out as [`PixelFormat::Yuv420p`] says, so
+    /// that they can be used without conversion.
+    fn is_yuv420p(&self) -> bool {
+        self.chroma == Chroma::C420 && !self.full_range
+    }
 }
 
 /// Frames read from a `.y4m` file.
@@ -64,7 +82,10 @@ pub(crate) struct Y4mSource {
     reader: BufReader<File>,
     layout: Layout,
     info: VideoInfo,
-    /// Raw planes of the current frame (reused).
+    /// The format frames are handed out in (RGB8 or YUV 4:2:0).
+    format: PixelFormat,
+    /// Raw planes of the current frame when they need converting (reused;
+    /// empty while frames are read straight into the caller's buffer).
     planes: Vec<u8>,
     line: Vec<u8>,
     index: u64,
@@ -108,9 +129,24 @@ impl Y4mSource {
                 has_audio: false,
                 fps_assumed: false,
             },
-            planes: vec![0; layout.frame_bytes()],
+            format: opts.pixel_format,
+            planes: Vec::new(),
             line,
             index: 0,
+        })
+    }
+
+    /// Turns the outcome of reading a frame's planes into ours.
+    fn check_read(&self, read: std::io::Result<()>) -> Result<(), VideoError> {
+        read.map_err(|e| {
+            if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                self.bad(format!(
+                    "frame {} is truncated (the file ends inside it)",
+                    self.index
+                ))
+            } else {
+                VideoError::io(&self.path, "read", e)
+            }
         })
     }
 
@@ -144,18 +180,27 @@ impl FrameSource for Y4mSource {
                 )))
             }
         }
-        if let Err(e) = self.reader.read_exact(&mut self.planes) {
-            return Err(if e.kind() == std::io::ErrorKind::UnexpectedEof {
-                self.bad(format!(
-                    "frame {} is truncated (the file ends inside it)",
-                    self.index
-                ))
-            } else {
-                VideoError::io(&self.path, "read", e)
-            });
+        let (w, h) = (self.layout.width, self.layout.height);
+        if self.format == PixelFormat::Yuv420p && self.layout.is_yuv420p() {
+            // Already the frame's layout: read the planes straight into it.
+            shape(buf, w, h, PixelFormat::Yuv420p);
+            let read = self.reader.read_exact(&mut buf.data);
+            self.check_read(read)?;
+        } else {
+            self.planes.resize(self.layout.frame_bytes(), 0);
+            let read = self.reader.read_exact(&mut self.planes);
+            self.check_read(read)?;
+            match self.format {
+                PixelFormat::Yuv420p => {
+                    shape(buf, w, h, PixelFormat::Yuv420p);
+                    to_yuv420p(&self.layout, &self.planes, &mut buf.data);
+                }
+                _ => {
+                    shape(buf, w, h, PixelFormat::Rgb8);
+                    to_rgb(&self.layout, &self.planes, &mut buf.data);
+                }
+            }
         }
-        shape_rgb(buf, self.layout.width, self.layout.height);
-        yuv_to_rgb(&self.layout, &self.planes, &mut buf.data);
         let t = self.index as f64 / self.info.fps;
         self.index += 1;
         Ok(Some(t))
@@ -240,7 +285,21 @@ fn parse_header(header: &str) -> Result<(Layout, Option<f64>), String> {
     ))
 }
 
-/// Converts planar YUV to packed RGB (chroma upsampled by nearest neighbour).
+/// Converts a frame's planes to packed RGB: 4:2:0 with the core's
+/// conversion, the other layouts with [`yuv_to_rgb`].
+fn to_rgb(layout: &Layout, planes: &[u8], rgb: &mut Vec<u8>) {
+    let (w, h) = (layout.width, layout.height);
+    if layout.chroma == Chroma::C420 {
+        yuv420p_to_rgb_into(w, h, planes, layout.full_range, 3, rgb);
+    } else {
+        rgb.resize(w * h * 3, 0);
+        yuv_to_rgb(layout, planes, rgb);
+    }
+}
+
+/// Converts planar 4:2:2, 4:4:4 or mono YUV to packed RGB (chroma upsampled
+/// by nearest neighbour), for the layouts the core's 4:2:0 conversion does
+/// not take.
 fn yuv_to_rgb(layout: &Layout, planes: &[u8], rgb: &mut [u8]) {
     let (w, h) = (layout.width, layout.height);
     let (luma, chroma) = planes.split_at(w * h);
@@ -282,42 +341,63 @@ fn yuv_to_rgb(layout: &Layout, planes: &[u8], rgb: &mut [u8]) {
     }
 }
 
-/// Converts packed RGB/RGBA (`channels` bytes per pixel) to planar 4:2:0 YUV,
-/// BT.601 limited range, chroma from the average colour of each 2x2 block
-/// (centred siting, as `C420jpeg` says).
-fn rgb_to_yuv420(width: usize, height: usize, channels: usize, rgb: &[u8], out: &mut Vec<u8>) {
-    let (cw, ch) = (width.div_ceil(2), height.div_ceil(2));
-    out.clear();
-    out.resize(width * height + 2 * cw * ch, 0);
-    let (luma, chroma) = out.split_at_mut(width * height);
-    let (cb, cr) = chroma.split_at_mut(cw * ch);
-    for (px, yv) in rgb.chunks_exact(channels).zip(luma.iter_mut()) {
-        let (r, g, b) = (px[0] as i32, px[1] as i32, px[2] as i32);
-        *yv = (((16 << 16) + 16829 * r + 33039 * g + 6416 * b + 32768) >> 16) as u8;
+/// Converts a frame's planes to limited-range 4:2:0 (`out` already has the
+/// [`PixelFormat::Yuv420p`] length): chroma subsampled, then the range scaled.
+fn to_yuv420p(layout: &Layout, planes: &[u8], out: &mut [u8]) {
+    let (w, h) = (layout.width, layout.height);
+    let (y_out, u_out, v_out) = yuv_planes_mut(w, h, out);
+    let (luma, chroma) = planes.split_at(w * h);
+    y_out.copy_from_slice(luma);
+    match layout.chroma_size() {
+        // No colour: grey.
+        None => {
+            u_out.fill(128);
+            v_out.fill(128);
+        }
+        Some((cw, ch)) => {
+            let (cb, cr) = chroma.split_at(cw * ch);
+            subsample_420(cb, cw, ch, w, h, u_out);
+            subsample_420(cr, cw, ch, w, h, v_out);
+        }
     }
-    for cy in 0..ch {
-        for cx in 0..cw {
-            let (mut r, mut g, mut b, mut n) = (0i32, 0i32, 0i32, 0i32);
-            for y in 2 * cy..(2 * cy + 2).min(height) {
-                for x in 2 * cx..(2 * cx + 2).min(width) {
-                    let i = (y * width + x) * channels;
-                    r += rgb[i] as i32;
-                    g += rgb[i + 1] as i32;
-                    b += rgb[i + 2] as i32;
+    if layout.full_range {
+        let (y_lut, c_lut) = (range_lut(0.0, 16.0, 219.0), range_lut(128.0, 128.0, 224.0));
+        y_out.iter_mut().for_each(|v| *v = y_lut[*v as usize]);
+        u_out.iter_mut().for_each(|v| *v = c_lut[*v as usize]);
+        v_out.iter_mut().for_each(|v| *v = c_lut[*v as usize]);
+    }
+}
+
+/// Reduces a chroma plane of `cw x ch` samples (for a `width x height` frame:
+/// 4:2:0, 4:2:2 or 4:4:4) to the 4:2:0 plane `out`, each sample the rounded
+/// mean of the samples covering its 2x2 block of pixels.
+fn subsample_420(plane: &[u8], cw: usize, ch: usize, width: usize, height: usize, out: &mut [u8]) {
+    let (ow, oh) = amc_core::image::chroma_size(width, height);
+    // Source samples per output sample: 2 where the plane has full resolution.
+    let fx = if cw == ow { 1 } else { 2 };
+    let fy = if ch == oh { 1 } else { 2 };
+    for oy in 0..oh {
+        for ox in 0..ow {
+            let (mut sum, mut n) = (0u32, 0u32);
+            for y in fy * oy..(fy * oy + fy).min(ch) {
+                for x in fx * ox..(fx * ox + fx).min(cw) {
+                    sum += plane[y * cw + x] as u32;
                     n += 1;
                 }
             }
-            // Coefficients scaled by 65536 / n fold the averaging in.
-            let round = 32768 * n;
-            let u = ((128 << 16) * n - 9714 * r - 19071 * g + 28784 * b + round) / (65536 * n);
-            let v = ((128 << 16) * n + 28784 * r - 24103 * g - 4681 * b + round) / (65536 * n);
-            cb[cy * cw + cx] = u.clamp(0, 255) as u8;
-            cr[cy * cw + cx] = v.clamp(0, 255) as u8;
+            out[oy * ow + ox] = ((sum + n / 2) / n) as u8;
         }
     }
 }
 
-/// Frames written to a `.y4m` file (4:2:0, `C420jpeg`).
+/// A table mapping full-range samples (0..=255) to limited range:
+/// `to + (v - from) * span / 255`, rounded (luma: from 0 to 16, span 219;
+/// chroma: from 128 to 128, span 224).
+fn range_lut(from: f64, to: f64, span: f64) -> [u8; 256] {
+    std::array::from_fn(|v| (to + (v as f64 - from) * span / 255.0).round() as u8)
+}
+
+/// Frames written to a `.y4m` file (limited-range 4:2:0, `C420jpeg`).
 pub(crate) struct Y4mSink {
     path: PathBuf,
     /// Deleted on drop unless persisted by `finish`.
@@ -354,16 +434,10 @@ impl Y4mSink {
 impl FrameSink for Y4mSink {
     fn write_frame(&mut self, frame: &FrameRef<'_>, _t: f64) -> Result<(), VideoError> {
         check_frame(&self.path, self.width, self.height, frame)?;
-        rgb_to_yuv420(
-            self.width,
-            self.height,
-            frame.format.channels(),
-            frame.data,
-            &mut self.planes,
-        );
+        let planes = as_yuv420p(frame, &mut self.planes);
         self.out
             .write_all(b"FRAME\n")
-            .and_then(|()| self.out.write_all(&self.planes))
+            .and_then(|()| self.out.write_all(planes))
             .map_err(|e| VideoError::io(&self.path, "write", e))?;
         self.frames += 1;
         Ok(())
@@ -409,23 +483,34 @@ mod tests {
     }
 
     #[test]
-    fn colour_round_trip_is_close() {
-        // A flat colour survives 4:2:0 exactly up to rounding.
-        for rgb in [[0u8, 0, 0], [255, 255, 255], [200, 30, 90], [12, 180, 240]] {
-            let img: Vec<u8> = rgb.iter().copied().cycle().take(4 * 4 * 3).collect();
-            let mut planes = Vec::new();
-            rgb_to_yuv420(4, 4, 3, &img, &mut planes);
-            let layout = Layout {
-                width: 4,
-                height: 4,
-                chroma: Chroma::C420,
-                full_range: false,
-            };
-            let mut back = vec![0; img.len()];
-            yuv_to_rgb(&layout, &planes, &mut back);
-            for (a, b) in img.iter().zip(&back) {
-                assert!((*a as i32 - *b as i32).abs() <= 2, "{rgb:?} -> {back:?}");
-            }
-        }
+    fn non_420_colour_matches_the_core_conversion() {
+        // A flat colour as 4:4:4 converts like the same colour as 4:2:0.
+        let (w, h) = (4, 2);
+        let planes444: Vec<u8> = [[90u8; 8], [60; 8], [200; 8]].concat();
+        let layout = |chroma| Layout {
+            width: w,
+            height: h,
+            chroma,
+            full_range: false,
+        };
+        let mut ours = Vec::new();
+        to_rgb(&layout(Chroma::C444), &planes444, &mut ours);
+        let mut planes420 = vec![0; 12];
+        to_yuv420p(&layout(Chroma::C444), &planes444, &mut planes420);
+        assert_eq!(
+            planes420,
+            [[90u8; 8].as_slice(), &[60; 2], &[200; 2]].concat()
+        );
+        let mut core = Vec::new();
+        to_rgb(&layout(Chroma::C420), &planes420, &mut core);
+        assert_eq!(ours, core);
+    }
+
+    #[test]
+    fn full_range_maps_to_limited() {
+        let y = range_lut(0.0, 16.0, 219.0);
+        let c = range_lut(128.0, 128.0, 224.0);
+        assert_eq!((y[0], y[128], y[255]), (16, 126, 235));
+        assert_eq!((c[0], c[128], c[255]), (16, 128, 240));
     }
 }
