@@ -100,15 +100,26 @@ struct Buffered {
     view_fwd: Rot,
 }
 
-/// The streaming stabilizer (one per clip).
-pub struct Stabilizer {
-    params: StabilizerParams,
-    width: usize,
-    height: usize,
-    format: Option<PixelFormat>,
+/// The tracking stage: frames in, orientations out.
+struct Tracking {
     frontend: TrackingFrontend,
     tracker: Tracker,
     pyr: Pyramid,
+}
+
+impl Tracking {
+    /// Estimates the orientation of `frame`, taken at `t`.
+    fn track(&mut self, frame: &FrameRef<'_>, t: f64) -> (Rot, TrackInfo) {
+        let levels = self.tracker.levels();
+        self.frontend.prepare(frame, &mut self.pyr, levels);
+        self.tracker.track(&self.pyr, t)
+    }
+}
+
+/// The rendering stage: the ring's frames in, stabilized frames out. Apart
+/// from [`Tracking`] so that the two can run at once (see
+/// [`Stabilizer::set_pipelined`]).
+struct Rendering {
     /// Renders colour frames, or the Y plane of planar ones.
     warper: Warper,
     /// Renders the U and V planes of 4:2:0 frames (the chroma cameras).
@@ -116,9 +127,6 @@ pub struct Stabilizer {
     /// Coverage of the chroma planes (reused; the luma's is reported).
     chroma_cov: Vec<u8>,
     out_cam: CameraModel,
-    ring: VecDeque<Buffered>,
-    spare: Vec<Frame>,
-    view_fwd: Rot,
     saccade_view: Option<Rot>,
     slots: VecDeque<WarpedFrame>,
     spare_slots: Vec<WarpedFrame>,
@@ -128,10 +136,26 @@ pub struct Stabilizer {
     window: Vec<(f64, Rot)>,
     output: Frame,
     next_out: u64,
-    received: u64,
-    last_t: Option<f64>,
     last_shown: Option<(f64, Rot, Rot)>,
     last_saccade: Option<u64>,
+}
+
+/// The streaming stabilizer (one per clip).
+pub struct Stabilizer {
+    params: StabilizerParams,
+    width: usize,
+    height: usize,
+    format: Option<PixelFormat>,
+    tracking: Tracking,
+    rendering: Rendering,
+    ring: VecDeque<Buffered>,
+    spare: Vec<Frame>,
+    view_fwd: Rot,
+    received: u64,
+    last_t: Option<f64>,
+    /// Render output `j` while tracking frame `j + 1 + lookahead` (on the
+    /// caller's rayon pool with the `parallel` feature).
+    pipelined: bool,
 }
 
 impl Stabilizer {
@@ -177,45 +201,62 @@ impl Stabilizer {
             width,
             height,
             format: None,
-            frontend,
-            tracker,
-            pyr: Pyramid::default(),
-            warper,
-            chroma,
-            chroma_cov: Vec::new(),
-            out_cam,
+            tracking: Tracking {
+                frontend,
+                tracker,
+                pyr: Pyramid::default(),
+            },
+            rendering: Rendering {
+                warper,
+                chroma,
+                chroma_cov: Vec::new(),
+                out_cam,
+                saccade_view: None,
+                slots: VecDeque::new(),
+                spare_slots: Vec::new(),
+                acc: Accumulator::default(),
+                rotations: Vec::new(),
+                window: Vec::new(),
+                output: Frame::new(0, 0, PixelFormat::Rgb8),
+                next_out: 0,
+                last_shown: None,
+                last_saccade: None,
+            },
             ring: VecDeque::new(),
             spare: Vec::new(),
             view_fwd: Rot::identity(),
-            saccade_view: None,
-            slots: VecDeque::new(),
-            spare_slots: Vec::new(),
-            acc: Accumulator::default(),
-            rotations: Vec::new(),
-            window: Vec::new(),
-            output: Frame::new(0, 0, PixelFormat::Rgb8),
-            next_out: 0,
             received: 0,
             last_t: None,
-            last_shown: None,
-            last_saccade: None,
+            pipelined: false,
             params,
         })
     }
 
     /// Output frame size.
     pub fn output_size(&self) -> (usize, usize) {
-        (self.out_cam.width, self.out_cam.height)
+        (self.rendering.out_cam.width, self.rendering.out_cam.height)
     }
 
     /// The output (pinhole) camera.
     pub fn output_camera(&self) -> &CameraModel {
-        &self.out_cam
+        &self.rendering.out_cam
     }
 
     /// The undistorted pinhole camera the tracker works on.
     pub fn tracking_camera(&self) -> &CameraModel {
-        self.frontend.camera()
+        self.tracking.frontend.camera()
+    }
+
+    /// Pipelining: when on, each [`Stabilizer::push`] renders the output that
+    /// became ready at the *previous* push while it tracks its own frame (both
+    /// at once on the caller's rayon pool with the `parallel` feature; in turn
+    /// without it). Outputs are the same, bytes and telemetry, each one push
+    /// later (one more frame of latency; [`Stabilizer::finish`] returns the
+    /// last). Off by default. Set it before the first frame.
+    pub fn set_pipelined(&mut self, on: bool) {
+        if self.received == 0 {
+            self.pipelined = on;
+        }
     }
 
     /// Parameters in use.
@@ -225,14 +266,15 @@ impl Stabilizer {
 
     /// The latest output frame (valid after `push`/`finish` returned telemetry).
     pub fn output(&self) -> FrameRef<'_> {
-        self.output.as_ref()
+        self.rendering.output.as_ref()
     }
 
     /// Per-pixel count of frames averaged into the latest output (0 = black
     /// border); for planar frames, of its luma pixels.
     pub fn output_coverage(&self) -> &[u8] {
-        let n = self.out_cam.width * self.out_cam.height;
-        &self.acc.count[..n.min(self.acc.count.len())]
+        let (w, h) = self.output_size();
+        let count = &self.rendering.acc.count;
+        &count[..(w * h).min(count.len())]
     }
 
     /// Pushes frame `t` seconds into the clip. Returns the telemetry of the
@@ -280,12 +322,25 @@ impl Stabilizer {
         if self.format.is_none() {
             self.format = Some(frame.format);
             let (w, h) = self.output_size();
-            self.output = Frame::new(w, h, frame.format);
+            self.rendering.output = Frame::new(w, h, frame.format);
         }
 
-        let levels = self.tracker.levels();
-        self.frontend.prepare(&frame, &mut self.pyr, levels);
-        let (r_est, info) = self.tracker.track(&self.pyr, t);
+        let lookahead = self.params.view.lookahead as u64;
+        // Pipelined, the output that became ready at the previous push is
+        // rendered now, beside the tracking of this frame (the ring still
+        // holds every frame it needs: this one is added after).
+        let pending = self.pipelined && self.received > lookahead + self.rendering.next_out;
+        let src = (self.width, self.height);
+        let ((r_est, info), rendered) = if pending {
+            let (tracking, rendering) = (&mut self.tracking, &mut self.rendering);
+            let (ring, params) = (&self.ring, &self.params);
+            join(
+                || tracking.track(&frame, t),
+                || Some(rendering.render_next(ring, params, src)),
+            )
+        } else {
+            (self.tracking.track(&frame, t), None)
+        };
         self.view_fwd = if self.received == 0 {
             r_est
         } else {
@@ -316,7 +371,9 @@ impl Stabilizer {
         });
         self.received += 1;
 
-        if self.received > self.params.view.lookahead as u64 {
+        if self.pipelined {
+            Ok(rendered)
+        } else if self.received > lookahead {
             Ok(Some(self.render_next()))
         } else {
             Ok(None)
@@ -324,35 +381,66 @@ impl Stabilizer {
     }
 
     /// After the last frame: returns the next output still held back by the
-    /// lookahead, or `None` when all are out.
+    /// lookahead (or the pipeline), or `None` when all are out.
     pub fn finish(&mut self) -> Option<Telemetry> {
-        (self.next_out < self.received).then(|| self.render_next())
+        (self.rendering.next_out < self.received).then(|| self.render_next())
     }
 
-    /// Renders output frame `self.next_out` from the ring.
+    /// Renders the next output from the ring.
     fn render_next(&mut self) -> Telemetry {
+        let src = (self.width, self.height);
+        self.rendering.render_next(&self.ring, &self.params, src)
+    }
+}
+
+/// Runs `a` and `b`, at once on the rayon pool with the `parallel` feature.
+fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
+where
+    A: FnOnce() -> RA + Send,
+    B: FnOnce() -> RB + Send,
+    RA: Send,
+    RB: Send,
+{
+    #[cfg(feature = "parallel")]
+    {
+        rayon::join(a, b)
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        (a(), b())
+    }
+}
+
+impl Rendering {
+    /// Renders output frame `self.next_out` from `ring` (frames of size `src`).
+    fn render_next(
+        &mut self,
+        ring: &VecDeque<Buffered>,
+        params: &StabilizerParams,
+        src: (usize, usize),
+    ) -> Telemetry {
         let j = self.next_out;
         self.next_out += 1;
-        let pos = self.ring.iter().position(|b| b.index == j).unwrap_or(0);
-        let cur = &self.ring[pos];
+        let pos = ring.iter().position(|b| b.index == j).unwrap_or(0);
+        let cur = &ring[pos];
         let (t, r_est, info) = (cur.t, cur.r_est, cur.info);
-        let mode = self.params.view.mode;
+        let mode = params.view.mode;
         let window = match mode {
             Mode::None => 1,
-            _ => self.params.render.n_avg,
+            _ => params.render.n_avg,
         };
         let first = pos + 1 - window.min(pos + 1);
         let mut saccade = false;
         let r_view = match mode {
             Mode::None => r_est,
             Mode::Stabilize => {
-                if self.params.view.lookahead == 0 {
+                if params.view.lookahead == 0 {
                     cur.view_fwd
                 } else {
                     self.window.clear();
                     self.window
-                        .extend(self.ring.iter().skip(pos).map(|b| (b.t, b.view_fwd)));
-                    backward_pass(&self.params.view, &self.window)
+                        .extend(ring.iter().skip(pos).map(|b| (b.t, b.view_fwd)));
+                    backward_pass(&params.view, &self.window)
                 }
             }
             Mode::Saccade => *self.saccade_view.get_or_insert(r_est),
@@ -363,7 +451,7 @@ impl Stabilizer {
         let (ow, oh) = (self.out_cam.width, self.out_cam.height);
         let valid_fraction;
         if mode == Mode::Saccade {
-            self.saccade_update(first, pos, &r_view);
+            self.saccade_update(ring, src, first, pos, &r_view);
             let full = self.slots.len() as u8;
             let mut vf = self.finish_saccade(full);
             // After a saccade the older frames of the window cannot cover the new
@@ -372,14 +460,14 @@ impl Stabilizer {
             // (without this, strong motion re-centres on every frame).
             let refractory = self
                 .last_saccade
-                .is_some_and(|s| j < s + self.params.render.n_avg as u64);
-            if vf < self.params.view.saccade_coverage && j > 0 && !refractory {
+                .is_some_and(|s| j < s + params.render.n_avg as u64);
+            if vf < params.view.saccade_coverage && j > 0 && !refractory {
                 self.last_saccade = Some(j);
                 // Re-centre the view on the current estimate and rebuild the sums.
                 saccade = true;
                 self.saccade_view = Some(r_est);
                 self.slots.drain(..).for_each(|s| self.spare_slots.push(s));
-                self.saccade_update(first, pos, &r_est);
+                self.saccade_update(ring, src, first, pos, &r_est);
                 let full = self.slots.len() as u8;
                 vf = self.finish_saccade(full);
             }
@@ -387,15 +475,14 @@ impl Stabilizer {
         } else {
             self.rotations.clear();
             self.rotations.extend(
-                self.ring
-                    .range(first..=pos)
+                ring.range(first..=pos)
                     .map(|b| b.r_est.matrix().transpose() * r_view.matrix()),
             );
-            let ring = &self.ring;
+            let ring = &ring;
             valid_fraction = if format.is_planar() {
                 // One geometry, three planes: Y through the luma cameras, U and V
                 // through the chroma cameras, all with the same rotations.
-                let (w, h) = (self.width, self.height);
+                let (w, h) = (src.0, src.1);
                 let (cw, ch) = crate::image::chroma_size(w, h);
                 let (n, nc) = (w * h, cw * ch);
                 let (oy, ou, ov) = crate::image::yuv_planes_mut(ow, oh, &mut self.output.data);
@@ -473,13 +560,20 @@ impl Stabilizer {
     /// Saccade mode's recursive update: keeps one warped slot per frame of the
     /// window, warps only frames not yet warped into `view`, and maintains the
     /// running sum by adding the newest and subtracting the oldest.
-    fn saccade_update(&mut self, first: usize, pos: usize, view: &Rot) {
+    fn saccade_update(
+        &mut self,
+        ring: &VecDeque<Buffered>,
+        src: (usize, usize),
+        first: usize,
+        pos: usize,
+        view: &Rot,
+    ) {
         let (ow, oh) = (self.out_cam.width, self.out_cam.height);
         let n_px = ow * oh;
         let planar = self.output.format.is_planar();
         let (cw, ch) = crate::image::chroma_size(ow, oh);
         let nc = cw * ch;
-        let first_index = self.ring[first].index;
+        let first_index = ring[first].index;
         if self.slots.is_empty() {
             if planar {
                 self.acc.reset_to(n_px + 2 * nc, n_px + nc);
@@ -498,14 +592,14 @@ impl Stabilizer {
             .back()
             .map(|s| s.index + 1)
             .unwrap_or(first_index);
-        for b in self.ring.range(first..=pos) {
+        for b in ring.range(first..=pos) {
             if b.index < have_until {
                 continue;
             }
             let m = b.r_est.matrix().transpose() * view.matrix();
             let mut slot = self.spare_slots.pop().unwrap_or_default();
             if planar {
-                let (w, h) = (self.width, self.height);
+                let (w, h) = (src.0, src.1);
                 let (scw, sch) = crate::image::chroma_size(w, h);
                 let (n, snc) = (w * h, scw * sch);
                 slot.index = b.index;

@@ -1,5 +1,7 @@
 //! The streaming API allocates nothing per frame once warmed up, and its memory
-//! does not grow with the clip: checked with a counting global allocator.
+//! does not grow with the clip: checked with a counting global allocator. And
+//! pipelining (tracking one frame while rendering the previous output) changes
+//! when outputs come, never what they are.
 
 use amc_core::synth::{EquirectRenderer, Shake, ShakeParams};
 use amc_core::view::Mode;
@@ -27,6 +29,9 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
+/// The allocation counter is process-wide: tests take turns.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// A procedural panorama (no data files needed).
 fn panorama() -> Frame {
     let (w, h) = (1024usize, 512usize);
@@ -39,9 +44,8 @@ fn panorama() -> Frame {
     f
 }
 
-#[test]
-fn no_allocation_per_frame_in_steady_state() {
-    let cam = CameraModel::pinhole_hfov(160, 96, 90.0).unwrap();
+/// 40 frames of a shaky 160x96 clip, as RGB and as planar 4:2:0.
+fn clips(cam: &CameraModel) -> (Vec<Frame>, Vec<Frame>) {
     let pano = panorama();
     let renderer = EquirectRenderer::new(&cam, 1).unwrap();
     let shake = Shake::new(&ShakeParams::default()).unwrap();
@@ -66,6 +70,14 @@ fn no_allocation_per_frame_in_steady_state() {
             y
         })
         .collect();
+    (frames, yuv)
+}
+
+#[test]
+fn no_allocation_per_frame_in_steady_state() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let cam = CameraModel::pinhole_hfov(160, 96, 90.0).unwrap();
+    let (frames, yuv) = clips(&cam);
     // One thread: nothing at all. On a rayon pool of several (the `parallel`
     // feature), rayon's job queue allocates a block now and then (amortized,
     // freed again): bounded, but not zero.
@@ -118,5 +130,46 @@ fn check_steady_state(cam: &CameraModel, frames: &[Frame], allowed: usize) {
             allocs <= allowed,
             "{mode} (lookahead {lookahead}, {format:?}): {allocs} allocations in 240 frames"
         );
+    }
+}
+
+/// Every output of a pipelined run, bytes and telemetry, equals the plain run's.
+#[test]
+fn pipelined_outputs_equal_plain_outputs() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let cam = CameraModel::pinhole_hfov(160, 96, 90.0).unwrap();
+    let (rgb, yuv) = clips(&cam);
+    for clip in [&rgb, &yuv] {
+        for (mode, lookahead) in [
+            (Mode::Stabilize, 0),
+            (Mode::Stabilize, 5),
+            (Mode::Saccade, 0),
+        ] {
+            let run = |pipelined: bool| {
+                let mut params = StabilizerParams::default();
+                params.track_width = 160;
+                params.view.mode = mode;
+                params.view.lookahead = lookahead;
+                let mut stab = Stabilizer::new(&cam, 160, 96, params).unwrap();
+                stab.set_pipelined(pipelined);
+                let mut outs = Vec::new();
+                for j in 0..60 {
+                    if let Some(tel) = stab.push(clip[j % 40].as_ref(), j as f64 / 60.0).unwrap() {
+                        outs.push((format!("{tel:?}"), stab.output().data.to_vec()));
+                    }
+                }
+                while let Some(tel) = stab.finish() {
+                    outs.push((format!("{tel:?}"), stab.output().data.to_vec()));
+                }
+                outs
+            };
+            let (plain, piped) = (run(false), run(true));
+            assert_eq!(plain.len(), 60);
+            assert!(
+                plain == piped,
+                "{mode} lookahead {lookahead} {:?}",
+                clip[0].format
+            );
+        }
     }
 }

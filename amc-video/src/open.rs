@@ -32,6 +32,18 @@ pub fn open_stream(
     )?))
 }
 
+/// The pixel format `path`'s frames arrive in without a colour conversion:
+/// RGB for a directory of images, planar 4:2:0 for `.y4m` files and videos
+/// (what decoders produce). A run that keeps to it converts nothing on the way
+/// in, and nothing on the way out to a video.
+pub fn native_format(path: &Path) -> amc_core::PixelFormat {
+    if path.is_dir() {
+        amc_core::PixelFormat::Rgb8
+    } else {
+        amc_core::PixelFormat::Yuv420p
+    }
+}
+
 /// Opens `path` for decoding: a directory of images, a `.y4m` file, or any
 /// video ffmpeg can read, its frames in `opts.pixel_format`.
 pub fn open_input(path: &Path, opts: &InputOptions) -> Result<Box<dyn FrameSource>, VideoError> {

@@ -639,18 +639,16 @@ fn finish_gray_row(
     fill: u8,
 ) -> usize {
     let (n8, ow) = (pass.n8, cov_row.len());
-    let (sum, n) = (&scratch.sums[0], &scratch.count);
-    let mut complete = 0usize;
-    for u in 0..n8 {
-        out_row[u] = if n[u] == 0 {
-            fill
-        } else {
-            average(sum[u], n[u])
-        };
-        let c = n[u] as u8;
-        cov_row[u] = c;
-        complete += (c == full) as usize;
+    let (sum, n) = (&scratch.sums[0][..n8], &scratch.count[..n8]);
+    // Separate branch-free passes over equal-length slices: each vectorizes.
+    for ((o, &s), &k) in out_row[..n8].iter_mut().zip(sum).zip(n) {
+        let v = average(s, k);
+        *o = if k == 0 { fill } else { v };
     }
+    for (c, &k) in cov_row[..n8].iter_mut().zip(n) {
+        *c = k as u8;
+    }
+    let mut complete = n.iter().filter(|&&k| k == full as u32).count();
     for u in n8..ow {
         let (mut acc, mut c) = (0u32, 0u32);
         for (f, data) in pass.datas.iter().enumerate() {

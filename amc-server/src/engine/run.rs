@@ -8,8 +8,8 @@ use super::measure::MetricsWorker;
 use super::stages::{Reader, Writer};
 use super::{paths, telemetry, RunError};
 use amc_core::metrics::{ClipMetrics, FrameMetrics, MotionAccumulator, MotionSummary};
-use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams, Telemetry};
-use amc_video::{self as video, AtomicFile, FrameSource, OutputSpec};
+use amc_core::{CameraModel, Frame, Stabilizer, StabilizerParams, Telemetry};
+use amc_video::{self as video, AtomicFile, FrameSource, InputOptions, OutputSpec};
 use serde::Serialize;
 use std::io::{BufWriter, Write};
 use std::path::Path;
@@ -121,12 +121,20 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
     outputs.extend(cfg.also_writes.iter().copied());
     paths::check_distinct(&outputs)?;
 
-    let src: Box<dyn FrameSource> =
-        video::open_input(cfg.input, &super::input_options(cfg.fps, cfg.timeout))?;
+    // Frames stay in the input's own format from decoder to encoder (planar
+    // 4:2:0 for videos): no colour conversion anywhere on the way.
+    let format = video::native_format(cfg.input);
+    let opts = InputOptions {
+        pixel_format: format,
+        ..super::input_options(cfg.fps, cfg.timeout)
+    };
+    let src: Box<dyn FrameSource> = video::open_input(cfg.input, &opts)?;
     let info = src.info().clone();
     let threaded = cfg.threads > 1;
     let pool = render_pool(cfg.threads)?;
     let mut stab = Stabilizer::new(&cfg.lens, info.width, info.height, cfg.params.clone())?;
+    // With threads to spare, track each frame while the previous output renders.
+    stab.set_pipelined(cfg.threads > 1);
     let (ow, oh) = stab.output_size();
     let mut sink = match cfg.output {
         Some(path) => {
@@ -134,11 +142,12 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
             spec.audio_from = info.has_audio.then(|| cfg.input.to_path_buf());
             spec.timeout = cfg.timeout;
             spec.crf = cfg.crf;
+            spec.pixel_format = format;
             Some(Writer::new(video::create_output(path, &spec)?, threaded))
         }
         None => None,
     };
-    let mut src = Reader::new(src, threaded);
+    let mut src = Reader::new(src, format, threaded);
     let mut telemetry = match cfg.telemetry {
         Some(p) => {
             let mut w = BufWriter::new(AtomicFile::create(p, "")?);
@@ -155,7 +164,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         .then(|| MetricsWorker::start(cfg.keep_per_frame));
     let mut per_frame = Vec::new();
     let mut motion = MotionAccumulator::default();
-    let mut frame = Frame::new(info.width, info.height, PixelFormat::Rgb8);
+    let mut frame = Frame::new(info.width, info.height, format);
     let start = Instant::now();
     let mut frames = 0u64;
     let mut emit = |stab: &Stabilizer, tel: Telemetry| -> Result<(), RunError> {

@@ -32,8 +32,8 @@ pub(crate) enum Reader {
 }
 
 impl Reader {
-    /// Reads `src` inline, or on a thread when `threaded`.
-    pub fn new(mut src: Box<dyn FrameSource>, threaded: bool) -> Self {
+    /// Reads `src` (opened for `format` frames) inline, or on a thread when `threaded`.
+    pub fn new(mut src: Box<dyn FrameSource>, format: PixelFormat, threaded: bool) -> Self {
         if !threaded {
             return Reader::Inline(src);
         }
@@ -41,7 +41,7 @@ impl Reader {
         let (frames_tx, frames) = sync_channel::<Decoded>(QUEUE);
         let (spare, spare_rx) = channel::<Frame>();
         for _ in 0..QUEUE + 1 {
-            let _ = spare.send(Frame::new(w, h, PixelFormat::Rgb8));
+            let _ = spare.send(Frame::new(w, h, format));
         }
         let handle = std::thread::Builder::new()
             .name("amc-decode".into())
