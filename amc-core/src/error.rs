@@ -35,7 +35,7 @@ pub enum AmcError {
     /// A frame buffer's length does not match its size and pixel format.
     #[error("frame buffer has {actual} bytes, expected {expected}")]
     BufferLength {
-        /// [`crate::PixelFormat::buffer_len`] of the frame, bytes.
+        /// [`crate::format::PixelFormat::buffer_len`] of the frame, bytes.
         expected: usize,
         /// Length of the buffer, bytes.
         actual: usize,
@@ -44,9 +44,9 @@ pub enum AmcError {
     #[error("pixel format changed from {expected:?} to {actual:?}; every frame of a clip must have the same format")]
     FormatChanged {
         /// The first frame's format.
-        expected: crate::PixelFormat,
+        expected: crate::format::PixelFormat,
         /// This frame's format.
-        actual: crate::PixelFormat,
+        actual: crate::format::PixelFormat,
     },
     /// A frame's size differs from the clip's first frame.
     #[error("frame size changed from {expected_w}x{expected_h} to {actual_w}x{actual_h}; every frame of a clip must have the same size")]

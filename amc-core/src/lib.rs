@@ -10,6 +10,7 @@
 pub mod camera;
 pub mod color;
 pub mod error;
+pub mod format;
 pub mod image;
 pub mod lens;
 pub mod so3;

@@ -6,6 +6,9 @@
 //! 2. The same clip as a looped `--live-source`: the per-frame latency the
 //!    live feed adds (frame decoded -> stabilized JPEG ready), as reported in
 //!    each frame's telemetry, over 300 frames.
+//! 3. The clip at 60 frames/s (the paper's FPV camera's rate) as a looped
+//!    `--live-source` with two viewers at once: frames/s reaching each viewer
+//!    and the added latency (p50/p95/max) over 20 s.
 
 use amc_e2e::fixtures::ffmpeg;
 use amc_e2e::server::{post, websocket, Server};
@@ -79,6 +82,47 @@ fn main() {
     }
     drop(server);
 
+    let (rate, lat, skipped) = live(&clip, 1, 330).remove(0);
+    println!("\n| live feed | median | p95 | max | frames/s to a viewer | skipped |");
+    println!("|---|---|---|---|---|---|");
+    println!(
+        "| 720p30 source, 1 viewer: latency added per frame (decoded -> JPEG ready) | {:.1} ms | {:.1} ms | {:.1} ms | {rate:.1} | {skipped} |",
+        percentile(&lat, 0.5),
+        percentile(&lat, 0.95),
+        lat[lat.len() - 1],
+    );
+
+    let clip60 = dir.path().join("karma-720p60-20s.mp4");
+    ffmpeg(&[
+        "-i",
+        &s(&clip),
+        "-vf",
+        "fps=60",
+        "-c:v",
+        "libx264",
+        "-preset",
+        "veryfast",
+        "-crf",
+        "20",
+        "-an",
+        &s(&clip60),
+    ]);
+    for (viewer, (rate, lat, skipped)) in live(&clip60, 2, 1230).into_iter().enumerate() {
+        println!(
+            "| 720p60 source, viewer {} of 2 | {:.1} ms | {:.1} ms | {:.1} ms | {rate:.1} | {skipped} |",
+            viewer + 1,
+            percentile(&lat, 0.5),
+            percentile(&lat, 0.95),
+            lat[lat.len() - 1],
+        );
+    }
+}
+
+/// Serves `clip` as a looped live source to `viewers` viewers at once, each
+/// reading `frames` frames: per viewer, the frames/s it received (after the
+/// first 30), the latencies the server reported (sorted, ms) and the frames
+/// it was skipped past.
+fn live(clip: &std::path::Path, viewers: usize, frames: usize) -> Vec<(f64, Vec<f64>, u64)> {
     let server = Server::start(&[
         "--live-source",
         clip.to_str().unwrap(),
@@ -86,39 +130,48 @@ fn main() {
         "--live-fov",
         "70",
     ]);
-    let mut ws = websocket(&server.addr, "/live", Duration::from_secs(20)).expect("viewer");
-    let mut latencies = Vec::new();
-    let start = Instant::now();
-    let mut skipped = 0u64;
-    let mut last: Option<u64> = None;
-    while latencies.len() < 330 {
-        match ws.read() {
-            Ok(Message::Text(t)) => {
-                let v: serde_json::Value = serde_json::from_str(&t).expect("json");
-                let f = v["frame"].as_u64().unwrap_or(0);
-                if let Some(l) = last {
-                    skipped += f.saturating_sub(l + 1);
+    let sockets: Vec<_> = (0..viewers)
+        .map(|_| websocket(&server.addr, "/live", Duration::from_secs(20)).expect("viewer"))
+        .collect();
+    let threads: Vec<_> = sockets
+        .into_iter()
+        .map(|mut ws| {
+            std::thread::spawn(move || {
+                let mut latencies = Vec::new();
+                let mut started: Option<Instant> = None;
+                let mut skipped = 0u64;
+                let mut last: Option<u64> = None;
+                while latencies.len() < frames {
+                    match ws.read() {
+                        Ok(Message::Text(t)) => {
+                            let v: serde_json::Value = serde_json::from_str(&t).expect("json");
+                            let f = v["frame"].as_u64().unwrap_or(0);
+                            if let Some(l) = last {
+                                skipped += f.saturating_sub(l + 1);
+                            }
+                            last = Some(f);
+                            latencies.push(v["latency_ms"].as_f64().unwrap_or(f64::NAN));
+                            // The first frames include the stabilizer's warm-up.
+                            if latencies.len() == 30 {
+                                started = Some(Instant::now());
+                            }
+                        }
+                        Ok(_) => {}
+                        Err(e) => panic!("viewer: {e}"),
+                    }
                 }
-                last = Some(f);
-                latencies.push(v["latency_ms"].as_f64().unwrap_or(f64::NAN));
-            }
-            Ok(_) => {}
-            Err(e) => panic!("viewer: {e}"),
-        }
-    }
-    let secs = start.elapsed().as_secs_f64();
-    // The first frames include the stabilizer's warm-up.
-    let mut lat: Vec<f64> = latencies[30..].to_vec();
-    lat.sort_by(|a, b| a.total_cmp(b));
-    println!(
-        "\n| live feed, 720p30 source | median | p95 | max | frames/s to a viewer | skipped |"
-    );
-    println!("|---|---|---|---|---|---|");
-    println!(
-        "| latency added per frame (decoded -> JPEG ready) | {:.1} ms | {:.1} ms | {:.1} ms | {:.1} | {skipped} |",
-        percentile(&lat, 0.5),
-        percentile(&lat, 0.95),
-        lat[lat.len() - 1],
-        latencies.len() as f64 / secs
-    );
+                let secs = started.map_or(f64::NAN, |s| s.elapsed().as_secs_f64());
+                let rate = (frames - 30) as f64 / secs;
+                let mut lat: Vec<f64> = latencies[30..].to_vec();
+                lat.sort_by(|a, b| a.total_cmp(b));
+                (rate, lat, skipped)
+            })
+        })
+        .collect();
+    let out = threads
+        .into_iter()
+        .map(|t| t.join().expect("viewer thread"))
+        .collect();
+    drop(server);
+    out
 }

@@ -21,7 +21,7 @@ pub use lens::{
     input_options, resolve_lens, LensNote, ResolvedLens, AUTO_FOV_FRAMES, FALLBACK_FOV_DEG,
 };
 pub use paths::check_distinct;
-pub use run::{run, FrameRecord, Progress, RunConfig, RunSummary, TRUNCATED_SHARE};
+pub use run::{render_pool, run, FrameRecord, Progress, RunConfig, RunSummary, TRUNCATED_SHARE};
 pub use telemetry::TELEMETRY_HEADER;
 
 /// The default for [`RunConfig::threads`]: every core the process may use.

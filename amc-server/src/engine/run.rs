@@ -104,7 +104,8 @@ impl RunSummary {
 pub const TRUNCATED_SHARE: f64 = 0.95;
 
 /// The pool a run renders on: `threads` threads (1: the rows in order, on it).
-pub(crate) fn render_pool(threads: usize) -> Result<rayon::ThreadPool, RunError> {
+/// The live feed renders on one too.
+pub fn render_pool(threads: usize) -> Result<rayon::ThreadPool, RunError> {
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads.max(1))
         .thread_name(|i| format!("amc-render-{i}"))

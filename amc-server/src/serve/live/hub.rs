@@ -303,6 +303,9 @@ impl LiveHub {
             timeout: self.config.ffmpeg_timeout,
             // A file is replayed at its own rate, as a camera would deliver it.
             realtime: is_file,
+            // Decoders' own planes, rendered and JPEG-encoded without a
+            // colour conversion.
+            pixel_format: PixelFormat::Yuv420p,
             looped: self.config.looped && is_file,
             ..InputOptions::default()
         };
@@ -379,6 +382,11 @@ impl LiveHub {
 
     /// The processor thread: stabilize and publish until the input closes.
     fn process(self: Arc<Self>, rx: Receiver<Input>) {
+        // Each frame's rows are rendered on every core (no pipelining: it
+        // would add a frame of latency).
+        let pool = crate::engine::render_pool(crate::engine::default_threads())
+            .map_err(|e| tracing::warn!(error = %e, "live frames render on one thread"))
+            .ok();
         let mut stab: Option<Stabilizer> = None;
         let mut size = (0, 0);
         let mut rgb = Frame::new(0, 0, PixelFormat::Rgb8);
@@ -444,7 +452,10 @@ impl LiveHub {
                 t = last_t + 1e-3;
             }
             last_t = t;
-            let pushed = s.push(frame.as_ref(), t);
+            let pushed = match &pool {
+                Some(pool) => pool.install(|| s.push(frame.as_ref(), t)),
+                None => s.push(frame.as_ref(), t),
+            };
             self.recycle(frame, from_source, &mut rgb);
             let tel = match pushed {
                 Ok(Some(tel)) => tel,
