@@ -44,6 +44,22 @@ pub fn native_format(path: &Path) -> amc_core::PixelFormat {
     }
 }
 
+/// The pixel format an output at `path` takes without a colour conversion:
+/// RGB for a folder of PNGs, planar 4:2:0 for `.y4m` and videos.
+pub fn native_output_format(path: &Path) -> amc_core::PixelFormat {
+    if is_png_folder(path) {
+        amc_core::PixelFormat::Rgb8
+    } else {
+        amc_core::PixelFormat::Yuv420p
+    }
+}
+
+/// Whether an output at `path` is a folder of PNGs: a path without an
+/// extension, ending in `/`, or an existing directory.
+fn is_png_folder(path: &Path) -> bool {
+    path.as_os_str().to_string_lossy().ends_with('/') || path.is_dir() || extension(path).is_none()
+}
+
 /// Opens `path` for decoding: a directory of images, a `.y4m` file, or any
 /// video ffmpeg can read, its frames in `opts.pixel_format`.
 pub fn open_input(path: &Path, opts: &InputOptions) -> Result<Box<dyn FrameSource>, VideoError> {
@@ -83,8 +99,7 @@ pub fn create_output(path: &Path, spec: &OutputSpec) -> Result<Box<dyn FrameSink
         });
     }
     check_fps(path, spec.fps)?;
-    let ends_with_slash = path.as_os_str().to_string_lossy().ends_with('/');
-    if ends_with_slash || path.is_dir() {
+    if is_png_folder(path) {
         return Ok(Box::new(images::PngDirSink::create(path, spec)?));
     }
     match extension(path).as_deref() {

@@ -8,7 +8,7 @@ use super::measure::MetricsWorker;
 use super::stages::{Reader, Writer};
 use super::{paths, telemetry, RunError};
 use amc_core::metrics::{ClipMetrics, FrameMetrics, MotionAccumulator, MotionSummary};
-use amc_core::{CameraModel, Frame, Stabilizer, StabilizerParams, Telemetry};
+use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams, Telemetry};
 use amc_video::{self as video, AtomicFile, FrameSource, InputOptions, OutputSpec};
 use serde::Serialize;
 use std::io::{BufWriter, Write};
@@ -122,9 +122,15 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
     outputs.extend(cfg.also_writes.iter().copied());
     paths::check_distinct(&outputs)?;
 
-    // Frames stay in the input's own format from decoder to encoder (planar
-    // 4:2:0 for videos): no colour conversion anywhere on the way.
-    let format = video::native_format(cfg.input);
+    // Frames stay in the format both ends have without a conversion: planar
+    // 4:2:0 from a video to a video, RGB when either end is a folder of images.
+    let format = match (
+        video::native_format(cfg.input),
+        cfg.output.map(video::native_output_format),
+    ) {
+        (PixelFormat::Yuv420p, None | Some(PixelFormat::Yuv420p)) => PixelFormat::Yuv420p,
+        _ => PixelFormat::Rgb8,
+    };
     let opts = InputOptions {
         pixel_format: format,
         ..super::input_options(cfg.fps, cfg.timeout)
