@@ -36,6 +36,38 @@ async function pickVideoCodec(format, width, height) {
   throw new Error(`this browser cannot encode ${format === 'webm' ? 'VP9, VP8 or AV1' : 'H.264, VP9 or AV1'} video`);
 }
 
+/**
+ * The pixel path for a decoded frame: its planar 4:2:0 layout copied as is
+ * ('I420', or 'NV12' from hardware decoders, de-interleaved by the module),
+ * else 'RGBA' (the browser converts; also for RGBX/BGRA or an opaque format).
+ * Planar copies need a visible rectangle on even coordinates (chroma samples).
+ */
+function pixelPath(sample) {
+  const r = sample.visibleRect;
+  const even = r.left % 2 === 0 && r.top % 2 === 0;
+  return (sample.format === 'I420' || sample.format === 'NV12') && even ? sample.format : 'RGBA';
+}
+
+/**
+ * copyTo options writing a frame of `w x h` visible pixels in the module's
+ * layout: planes packed one after the other, rows without padding (copyTo
+ * would otherwise use the browser's layout, which may pad rows).
+ */
+function copyOptions(path, w, h) {
+  if (path === 'RGBA') return { format: 'RGBA' }; // converted by the browser, rows packed
+  const cw = (w + 1) >> 1, ch = (h + 1) >> 1;
+  if (path === 'NV12') return { layout: [{ offset: 0, stride: w }, { offset: w * h, stride: 2 * cw }] };
+  return { layout: [{ offset: 0, stride: w }, { offset: w * h, stride: cw }, { offset: w * h + cw * ch, stride: cw }] };
+}
+
+/** The VideoColorSpaceInit of a sample's colour space (plain object), or undefined. */
+function colorSpaceInit(sample) {
+  const c = sample.colorSpace;
+  if (!c) return undefined;
+  const init = typeof c.toJSON === 'function' ? c.toJSON() : { primaries: c.primaries, transfer: c.transfer, matrix: c.matrix, fullRange: c.fullRange };
+  return Object.fromEntries(Object.entries(init).filter(([, v]) => v !== null && v !== undefined));
+}
+
 async function processClip({ file, params, lens, format }) {
   const input = new Input({ source: new BlobSource(file), formats: ALL_FORMATS });
   let video;
@@ -58,15 +90,20 @@ async function processClip({ file, params, lens, format }) {
   const first = await samples.next();
   if (first.done) throw new Error(`the video track of ${file.name} has no frames`);
   const width = first.value.visibleRect.width, height = first.value.visibleRect.height;
+  // Planar frames go through the module as planes (no RGBA round trip); the
+  // output is then I420 with the input's colour space.
+  const path = pixelPath(first.value);
+  const outColorSpace = path === 'RGBA' ? undefined : colorSpaceInit(first.value);
+  const copyOpts = copyOptions(path, width, height);
   let stab;
   try {
-    stab = new Stabilizer(width, height, JSON.stringify(params), lens);
+    stab = new Stabilizer(width, height, JSON.stringify(params), lens, path);
   } catch (e) {
     first.value.close();
     throw e;
   }
   stab.setMetrics(true);
-  const ow = stab.outputWidth, oh = stab.outputHeight;
+  const ow = stab.outputWidth, oh = stab.outputHeight, outFormat = stab.outputFormat;
 
   const container = format === 'webm' ? new WebMOutputFormat() : new Mp4OutputFormat({ fastStart: 'in-memory' });
   const outCodec = await pickVideoCodec(format, ow, oh);
@@ -91,6 +128,7 @@ async function processClip({ file, params, lens, format }) {
   await output.start();
 
   post('start', { width, height, outWidth: ow, outHeight: oh, total, codec, outCodec, simd: simdEnabled(),
+    pixelFormat: path, decodedFormat: first.value.format,
     params: JSON.parse(stab.paramsJson()), audioNote });
 
   const t0 = performance.now();
@@ -101,8 +139,9 @@ async function processClip({ file, params, lens, format }) {
     telemetry.push(tel);
     // VideoFrame copies the pixels out of WASM memory (the view dies on the next call).
     const frame = new VideoFrame(stab.output(), {
-      format: 'RGBA', codedWidth: ow, codedHeight: oh,
+      format: outFormat, codedWidth: ow, codedHeight: oh,
       timestamp: Math.round((tel.t - firstT) * 1e6),
+      ...(outColorSpace ? { colorSpace: outColorSpace } : {}),
     });
     const sample = new VideoSample(frame);
     await videoSource.add(sample);
@@ -124,8 +163,13 @@ async function processClip({ file, params, lens, format }) {
     if (firstT === null) firstT = t;
     if (!(t > lastT)) t = lastT + 1e-6; // duplicate timestamps: keep order
     lastT = t;
+    if (path !== 'RGBA' && sample.format !== path) {
+      const f = sample.format;
+      sample.close();
+      throw new Error(`the decoder changed its pixel format within the clip (${path} to ${f}); not supported`);
+    }
     const buf = stab.inputBuffer();
-    await sample.copyTo(buf, { format: 'RGBA' });
+    await sample.copyTo(buf, copyOpts);
     sample.close();
     const m0 = performance.now();
     inputMetrics.push(stab.measureInput());
