@@ -102,6 +102,11 @@ test('drop cup.mp4: every frame stabilized in the browser; the MP4 download has 
   assert.equal(await state(page), 'done', await page.textContent('#error'));
   // Chromium's software H.264 decoder gives I420: the frames went through the module as planes.
   assert.equal(await page.evaluate(() => document.body.dataset.pixelFormat), 'I420');
+  // Speeds the page measured (end to end: decode + stabilize + metrics + encode; the stabilizer alone).
+  writeFileSync(join(artifacts, 'clip-speed.json'), JSON.stringify(await page.evaluate(() => ({
+    pixelFormat: document.body.dataset.pixelFormat, fps: Number(document.body.dataset.fps), stabFps: Number(document.body.dataset.stabFps),
+    status: document.getElementById('status-text').textContent,
+  })), null, 1));
   const input = ffprobeFrames(cup);
   assert.equal(Number(await page.evaluate(() => document.body.dataset.frames)), input.frames);
   const file = await download(page, 'cup-stabilized.mp4');
