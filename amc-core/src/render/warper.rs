@@ -639,18 +639,19 @@ fn finish_gray_row(
     fill: u8,
 ) -> usize {
     let (n8, ow) = (pass.n8, cov_row.len());
-    let (sum, n) = (&scratch.sums[0], &scratch.count);
-    let mut complete = 0usize;
-    for u in 0..n8 {
-        out_row[u] = if n[u] == 0 {
-            fill
-        } else {
-            average(sum[u], n[u])
-        };
-        let c = n[u] as u8;
-        cov_row[u] = c;
-        complete += (c == full) as usize;
+    let (sum, n) = (&scratch.sums[0][..n8], &scratch.count[..n8]);
+    // Branch-free over equal-length slices, so the compiler vectorizes it
+    // (wasm simd128, AVX2); same arithmetic as `average`, bit for bit.
+    // The average is in 0..=255.5 before truncation, so `as u32` then `as u8`
+    // equals `average`'s `as u8` (and vectorizes: no saturating byte conversion).
+    for ((o, &s), &c) in out_row[..n8].iter_mut().zip(sum).zip(n) {
+        let v = (s as f32 * (1.0 / (256.0 * c.max(1) as f32)) + 0.5) as u32 as u8;
+        *o = if c == 0 { fill } else { v };
     }
+    for (o, &c) in cov_row[..n8].iter_mut().zip(n) {
+        *o = c as u8;
+    }
+    let mut complete = cov_row[..n8].iter().filter(|&&c| c == full).count();
     for u in n8..ow {
         let (mut acc, mut c) = (0u32, 0u32);
         for (f, data) in pass.datas.iter().enumerate() {
