@@ -7,11 +7,9 @@
 // stabilized, and each output wrapped in a new VideoFrame (as for the encoder).
 import init, { Stabilizer, simdEnabled } from './pkg/amc_wasm.js';
 
+import { copyOptions } from './pixels.js';
+
 const planeLen = (W, H) => W * H + 2 * ((W + 1) >> 1) * ((H + 1) >> 1);
-const i420Layout = (W, H) => {
-  const cw = (W + 1) >> 1, ch = (H + 1) >> 1;
-  return [{ offset: 0, stride: W }, { offset: W * H, stride: cw }, { offset: W * H + cw * ch, stride: cw }];
-};
 
 self.onmessage = async (ev) => {
   try {
@@ -50,7 +48,7 @@ self.onmessage = async (ev) => {
       for (let k = 0; k < nV; k++) {
         sources.push(new VideoFrame(yuv.subarray(k * ySize, (k + 1) * ySize), { format: 'I420', codedWidth: W, codedHeight: H, timestamp: k }));
       }
-      const copyOpts = fmt === 'I420' ? { layout: i420Layout(W, H) } : { format: 'RGBA' };
+      const copyOpts = copyOptions(fmt, W, H); // as the page's worker
       const runVf = async (count) => {
         const s = new Stabilizer(W, H, '{}', Number(fov || 70), fmt);
         const ow = s.outputWidth, oh = s.outputHeight, of = s.outputFormat;
