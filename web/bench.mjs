@@ -2,11 +2,16 @@
 // Speed of amc-wasm in headless Chromium vs native, on the same frames.
 //
 //   node web/bench.mjs [--clip ../shared/data/karma/karma.mp4] [--n 600] [--n720 150] [--reps 3]
+//                      [--formats RGBA,I420]
 //
-// Decodes the clip with ffmpeg to raw RGBA at 320x180 and 1280x720, serves web/dist
-// and the frames from a throwaway local HTTP server, runs web/dist/bench.html in
-// headless Chromium (the stabilizer in a Web Worker, one thread) and the same
-// frames through the native single-thread example (amc-wasm/examples/native_bench.rs).
+// Decodes the clip with ffmpeg to raw RGBA and raw I420 (`-pix_fmt yuv420p`) at
+// 320x180 and 1280x720, serves web/dist and the frames from a throwaway local
+// HTTP server, runs web/dist/bench.html in headless Chromium (the stabilizer in
+// a Web Worker, one thread) and the same frames through the native
+// single-thread example (amc-wasm/examples/native_bench.rs), per format.
+// The browser also times the page's WebCodecs path without decoder/encoder
+// (`vf_fps`: I420 VideoFrames copyTo'd into the module, as is or converted to
+// RGBA, stabilized, each output wrapped in a VideoFrame) and splits its time.
 // Each is run --reps times, alternating, and the best run is kept (the machine
 // is shared and noisy; the best run is the least disturbed one).
 // Needs web/dist (web/build.sh), ffmpeg, /usr/bin/chromium (or $CHROMIUM).
@@ -23,6 +28,8 @@ const root = resolve(here, '..');
 const arg = (name, def) => { const i = process.argv.indexOf(`--${name}`); return i > 0 ? process.argv[i + 1] : def; };
 const clip = resolve(arg('clip', join(root, '../shared/data/karma/karma.mp4')));
 const reps = Number(arg('reps', 3));
+const formats = arg('formats', 'RGBA,I420').split(',').map((f) => f.trim().toUpperCase());
+for (const f of formats) if (f !== 'RGBA' && f !== 'I420') throw new Error(`--formats: ${f} (allowed: RGBA, I420)`);
 const sizes = [
   { w: 320, h: 180, n: Number(arg('n', 600)), src: 120 },
   { w: 1280, h: 720, n: Number(arg('n720', 150)), src: 40 },
@@ -52,22 +59,34 @@ const browser = await chromium.launch({
 const rows = [];
 try {
   for (const s of sizes) {
-    const name = `${s.w}x${s.h}.rgba`;
-    execFileSync('ffmpeg', ['-v', 'error', '-y', '-i', clip, '-frames:v', String(s.src), '-vf', `scale=${s.w}:${s.h}`, '-pix_fmt', 'rgba', '-f', 'rawvideo', join(tmp, name)]);
-    let web = null, native = null;
-    for (let r = 0; r < reps; r++) {
-      const page = await browser.newPage();
-      await page.goto(`${base}/bench.html?frames=/frames/${name}&w=${s.w}&h=${s.h}&n=${s.n}&fov=70`);
-      await page.waitForFunction(() => ['done', 'error'].includes(document.body.dataset.state), null, { timeout: 600000 });
-      const wr = await page.evaluate(() => window.benchResult);
-      await page.close();
-      if (wr.error) throw new Error(`browser: ${wr.error}`);
-      const out = execFileSync('cargo', ['run', '-q', '--release', '-p', 'amc-wasm', '--example', 'native_bench', '--', join(tmp, name), String(s.w), String(s.h), '70', String(s.n)], { cwd: root, encoding: 'utf8' });
-      const nr = JSON.parse(out.trim().split('\n').pop());
-      if (!web || wr.fps > web.fps) web = wr;
-      if (!native || nr.fps > native.fps) native = nr;
+    // The same frames in both layouts (the I420 ones also feed the VideoFrame path).
+    const raw = { RGBA: `${s.w}x${s.h}.rgba`, I420: `${s.w}x${s.h}.yuv` };
+    for (const [fmt, pix] of [['RGBA', 'rgba'], ['I420', 'yuv420p']]) {
+      execFileSync('ffmpeg', ['-v', 'error', '-y', '-i', clip, '-frames:v', String(s.src), '-vf', `scale=${s.w}:${s.h}`, '-pix_fmt', pix, '-f', 'rawvideo', join(tmp, raw[fmt])]);
     }
-    rows.push({ size: `${s.w}x${s.h}`, frames: s.n, browser_fps: +web.fps.toFixed(1), native_fps: +native.fps.toFixed(1), ratio: +(native.fps / web.fps).toFixed(2), simd: web.simd });
+    for (const fmt of formats) {
+      const name = raw[fmt];
+      let web = null, native = null;
+      for (let r = 0; r < reps; r++) {
+        const page = await browser.newPage();
+        await page.goto(`${base}/bench.html?frames=/frames/${name}&w=${s.w}&h=${s.h}&n=${s.n}&fov=70&fmt=${fmt}&vf=/frames/${raw.I420}`);
+        await page.waitForFunction(() => ['done', 'error'].includes(document.body.dataset.state), null, { timeout: 600000 });
+        const wr = await page.evaluate(() => window.benchResult);
+        await page.close();
+        if (wr.error) throw new Error(`browser: ${wr.error}`);
+        const out = execFileSync('cargo', ['run', '-q', '--release', '-p', 'amc-wasm', '--example', 'native_bench', '--', join(tmp, name), String(s.w), String(s.h), '70', String(s.n), fmt.toLowerCase()], { cwd: root, encoding: 'utf8' });
+        const nr = JSON.parse(out.trim().split('\n').pop());
+        if (!web || wr.fps > web.fps) web = { ...wr, vf_fps: Math.max(wr.vf_fps, web ? web.vf_fps : 0), vf_ms_per_frame: !web || wr.vf_fps > web.vf_fps ? wr.vf_ms_per_frame : web.vf_ms_per_frame };
+        else if (wr.vf_fps > web.vf_fps) web = { ...web, vf_fps: wr.vf_fps, vf_ms_per_frame: wr.vf_ms_per_frame };
+        if (!native || nr.fps > native.fps) native = nr;
+      }
+      const ms = web.vf_ms_per_frame;
+      rows.push({
+        size: `${s.w}x${s.h}`, format: fmt, frames: s.n, browser_fps: +web.fps.toFixed(1), native_fps: +native.fps.toFixed(1),
+        ratio: +(native.fps / web.fps).toFixed(2), browser_vf_fps: +web.vf_fps.toFixed(1),
+        vf_ms: `copyTo ${ms.copyTo.toFixed(2)} + stab ${ms.stabilize.toFixed(2)} + frame ${ms.output_frame.toFixed(2)}`, simd: web.simd,
+      });
+    }
   }
 } finally {
   await browser.close();

@@ -2,9 +2,14 @@
 //!
 //! Thin wasm-bindgen bindings over [`amc_core`] for the web page: a
 //! [`Stabilizer`] built from the shared [`StabilizerParams`] (JSON, the same
-//! definition the CLI and the REST API use), fed RGBA frames with their
-//! timestamps, returning the stabilized frame as a view into WASM memory and
-//! its telemetry as a plain object.
+//! definition the CLI and the REST API use), fed frames with their timestamps,
+//! returning the stabilized frame as a view into WASM memory and its telemetry
+//! as a plain object.
+//!
+//! Frames are RGBA (the default), or planar 4:2:0 as WebCodecs decoders give
+//! them: `"I420"` (Y, U, V planes) or `"NV12"` (Y plane, then interleaved UV,
+//! de-interleaved here). Planar frames are rendered plane by plane with no
+//! colour conversion and come out as I420 (see [`Stabilizer::new`]).
 //!
 //! Every bad input (sizes, buffer lengths, timestamps, parameters, lens files)
 //! becomes a JavaScript `Error` whose message names the value and the allowed
@@ -75,10 +80,15 @@ fn parse_camera(lens: &JsValue, width: usize, height: usize) -> Result<CameraMod
 const MEMORY_BUDGET: usize = 2 << 30;
 
 /// Rough upper bound of the stabilizer's memory: the frame ring (`n_avg +
-/// lookahead` RGBA frames), the input buffer, the saccade slots (7 bytes per
+/// lookahead` frames), the input buffer, the saccade slots (7 bytes per
 /// output pixel per frame) and working images; refuses what cannot fit.
-fn check_memory(width: usize, height: usize, p: &StabilizerParams) -> Result<(), JsError> {
-    let frame = width * height * 4;
+fn check_memory(
+    width: usize,
+    height: usize,
+    format: InputFormat,
+    p: &StabilizerParams,
+) -> Result<(), JsError> {
+    let frame = format.buffer_len(width, height);
     let frames = p.render.n_avg + p.view.lookahead + 4;
     let slots = if p.view.mode == amc_core::Mode::Saccade {
         p.render.n_avg * width * height * 7
@@ -118,14 +128,80 @@ fn norm_dps(v: [f64; 3]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt().to_degrees()
 }
 
-/// A streaming stabilizer for one clip of `width x height` RGBA frames.
+/// Pixel layout of the frames a [`Stabilizer`] takes (its `format` argument).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum InputFormat {
+    /// `"RGBA"`: 4 bytes per pixel; the output is RGBA.
+    Rgba,
+    /// `"I420"`: planar 4:2:0, Y then U then V, rows packed; the output is I420.
+    I420,
+    /// `"NV12"`: the Y plane, then one plane of interleaved U, V pairs
+    /// (`ceil(w/2) x ceil(h/2)` pairs, rows packed); the output is I420.
+    Nv12,
+}
+
+impl InputFormat {
+    const ALLOWED: &'static str = r#""RGBA" (the default), "I420" or "NV12""#;
+
+    fn parse(name: Option<String>) -> Result<Self, JsError> {
+        match name.as_deref() {
+            None | Some("RGBA") => Ok(InputFormat::Rgba),
+            Some("I420") => Ok(InputFormat::I420),
+            Some("NV12") => Ok(InputFormat::Nv12),
+            Some(other) => Err(JsError::new(&format!(
+                "invalid format: {other:?} (allowed: {})",
+                Self::ALLOWED
+            ))),
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            InputFormat::Rgba => "RGBA",
+            InputFormat::I420 => "I420",
+            InputFormat::Nv12 => "NV12",
+        }
+    }
+
+    /// The core's format of the frames pushed (NV12 is de-interleaved to I420).
+    fn core(self) -> PixelFormat {
+        match self {
+            InputFormat::Rgba => PixelFormat::Rgba8,
+            InputFormat::I420 | InputFormat::Nv12 => PixelFormat::Yuv420p,
+        }
+    }
+
+    /// Bytes of one `width x height` frame (NV12 and I420 have the same size).
+    /// Sizes are at most 16384 x 16384, so this cannot overflow.
+    fn buffer_len(self, width: usize, height: usize) -> usize {
+        self.core().buffer_len(width, height).unwrap_or(usize::MAX)
+    }
+}
+
+/// De-interleaves an NV12 frame (`width x height`, its exact length) into I420 in `out` (resized).
+fn nv12_to_i420(width: usize, height: usize, nv12: &[u8], out: &mut Vec<u8>) {
+    let n = width * height;
+    out.resize(nv12.len(), 0);
+    out[..n].copy_from_slice(&nv12[..n]);
+    let nc = (nv12.len() - n) / 2;
+    let (u, v) = out[n..].split_at_mut(nc);
+    for ((pair, u), v) in nv12[n..].chunks_exact(2).zip(u).zip(v) {
+        *u = pair[0];
+        *v = pair[1];
+    }
+}
+
+/// A streaming stabilizer for one clip of `width x height` frames (RGBA, I420 or NV12).
 #[wasm_bindgen]
 pub struct Stabilizer {
     inner: amc_core::Stabilizer,
     width: usize,
     height: usize,
+    format: InputFormat,
     /// Frame buffer JS may decode into directly ([`Stabilizer::input_buffer`]).
     input: Vec<u8>,
+    /// The NV12 input de-interleaved to I420 (unused for the other formats).
+    planar: Vec<u8>,
     metrics: Option<Metrics>,
 }
 
@@ -140,30 +216,70 @@ struct Metrics {
 
 #[wasm_bindgen]
 impl Stabilizer {
-    /// `new Stabilizer(width, height, paramsJson, lens)`: `paramsJson` is a JSON
-    /// `StabilizerParams` (unknown fields are errors; `"{}"` gives the paper's
-    /// settings); `lens` is a horizontal field of view in degrees or the text
-    /// of a lens file.
+    /// `new Stabilizer(width, height, paramsJson, lens, format?)`: `paramsJson`
+    /// is a JSON `StabilizerParams` (unknown fields are errors; `"{}"` gives the
+    /// paper's settings); `lens` is a horizontal field of view in degrees or
+    /// the text of a lens file; `format` is the pixel layout of the frames
+    /// pushed, named as WebCodecs' `VideoPixelFormat`:
+    ///
+    /// - `"RGBA"` (the default, also for `undefined`/`null`): `width * height * 4`
+    ///   bytes; the output is RGBA.
+    /// - `"I420"`: planar 4:2:0 (`VideoFrame.copyTo` of an I420 frame with
+    ///   packed planes): the Y plane (`width * height` bytes), then U and V
+    ///   (`ceil(width/2) * ceil(height/2)` bytes each); the output is I420 of
+    ///   the output size, black borders Y 16, U = V 128.
+    /// - `"NV12"`: the Y plane, then the interleaved UV plane (as hardware
+    ///   decoders give it; same length as I420), de-interleaved in the module;
+    ///   the output is I420.
+    ///
+    /// Any other value is an error naming the allowed ones.
     #[wasm_bindgen(constructor)]
     pub fn new(
         width: f64,
         height: f64,
         params_json: &str,
         lens: JsValue,
+        format: Option<String>,
     ) -> Result<Stabilizer, JsError> {
+        let format = InputFormat::parse(format)?;
         let width = dimension("width", width)?;
         let height = dimension("height", height)?;
         let params = parse_params(params_json)?;
-        check_memory(width, height, &params)?;
+        check_memory(width, height, format, &params)?;
         let cam = parse_camera(&lens, width, height)?;
         let inner = amc_core::Stabilizer::new(&cam, width, height, params).map_err(err)?;
         Ok(Stabilizer {
             inner,
             width,
             height,
+            format,
             input: Vec::new(),
+            planar: Vec::new(),
             metrics: None,
         })
+    }
+
+    /// The pixel layout of the input frames: `"RGBA"`, `"I420"` or `"NV12"`.
+    #[wasm_bindgen(getter)]
+    pub fn format(&self) -> String {
+        self.format.name().to_string()
+    }
+
+    /// The pixel layout of [`Stabilizer::output`]: `"RGBA"` for RGBA input,
+    /// `"I420"` for I420 and NV12 input (a `VideoFrame` format).
+    #[wasm_bindgen(getter, js_name = outputFormat)]
+    pub fn output_format(&self) -> String {
+        match self.format {
+            InputFormat::Rgba => "RGBA",
+            InputFormat::I420 | InputFormat::Nv12 => "I420",
+        }
+        .to_string()
+    }
+
+    /// Bytes of one input frame in this stabilizer's format.
+    #[wasm_bindgen(getter, js_name = inputLength)]
+    pub fn input_length(&self) -> usize {
+        self.format.buffer_len(self.width, self.height)
     }
 
     /// The effective parameters, as a JSON string (defaults filled in).
@@ -219,13 +335,19 @@ impl Stabilizer {
             .metrics
             .as_mut()
             .ok_or_else(|| JsError::new("metrics are off: call setMetrics(true) first"))?;
-        if self.input.len() != self.width * self.height * 4 {
+        if self.input.len() != self.format.buffer_len(self.width, self.height) {
             return Err(JsError::new(
                 "no input frame: fill inputBuffer() before measureInput()",
             ));
         }
+        let data = if self.format == InputFormat::Nv12 {
+            nv12_to_i420(self.width, self.height, &self.input, &mut self.planar);
+            &self.planar
+        } else {
+            &self.input
+        };
         let frame =
-            FrameRef::new(self.width, self.height, PixelFormat::Rgba8, &self.input).map_err(err)?;
+            FrameRef::new(self.width, self.height, self.format.core(), data).map_err(err)?;
         let fm = m.input.push(&frame, &m.full, 1.0, None);
         to_js(&metrics_json(&fm))
     }
@@ -251,12 +373,14 @@ impl Stabilizer {
         to_js(&metrics_json(&fm))
     }
 
-    /// A `width * height * 4` byte view into WASM memory to decode the next
-    /// frame into (e.g. `VideoFrame.copyTo`), then call
-    /// [`Stabilizer::push_input`]: no copy through JS.
+    /// A view into WASM memory of one input frame (`inputLength` bytes: RGBA
+    /// `width * height * 4`, I420 and NV12 `width * height + 2 *
+    /// ceil(width/2) * ceil(height/2)`) to decode the next frame into (e.g.
+    /// `VideoFrame.copyTo`), then call [`Stabilizer::push_input`]: no copy through JS.
     #[wasm_bindgen(js_name = inputBuffer)]
     pub fn input_buffer(&mut self) -> js_sys::Uint8Array {
-        self.input.resize(self.width * self.height * 4, 0);
+        self.input
+            .resize(self.format.buffer_len(self.width, self.height), 0);
         // SAFETY: the view aliases `self.input`, which is not touched until the
         // next call into the module; callers are told views die at that point.
         unsafe { js_sys::Uint8Array::view(&self.input) }
@@ -273,22 +397,32 @@ impl Stabilizer {
         r
     }
 
-    /// Pushes an RGBA frame (`width * height * 4` bytes, copied into WASM
-    /// memory) at `t` seconds (strictly increasing). Returns the telemetry of
-    /// the output frame that became ready, or `undefined`.
-    pub fn push(&mut self, rgba: &[u8], t: f64) -> Result<JsValue, JsError> {
-        let expected = self.width * self.height * 4;
-        if rgba.len() != expected {
+    /// Pushes a frame in this stabilizer's format (`inputLength` bytes,
+    /// copied into WASM memory) at `t` seconds (strictly increasing). Returns
+    /// the telemetry of the output frame that became ready, or `undefined`.
+    pub fn push(&mut self, data: &[u8], t: f64) -> Result<JsValue, JsError> {
+        let expected = self.format.buffer_len(self.width, self.height);
+        if data.len() != expected {
             return Err(JsError::new(&format!(
-                "invalid frame buffer length: {} bytes (allowed: exactly {expected} = {}x{} RGBA)",
-                rgba.len(),
+                "invalid frame buffer length: {} bytes (allowed: exactly {expected} = {}x{} {})",
+                data.len(),
                 self.width,
-                self.height
+                self.height,
+                self.format.name()
             )));
         }
-        let frame =
-            FrameRef::new(self.width, self.height, PixelFormat::Rgba8, rgba).map_err(err)?;
-        match self.inner.push(frame, t).map_err(err)? {
+        let mut planar = std::mem::take(&mut self.planar);
+        let data = if self.format == InputFormat::Nv12 {
+            nv12_to_i420(self.width, self.height, data, &mut planar);
+            &planar[..]
+        } else {
+            data
+        };
+        let pushed = FrameRef::new(self.width, self.height, self.format.core(), data)
+            .map_err(err)
+            .and_then(|frame| self.inner.push(frame, t).map_err(err));
+        self.planar = planar;
+        match pushed? {
             Some(tel) => self.report(&tel),
             None => Ok(JsValue::UNDEFINED),
         }
@@ -303,14 +437,17 @@ impl Stabilizer {
         }
     }
 
-    /// The latest stabilized frame: an RGBA view (`outputWidth * outputHeight * 4`
-    /// bytes) into WASM memory, empty before the first output.
+    /// The latest stabilized frame: a view into WASM memory, empty before the
+    /// first output. RGBA (`outputWidth * outputHeight * 4` bytes) for RGBA
+    /// input; I420 (`outputWidth * outputHeight + 2 * ceil(outputWidth/2) *
+    /// ceil(outputHeight/2)` bytes, planes packed) for I420 and NV12 input.
     pub fn output(&self) -> js_sys::Uint8Array {
         // SAFETY: aliases the core's output buffer, unchanged until the next call.
         unsafe { js_sys::Uint8Array::view(self.inner.output().data) }
     }
 
-    /// Per-pixel count of frames averaged into the latest output (0: black border).
+    /// Per-pixel count of frames averaged into the latest output (0: black
+    /// border); for I420 output, per luma pixel.
     pub fn coverage(&self) -> js_sys::Uint8Array {
         // SAFETY: as for `output`.
         unsafe { js_sys::Uint8Array::view(self.inner.output_coverage()) }
@@ -346,7 +483,8 @@ impl Stabilizer {
 /// Renders random frames through random rotations with the vectorized kernel
 /// (wasm `simd128` when the module was built with it) and with the scalar
 /// reference, and returns whether the images, coverage and valid share are
-/// identical, for RGBA and RGB frames. `fisheye` exercises the coordinate-table path.
+/// identical, for RGBA and RGB frames and for one plane of a planar (I420)
+/// frame. `fisheye` exercises the coordinate-table path.
 #[wasm_bindgen(js_name = simdMatchesScalar)]
 pub fn simd_matches_scalar(
     width: f64,
@@ -421,7 +559,30 @@ pub fn simd_matches_scalar(
             return Ok(false);
         }
     }
-    Ok(true)
+    // One plane of a planar frame (the single-channel kernel of I420 input).
+    let mut s = seed as u64 + 7;
+    let planes: Vec<Vec<u8>> = (0..4)
+        .map(|_| {
+            let mut f = vec![0u8; w * h + amc_core::render::kernels::FRAME_PADDING];
+            for b in f.iter_mut().take(w * h) {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                *b = (s >> 56) as u8;
+            }
+            f
+        })
+        .collect();
+    let render = |vectorized: bool| {
+        let mut warper = Warper::new(&cam, &out);
+        warper.set_vectorized(vectorized);
+        let mut img = vec![0u8; out.width * out.height];
+        let mut cov = Vec::new();
+        let complete =
+            warper.average_plane_into(|i| &planes[i][..], w, h, &rots, &mut img, &mut cov, 16);
+        (img, cov, complete)
+    };
+    Ok(render(false) == render(true))
 }
 
 /// Whether this module was built with the WebAssembly `simd128` kernel.

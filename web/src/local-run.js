@@ -30,8 +30,9 @@ export async function runLocal(file) {
     const m = ev.data;
     if (m.type === 'start') {
       start = m;
+      document.body.dataset.pixelFormat = m.pixelFormat;
       $('status-text').textContent = `${m.width}x${m.height} ${m.codec} → ${m.outWidth}x${m.outHeight} ${m.outCodec}` +
-        (m.simd ? ' (WASM SIMD)' : '') + (m.audioNote ? ` · ${m.audioNote}` : '');
+        ` (${m.pixelFormat}${m.simd ? ', WASM SIMD' : ''})` + (m.audioNote ? ` · ${m.audioNote}` : '');
       if (m.total) $('progress').max = m.total;
     } else if (m.type === 'progress') {
       if (m.total) { $('progress').max = m.total; $('progress').value = m.done; }

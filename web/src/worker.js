@@ -2,6 +2,7 @@
 // (WebCodecs), stabilize (amc-wasm), encode (WebCodecs) and mux (mediabunny),
 // copying the original's audio packets where the container allows.
 import init, { Stabilizer, simdEnabled } from './pkg/amc_wasm.js';
+import { pixelPath, copyOptions, colorSpaceInit } from './pixels.js';
 import {
   Input, ALL_FORMATS, BlobSource, VideoSampleSink, EncodedPacketSink, VideoSample,
   Output, Mp4OutputFormat, WebMOutputFormat, BufferTarget, VideoSampleSource,
@@ -58,15 +59,20 @@ async function processClip({ file, params, lens, format }) {
   const first = await samples.next();
   if (first.done) throw new Error(`the video track of ${file.name} has no frames`);
   const width = first.value.visibleRect.width, height = first.value.visibleRect.height;
+  // Planar frames go through the module as planes (no RGBA round trip); the
+  // output is then I420 with the input's colour space.
+  const path = pixelPath(first.value);
+  const outColorSpace = path === 'RGBA' ? undefined : colorSpaceInit(first.value);
+  const copyOpts = copyOptions(path, width, height);
   let stab;
   try {
-    stab = new Stabilizer(width, height, JSON.stringify(params), lens);
+    stab = new Stabilizer(width, height, JSON.stringify(params), lens, path);
   } catch (e) {
     first.value.close();
     throw e;
   }
   stab.setMetrics(true);
-  const ow = stab.outputWidth, oh = stab.outputHeight;
+  const ow = stab.outputWidth, oh = stab.outputHeight, outFormat = stab.outputFormat;
 
   const container = format === 'webm' ? new WebMOutputFormat() : new Mp4OutputFormat({ fastStart: 'in-memory' });
   const outCodec = await pickVideoCodec(format, ow, oh);
@@ -91,6 +97,7 @@ async function processClip({ file, params, lens, format }) {
   await output.start();
 
   post('start', { width, height, outWidth: ow, outHeight: oh, total, codec, outCodec, simd: simdEnabled(),
+    pixelFormat: path, decodedFormat: first.value.format,
     params: JSON.parse(stab.paramsJson()), audioNote });
 
   const t0 = performance.now();
@@ -101,8 +108,9 @@ async function processClip({ file, params, lens, format }) {
     telemetry.push(tel);
     // VideoFrame copies the pixels out of WASM memory (the view dies on the next call).
     const frame = new VideoFrame(stab.output(), {
-      format: 'RGBA', codedWidth: ow, codedHeight: oh,
+      format: outFormat, codedWidth: ow, codedHeight: oh,
       timestamp: Math.round((tel.t - firstT) * 1e6),
+      ...(outColorSpace ? { colorSpace: outColorSpace } : {}),
     });
     const sample = new VideoSample(frame);
     await videoSource.add(sample);
@@ -124,8 +132,13 @@ async function processClip({ file, params, lens, format }) {
     if (firstT === null) firstT = t;
     if (!(t > lastT)) t = lastT + 1e-6; // duplicate timestamps: keep order
     lastT = t;
+    if (path !== 'RGBA' && sample.format !== path) {
+      const f = sample.format;
+      sample.close();
+      throw new Error(`the decoder changed its pixel format within the clip (${path} to ${f}); not supported`);
+    }
     const buf = stab.inputBuffer();
-    await sample.copyTo(buf, { format: 'RGBA' });
+    await sample.copyTo(buf, copyOpts);
     sample.close();
     const m0 = performance.now();
     inputMetrics.push(stab.measureInput());

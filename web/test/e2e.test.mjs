@@ -61,6 +61,15 @@ const state = (page) => page.evaluate(() => document.body.dataset.state);
 const waitState = (page, states, timeout = 300000) =>
   page.waitForFunction((s) => s.includes(document.body.dataset.state), states, { timeout });
 
+/** Mean R, G, B (0..255) over all frames of a video, after cutting `crop` of each side. */
+function meanRgb(file, crop = 0) {
+  const vf = (crop > 0 ? `crop=iw*${1 - 2 * crop}:ih*${1 - 2 * crop},` : '') + 'scale=1:1:flags=area,format=rgb24';
+  const raw = execFileSync('ffmpeg', ['-v', 'error', '-i', file, '-vf', vf, '-f', 'rawvideo', '-'], { maxBuffer: 1 << 26 });
+  const n = Math.floor(raw.length / 3), m = [0, 0, 0];
+  for (let i = 0; i < 3 * n; i++) m[i % 3] += raw[i] / n;
+  return m;
+}
+
 async function download(page, name, testid = 'download') {
   const [dl] = await Promise.all([page.waitForEvent('download'), page.click(`[data-testid=${testid}]`)]);
   const file = join(tmp, name);
@@ -91,6 +100,13 @@ test('drop cup.mp4: every frame stabilized in the browser; the MP4 download has 
   await waitState(page, ['done', 'error']);
   await shot(page, 'clip-3-done');
   assert.equal(await state(page), 'done', await page.textContent('#error'));
+  // Chromium's software H.264 decoder gives I420: the frames went through the module as planes.
+  assert.equal(await page.evaluate(() => document.body.dataset.pixelFormat), 'I420');
+  // Speeds the page measured (end to end: decode + stabilize + metrics + encode; the stabilizer alone).
+  writeFileSync(join(artifacts, 'clip-speed.json'), JSON.stringify(await page.evaluate(() => ({
+    pixelFormat: document.body.dataset.pixelFormat, fps: Number(document.body.dataset.fps), stabFps: Number(document.body.dataset.stabFps),
+    status: document.getElementById('status-text').textContent,
+  })), null, 1));
   const input = ffprobeFrames(cup);
   assert.equal(Number(await page.evaluate(() => document.body.dataset.frames)), input.frames);
   const file = await download(page, 'cup-stabilized.mp4');
@@ -103,6 +119,9 @@ test('drop cup.mp4: every frame stabilized in the browser; the MP4 download has 
   const rin = rmsFrameChange(cup, 0.125), rout = rmsFrameChange(file);
   writeFileSync(join(artifacts, 'clip-rms.json'), JSON.stringify({ input: rin, output: rout }, null, 1));
   assert.ok(rout.rms < rin.rms, `RMS frame change: output ${rout.rms.toFixed(4)} vs input ${rin.rms.toFixed(4)}`);
+  // Colours kept through the planar path (planes in order, same range): mean R, G, B of the clip.
+  const cin = meanRgb(cup, 0.125), cout = meanRgb(file);
+  assert.ok(cin.every((v, i) => Math.abs(v - cout[i]) < 8), `mean RGB: output ${cout.map((v) => v.toFixed(1))} vs input ${cin.map((v) => v.toFixed(1))}`);
   // The plot and the side-by-side players are there, both players the same size.
   assert.equal(await page.isVisible('#plot'), true);
   assert.ok(await page.evaluate(() => document.getElementById('stab').src.startsWith('blob:')));
@@ -146,6 +165,69 @@ test('drop cup.mp4: every frame stabilized in the browser; the MP4 download has 
   const diffMean = await canvasMean(page, '#compare-canvas');
   assert.ok(diffMean < wipeMean, `difference ${diffMean} vs wipe ${wipeMean}`);
   await shot(page, 'clip-5-difference');
+  assert.deepEqual(errors, []);
+  await page.close();
+});
+
+test('planar VideoFrames in Chromium: I420 and NV12 copied with the page\'s layout (odd and padded sizes) stabilize like the raw planes; I420 output frames', async () => {
+  const { page, errors } = await newPage();
+  const res = await page.evaluate(async () => {
+    const wasm = await import('/pkg/amc_wasm.js');
+    await wasm.default();
+    const { pixelPath, copyOptions } = await import('/pixels.js');
+    const out = [];
+    // Visible size, coded size (rows padded, as decoders do), frames.
+    for (const [w, h, cwid, chei] of [[160, 90, 160, 90], [161, 91, 176, 96], [320, 180, 320, 192]]) {
+      const cw = (w + 1) >> 1, ch = (h + 1) >> 1, ccw = cwid >> 1, cch = chei >> 1;
+      const a = new wasm.Stabilizer(w, h, '{}', 70, 'I420');
+      const b = new wasm.Stabilizer(w, h, '{}', 70, 'I420');
+      const c = new wasm.Stabilizer(w, h, '{}', 70, 'NV12');
+      const r = { size: `${w}x${h}`, coded: `${cwid}x${chei}`, paths: [], equal: 0, frames: 0, roundTrip: 0 };
+      for (let i = 0; i < 6; i++) {
+        // Packed I420 planes of a moving pattern, and the same frame in coded-size I420 and NV12 buffers.
+        const val = (x, y, k) => (128 + 60 * Math.sin((x + 2 * i) * 0.21 + k) * Math.cos((y - i) * 0.17)) | 0;
+        const packed = new Uint8Array(w * h + 2 * cw * ch);
+        const i420 = new Uint8Array(cwid * chei + 2 * ccw * cch), nv12 = new Uint8Array(cwid * chei + 2 * ccw * cch);
+        for (let y = 0; y < h; y++) for (let x = 0; x < w; x++) {
+          packed[y * w + x] = i420[y * cwid + x] = nv12[y * cwid + x] = val(x, y, 0);
+        }
+        for (let y = 0; y < ch; y++) for (let x = 0; x < cw; x++) {
+          const u = val(2 * x, 2 * y, 1) >> 1, v = 255 - (val(2 * x, 2 * y, 2) >> 1);
+          packed[w * h + y * cw + x] = u; packed[w * h + cw * ch + y * cw + x] = v;
+          i420[cwid * chei + y * ccw + x] = u; i420[cwid * chei + ccw * cch + y * ccw + x] = v;
+          nv12[cwid * chei + y * 2 * ccw + 2 * x] = u; nv12[cwid * chei + y * 2 * ccw + 2 * x + 1] = v;
+        }
+        const init = { codedWidth: cwid, codedHeight: chei, visibleRect: { x: 0, y: 0, width: w, height: h }, timestamp: i };
+        const fi = new VideoFrame(i420, { ...init, format: 'I420' }), fn = new VideoFrame(nv12, { ...init, format: 'NV12' });
+        r.paths.push(pixelPath(fi), pixelPath(fn));
+        a.push(packed, i / 30);
+        await fi.copyTo(b.inputBuffer(), copyOptions('I420', w, h));
+        b.pushInput(i / 30);
+        await fn.copyTo(c.inputBuffer(), copyOptions('NV12', w, h));
+        c.pushInput(i / 30);
+        fi.close(); fn.close();
+        const oa = a.output(), ob = b.output(), oc = c.output();
+        r.frames++;
+        if (oa.length && oa.every((x, k) => x === ob[k] && x === oc[k])) r.equal++;
+        // The output as the encoder gets it: an I420 VideoFrame of the (possibly odd) output size.
+        const copy = oc.slice();
+        const of = new VideoFrame(copy, { format: c.outputFormat, codedWidth: c.outputWidth, codedHeight: c.outputHeight, timestamp: i });
+        const back = new Uint8Array(copy.length);
+        await of.copyTo(back, copyOptions('I420', c.outputWidth, c.outputHeight));
+        of.close();
+        if (back.every((x, k) => x === copy[k])) r.roundTrip++;
+      }
+      r.out = `${c.outputWidth}x${c.outputHeight} ${c.outputFormat}`;
+      a.free(); b.free(); c.free();
+      out.push(r);
+    }
+    return out;
+  });
+  for (const r of res) {
+    assert.deepEqual([...new Set(r.paths)].sort(), ['I420', 'NV12'], JSON.stringify(r));
+    assert.equal(r.equal, r.frames, `copyTo into WASM = raw planes: ${JSON.stringify(r)}`);
+    assert.equal(r.roundTrip, r.frames, `I420 output VideoFrame round trip: ${JSON.stringify(r)}`);
+  }
   assert.deepEqual(errors, []);
   await page.close();
 });

@@ -143,6 +143,163 @@ test('a lens file from text (project JSON) is accepted and rescaled', () => {
   s.free();
 });
 
+// --- Planar frames (I420, NV12) ----------------------------------------------
+
+/** RGBA to I420, BT.601 limited range, chroma from the 2x2 block's mean (amc-core's color.rs). */
+function toI420(rgba, w, h) {
+  const cw = (w + 1) >> 1, ch = (h + 1) >> 1;
+  const out = new Uint8Array(w * h + 2 * cw * ch);
+  for (let i = 0; i < w * h; i++) {
+    const r = rgba[4 * i], g = rgba[4 * i + 1], b = rgba[4 * i + 2];
+    out[i] = ((16 << 16) + 16829 * r + 33039 * g + 6416 * b + 32768) >> 16;
+  }
+  for (let cy = 0; cy < ch; cy++) {
+    for (let cx = 0; cx < cw; cx++) {
+      let r = 0, g = 0, b = 0, n = 0;
+      for (let y = 2 * cy; y < Math.min(2 * cy + 2, h); y++) {
+        for (let x = 2 * cx; x < Math.min(2 * cx + 2, w); x++) {
+          const i = 4 * (y * w + x);
+          r += rgba[i]; g += rgba[i + 1]; b += rgba[i + 2]; n++;
+        }
+      }
+      const u = Math.floor(((128 << 16) * n - 9714 * r - 19071 * g + 28784 * b + 32768 * n) / (65536 * n));
+      const v = Math.floor(((128 << 16) * n + 28784 * r - 24103 * g - 4681 * b + 32768 * n) / (65536 * n));
+      out[w * h + cy * cw + cx] = Math.min(255, Math.max(0, u));
+      out[w * h + cw * ch + cy * cw + cx] = Math.min(255, Math.max(0, v));
+    }
+  }
+  return out;
+}
+
+/** I420 to NV12: the Y plane, then U and V interleaved. */
+function toNv12(i420, w, h) {
+  const n = w * h, nc = ((w + 1) >> 1) * ((h + 1) >> 1);
+  const out = new Uint8Array(i420.length);
+  out.set(i420.subarray(0, n));
+  for (let k = 0; k < nc; k++) { out[n + 2 * k] = i420[n + k]; out[n + 2 * k + 1] = i420[n + nc + k]; }
+  return out;
+}
+
+const i420Len = (w, h) => w * h + 2 * ((w + 1) >> 1) * ((h + 1) >> 1);
+
+test('I420 frames: I420 output (Y within a few codes of the RGBA run of the same frames), black borders Y16/U=V128', () => {
+  // Odd sizes too: chroma planes of ceil(w/2) x ceil(h/2).
+  for (const [w, h] of [[W, H], [161, 91]]) {
+    const rgba = new Stabilizer(w, h, '{}', 70);
+    const yuv = new Stabilizer(w, h, '{}', 70, 'I420');
+    assert.equal(rgba.format, 'RGBA');
+    assert.equal(rgba.outputFormat, 'RGBA');
+    assert.equal(yuv.format, 'I420');
+    assert.equal(yuv.outputFormat, 'I420');
+    assert.equal(yuv.inputLength, i420Len(w, h));
+    assert.equal(yuv.inputBuffer().length, i420Len(w, h));
+    const ow = yuv.outputWidth, oh = yuv.outputHeight;
+    let worst = 0, sum = 0, count = 0, borders = 0;
+    for (let i = 0; i < 10; i++) {
+      const f = frame(w, h, 1.5 * i, -0.7 * i);
+      const a = rgba.push(f, i / 30);
+      yuv.inputBuffer().set(toI420(f, w, h));
+      const b = yuv.pushInput(i / 30);
+      assert.ok(a && b, `telemetry for frame ${i}`);
+      // Same motion estimate from RGBA luma and from the Y plane.
+      for (let k = 0; k < 3; k++) assert.ok(Math.abs(a.r_est[k] - b.r_est[k]) < 2e-3, `r_est ${a.r_est} vs ${b.r_est}`);
+      const out = yuv.output();
+      assert.equal(out.length, i420Len(ow, oh));
+      const ref = toI420(rgba.output(), ow, oh);
+      const cov = yuv.coverage();
+      assert.equal(cov.length, ow * oh);
+      for (let p = 0; p < ow * oh; p++) {
+        if (cov[p] === 0) {
+          assert.equal(out[p], 16, 'black border luma');
+          borders++;
+          continue;
+        }
+        const d = Math.abs(out[p] - ref[p]);
+        worst = Math.max(worst, d); sum += d; count++;
+      }
+    }
+    assert.ok(count > 0);
+    assert.ok(sum / count < 1.0 && worst <= 6, `${w}x${h}: mean |dY| ${sum / count}, max ${worst}`);
+    if (borders) {
+      // A border pixel's chroma is grey too.
+      const cw = (ow + 1) >> 1, cov = yuv.coverage(), out = yuv.output();
+      const p = cov.findIndex((c) => c === 0), x = p % ow, y = Math.floor(p / ow);
+      const cov4 = [0, 1].every((dy) => [0, 1].every((dx) => (y - (y % 2) + dy >= oh || x - (x % 2) + dx >= ow) || cov[(y - (y % 2) + dy) * ow + x - (x % 2) + dx] === 0));
+      if (cov4) {
+        const c = (y >> 1) * cw + (x >> 1), nc = cw * ((oh + 1) >> 1);
+        assert.equal(out[ow * oh + c], 128);
+        assert.equal(out[ow * oh + nc + c], 128);
+      }
+    }
+    rgba.free(); yuv.free();
+  }
+});
+
+test('NV12 frames give exactly the I420 output of the de-interleaved frames; push and pushInput agree', () => {
+  const a = new Stabilizer(W, H, '{}', 70, 'I420'), b = new Stabilizer(W, H, '{}', 70, 'NV12'), c = new Stabilizer(W, H, '{}', 70, 'NV12');
+  assert.equal(b.format, 'NV12');
+  assert.equal(b.outputFormat, 'I420');
+  assert.equal(b.inputBuffer().length, i420Len(W, H));
+  for (const s of [a, b, c]) s.setMetrics(true);
+  for (let i = 0; i < 8; i++) {
+    const f = toI420(frame(W, H, i, (i * 3) % 5), W, H);
+    a.inputBuffer().set(f);
+    const ma = a.measureInput();
+    const ta = a.pushInput(i / 25);
+    b.inputBuffer().set(toNv12(f, W, H));
+    const mb = b.measureInput();
+    const tb = b.pushInput(i / 25);
+    const tc = c.push(toNv12(f, W, H), i / 25);
+    assert.deepEqual(mb, ma, 'input metrics of NV12 = I420');
+    assert.deepEqual(tb.r_est, ta.r_est);
+    assert.deepEqual(tc.r_est, ta.r_est);
+    assert.deepEqual(b.output(), a.output());
+    assert.deepEqual(c.output(), a.output());
+    assert.deepEqual(b.measureOutput(), a.measureOutput());
+  }
+  a.free(); b.free(); c.free();
+});
+
+test('I420 metrics: input and output measured on the Y plane, close to the RGBA run', () => {
+  const rgba = new Stabilizer(W, H, '{}', 70), yuv = new Stabilizer(W, H, '{}', 70, 'I420');
+  rgba.setMetrics(true); yuv.setMetrics(true);
+  throwsMsg(() => yuv.measureInput(), /no input frame/);
+  for (let i = 0; i < 8; i++) {
+    const f = frame(W, H, i, -i);
+    rgba.inputBuffer().set(f);
+    yuv.inputBuffer().set(toI420(f, W, H));
+    const mi = [rgba.measureInput(), yuv.measureInput()];
+    rgba.pushInput(i / 30); yuv.pushInput(i / 30);
+    const mo = [rgba.measureOutput(), yuv.measureOutput()];
+    for (const [x, y] of [mi, mo]) {
+      assert.ok(y.sharpness > 0);
+      assert.ok(Math.abs(x.sharpness - y.sharpness) < 0.1 * x.sharpness, `sharpness ${x.sharpness} vs ${y.sharpness}`);
+      if (i > 0) assert.ok(Math.abs(x.rms_change - y.rms_change) < 0.15 * x.rms_change + 2e-3, `rms_change ${x.rms_change} vs ${y.rms_change}`);
+    }
+  }
+  const sum = yuv.summary();
+  assert.equal(sum.output.frames, 8);
+  rgba.free(); yuv.free();
+});
+
+test('planar formats: bad names and buffer lengths are JS Errors naming the allowed values', () => {
+  throwsMsg(() => new Stabilizer(W, H, '{}', 70, 'YUV'), /invalid format: "YUV" \(allowed: "RGBA" \(the default\), "I420" or "NV12"\)/);
+  throwsMsg(() => new Stabilizer(W, H, '{}', 70, 'i420'), /invalid format: "i420"/);
+  throwsMsg(() => new Stabilizer(W, H, '{}', 70, ''), /invalid format: ""/);
+  assert.equal(new Stabilizer(W, H, '{}', 70, undefined).format, 'RGBA');
+  assert.equal(new Stabilizer(W, H, '{}', 70, null).format, 'RGBA');
+  assert.equal(new Stabilizer(W, H, '{}', 70, 'RGBA').format, 'RGBA');
+  const s = new Stabilizer(W, H, '{}', 70, 'I420');
+  throwsMsg(() => s.push(new Uint8Array(W * H * 4), 0), /invalid frame buffer length: 57600 bytes \(allowed: exactly 21600 = 160x90 I420\)/);
+  throwsMsg(() => s.push(new Uint8Array(W * H), 0), /14400 bytes/);
+  const n = new Stabilizer(W, H, '{}', 70, 'NV12');
+  throwsMsg(() => n.push(new Uint8Array(7), 0), /invalid frame buffer length: 7 bytes \(allowed: exactly 21600 = 160x90 NV12\)/);
+  // Still usable after the errors.
+  assert.ok(s.push(toI420(frame(W, H), W, H), 0));
+  assert.ok(n.push(toNv12(toI420(frame(W, H), W, H), W, H), 0));
+  s.free(); n.free();
+});
+
 // --- The page's pure modules on the API's real output ----------------------
 const { TELEMETRY_HEADER, telemetryCsv, rowsFromCsv, rowsFromWorker } = await import('../src/telemetry.js');
 const { summaryRows, localSummary } = await import('../src/summary.js');
