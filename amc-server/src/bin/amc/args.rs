@@ -48,7 +48,8 @@ pub struct InputFlags {
     #[arg(long, default_value_t = 120)]
     pub timeout: u64,
     /// Threads of a run: 1 decodes, stabilizes and encodes on one thread; 2 or
-    /// more decode and encode on threads of their own beside the stabilizer
+    /// more decode and encode on threads of their own, track each frame while
+    /// the previous one renders, and render rows on N threads; same output
     /// (1..=256; default: every core).
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
     pub threads: Option<u16>,
