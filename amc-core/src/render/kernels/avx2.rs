@@ -31,30 +31,15 @@ pub(super) unsafe fn accumulate_row(
     acc_b: &mut [u32],
     count: &mut [u32],
 ) {
-    debug_assert!(n8 % 8 == 0 && datas.len() == coords.len());
+    debug_assert!(n8 & 7 == 0 && datas.len() == coords.len());
     debug_assert!(acc_r.len() >= n8 && acc_g.len() >= n8 && acc_b.len() >= n8 && count.len() >= n8);
-    let zero_ps = _mm256_setzero_ps();
-    let max_x = _mm256_set1_ps(g.max_x);
-    let max_y = _mm256_set1_ps(g.max_y);
-    let lo = _mm256_set1_ps(-EDGE_TOLERANCE);
-    let hi_x = _mm256_set1_ps(g.max_x + EDGE_TOLERANCE);
-    let hi_y = _mm256_set1_ps(g.max_y + EDGE_TOLERANCE);
-    let max_x0 = _mm256_set1_epi32(g.max_x0);
-    let max_y0 = _mm256_set1_epi32(g.max_y0);
     let stride = _mm256_set1_epi32(g.stride);
     let chans = _mm256_set1_epi32(g.channels);
-    let c256 = _mm256_set1_ps(256.0);
-    let half = _mm256_set1_ps(0.5);
-    let i256 = _mm256_set1_epi32(256);
     let i128 = _mm256_set1_epi32(128);
     let byte = _mm256_set1_epi32(0xFF);
     // Byte 2 of each lane (bits 16..24): where the right-hand tap goes.
     let hi_byte = _mm256_set1_epi32(0xFF_0000);
     let one = _mm256_set1_epi32(1);
-    let lane = _mm256_setr_ps(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0);
-    let eps = _mm256_set1_ps(1e-6);
-    let one_ps = _mm256_set1_ps(1.0);
-    let nan = _mm256_set1_ps(f32::NAN);
     let mut u = 0;
     while u < n8 {
         let (mut sum_r, mut sum_g, mut sum_b, mut sum_n) = (
@@ -65,62 +50,18 @@ pub(super) unsafe fn accumulate_row(
         );
         for f in 0..datas.len() {
             let base = datas[f].as_ptr() as *const i32;
-            let (sx, sy) = match coords[f] {
-                RowCoords::Table(xs, ys) => (
-                    _mm256_loadu_ps(xs.as_ptr().add(u)),
-                    _mm256_loadu_ps(ys.as_ptr().add(u)),
-                ),
-                RowCoords::Homography {
-                    x0,
-                    y0,
-                    z0,
-                    dx,
-                    dy,
-                    dz,
-                } => {
-                    let uf = _mm256_add_ps(_mm256_set1_ps(u as f32), lane);
-                    // Same operation order as the scalar path (no FMA): bit-exact.
-                    let z =
-                        _mm256_add_ps(_mm256_set1_ps(z0), _mm256_mul_ps(_mm256_set1_ps(dz), uf));
-                    let iz = _mm256_blendv_ps(
-                        nan,
-                        _mm256_div_ps(one_ps, z),
-                        _mm256_cmp_ps(z, eps, _CMP_GT_OQ),
-                    );
-                    let x =
-                        _mm256_add_ps(_mm256_set1_ps(x0), _mm256_mul_ps(_mm256_set1_ps(dx), uf));
-                    let y =
-                        _mm256_add_ps(_mm256_set1_ps(y0), _mm256_mul_ps(_mm256_set1_ps(dy), uf));
-                    (_mm256_mul_ps(x, iz), _mm256_mul_ps(y, iz))
-                }
-            };
-            // NaN compares false: NaN coordinates are invalid.
-            let valid = _mm256_and_ps(
-                _mm256_and_ps(
-                    _mm256_cmp_ps(sx, lo, _CMP_GE_OQ),
-                    _mm256_cmp_ps(sy, lo, _CMP_GE_OQ),
-                ),
-                _mm256_and_ps(
-                    _mm256_cmp_ps(sx, hi_x, _CMP_LE_OQ),
-                    _mm256_cmp_ps(sy, hi_y, _CMP_LE_OQ),
-                ),
-            );
-            let mask = _mm256_castps_si256(valid);
-            if _mm256_testz_si256(mask, mask) != 0 {
+            let Some(Taps8 {
+                mask,
+                x0,
+                y0,
+                ax,
+                ay,
+                bx,
+                by,
+            }) = taps8(&g, row_coords8(&coords[f], u))
+            else {
                 continue;
-            }
-            // Invalid lanes get coordinate 0 so the integer conversions stay
-            // tame; valid ones are clamped onto the frame (edge tolerance).
-            let sxv = _mm256_min_ps(_mm256_max_ps(_mm256_and_ps(sx, valid), zero_ps), max_x);
-            let syv = _mm256_min_ps(_mm256_max_ps(_mm256_and_ps(sy, valid), zero_ps), max_y);
-            let x0 = _mm256_min_epi32(_mm256_cvttps_epi32(sxv), max_x0);
-            let y0 = _mm256_min_epi32(_mm256_cvttps_epi32(syv), max_y0);
-            let fx = _mm256_sub_ps(sxv, _mm256_cvtepi32_ps(x0));
-            let fy = _mm256_sub_ps(syv, _mm256_cvtepi32_ps(y0));
-            let ax = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(fx, c256), half));
-            let ay = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(fy, c256), half));
-            let bx = _mm256_sub_epi32(i256, ax);
-            let by = _mm256_sub_epi32(i256, ay);
+            };
             let i00 = _mm256_add_epi32(
                 _mm256_mullo_epi32(y0, stride),
                 _mm256_mullo_epi32(x0, chans),
@@ -221,20 +162,9 @@ pub(super) unsafe fn accumulate_row_gray(
     acc: &mut [u32],
     count: &mut [u32],
 ) {
-    debug_assert!(n8 % 8 == 0 && datas.len() == coords.len());
+    debug_assert!(n8 & 7 == 0 && datas.len() == coords.len());
     debug_assert!(acc.len() >= n8 && count.len() >= n8);
-    let zero_ps = _mm256_setzero_ps();
-    let max_x = _mm256_set1_ps(g.max_x);
-    let max_y = _mm256_set1_ps(g.max_y);
-    let lo = _mm256_set1_ps(-EDGE_TOLERANCE);
-    let hi_x = _mm256_set1_ps(g.max_x + EDGE_TOLERANCE);
-    let hi_y = _mm256_set1_ps(g.max_y + EDGE_TOLERANCE);
-    let max_x0 = _mm256_set1_epi32(g.max_x0);
-    let max_y0 = _mm256_set1_epi32(g.max_y0);
     let stride = _mm256_set1_epi32(g.stride);
-    let c256 = _mm256_set1_ps(256.0);
-    let half = _mm256_set1_ps(0.5);
-    let i256 = _mm256_set1_epi32(256);
     let i128 = _mm256_set1_epi32(128);
     let byte = _mm256_set1_epi32(0xFF);
     let hi_byte = _mm256_set1_epi32(0xFF_0000);
@@ -244,31 +174,18 @@ pub(super) unsafe fn accumulate_row_gray(
         let (mut sum, mut sum_n) = (_mm256_setzero_si256(), _mm256_setzero_si256());
         for (data, coord) in datas.iter().zip(coords) {
             let base = data.as_ptr() as *const i32;
-            let (sx, sy) = row_coords8(coord, u);
-            let valid = _mm256_and_ps(
-                _mm256_and_ps(
-                    _mm256_cmp_ps(sx, lo, _CMP_GE_OQ),
-                    _mm256_cmp_ps(sy, lo, _CMP_GE_OQ),
-                ),
-                _mm256_and_ps(
-                    _mm256_cmp_ps(sx, hi_x, _CMP_LE_OQ),
-                    _mm256_cmp_ps(sy, hi_y, _CMP_LE_OQ),
-                ),
-            );
-            let mask = _mm256_castps_si256(valid);
-            if _mm256_testz_si256(mask, mask) != 0 {
+            let Some(Taps8 {
+                mask,
+                x0,
+                y0,
+                ax,
+                ay,
+                bx,
+                by,
+            }) = taps8(&g, row_coords8(coord, u))
+            else {
                 continue;
-            }
-            let sxv = _mm256_min_ps(_mm256_max_ps(_mm256_and_ps(sx, valid), zero_ps), max_x);
-            let syv = _mm256_min_ps(_mm256_max_ps(_mm256_and_ps(sy, valid), zero_ps), max_y);
-            let x0 = _mm256_min_epi32(_mm256_cvttps_epi32(sxv), max_x0);
-            let y0 = _mm256_min_epi32(_mm256_cvttps_epi32(syv), max_y0);
-            let fx = _mm256_sub_ps(sxv, _mm256_cvtepi32_ps(x0));
-            let fy = _mm256_sub_ps(syv, _mm256_cvtepi32_ps(y0));
-            let ax = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(fx, c256), half));
-            let ay = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(fy, c256), half));
-            let bx = _mm256_sub_epi32(i256, ax);
-            let by = _mm256_sub_epi32(i256, ay);
+            };
             let i0 = _mm256_add_epi32(_mm256_mullo_epi32(y0, stride), x0);
             let i1 = _mm256_add_epi32(i0, stride);
             let z = _mm256_setzero_si256();
@@ -297,4 +214,68 @@ pub(super) unsafe fn accumulate_row_gray(
         _mm256_storeu_si256(count.as_mut_ptr().add(u) as *mut __m256i, sum_n);
         u += 8;
     }
+}
+
+/// The bilinear footprint of eight sample points: which lanes fall inside the
+/// frame (`mask`, all bits of a lane), the top-left tap `(x0, y0)` of each, and
+/// the 8-bit weights `ax = round(256 fx)`, `bx = 256 - ax` (and `ay`, `by`) the
+/// scalar reference uses.
+struct Taps8 {
+    mask: __m256i,
+    x0: __m256i,
+    y0: __m256i,
+    ax: __m256i,
+    ay: __m256i,
+    bx: __m256i,
+    by: __m256i,
+}
+
+/// [`Taps8`] of the points `(sx, sy)` in a frame of geometry `g`; `None`
+/// when no lane is inside (NaN compares false: NaN points are outside).
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn taps8(g: &KernelGeometry, (sx, sy): (__m256, __m256)) -> Option<Taps8> {
+    let lo = _mm256_set1_ps(-EDGE_TOLERANCE);
+    let valid = _mm256_and_ps(
+        _mm256_and_ps(
+            _mm256_cmp_ps(sx, lo, _CMP_GE_OQ),
+            _mm256_cmp_ps(sy, lo, _CMP_GE_OQ),
+        ),
+        _mm256_and_ps(
+            _mm256_cmp_ps(sx, _mm256_set1_ps(g.max_x + EDGE_TOLERANCE), _CMP_LE_OQ),
+            _mm256_cmp_ps(sy, _mm256_set1_ps(g.max_y + EDGE_TOLERANCE), _CMP_LE_OQ),
+        ),
+    );
+    let mask = _mm256_castps_si256(valid);
+    if _mm256_testz_si256(mask, mask) != 0 {
+        return None;
+    }
+    // Invalid lanes get coordinate 0 so the integer conversions stay tame;
+    // valid ones are clamped onto the frame (edge tolerance).
+    let zero = _mm256_setzero_ps();
+    let sxv = _mm256_min_ps(
+        _mm256_max_ps(_mm256_and_ps(sx, valid), zero),
+        _mm256_set1_ps(g.max_x),
+    );
+    let syv = _mm256_min_ps(
+        _mm256_max_ps(_mm256_and_ps(sy, valid), zero),
+        _mm256_set1_ps(g.max_y),
+    );
+    let x0 = _mm256_min_epi32(_mm256_cvttps_epi32(sxv), _mm256_set1_epi32(g.max_x0));
+    let y0 = _mm256_min_epi32(_mm256_cvttps_epi32(syv), _mm256_set1_epi32(g.max_y0));
+    let (c256, half) = (_mm256_set1_ps(256.0), _mm256_set1_ps(0.5));
+    let fx = _mm256_sub_ps(sxv, _mm256_cvtepi32_ps(x0));
+    let fy = _mm256_sub_ps(syv, _mm256_cvtepi32_ps(y0));
+    let ax = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(fx, c256), half));
+    let ay = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(fy, c256), half));
+    let i256 = _mm256_set1_epi32(256);
+    Some(Taps8 {
+        mask,
+        x0,
+        y0,
+        ax,
+        ay,
+        bx: _mm256_sub_epi32(i256, ax),
+        by: _mm256_sub_epi32(i256, ay),
+    })
 }

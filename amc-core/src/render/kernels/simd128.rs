@@ -30,32 +30,13 @@ pub(super) unsafe fn accumulate_row(
 ) {
     debug_assert!(n8 % 4 == 0 && datas.len() == coords.len());
     debug_assert!(acc_r.len() >= n8 && acc_g.len() >= n8 && acc_b.len() >= n8 && count.len() >= n8);
-    let zero_ps = f32x4_splat(0.0);
-    let max_x = f32x4_splat(g.max_x);
-    let max_y = f32x4_splat(g.max_y);
-    let lo = f32x4_splat(-EDGE_TOLERANCE);
-    let hi_x = f32x4_splat(g.max_x + EDGE_TOLERANCE);
-    let hi_y = f32x4_splat(g.max_y + EDGE_TOLERANCE);
-    let max_x0 = f32x4_splat(g.max_x0 as f32);
-    let max_y0 = f32x4_splat(g.max_y0 as f32);
     let stride = i32x4_splat(g.stride);
     let chans = i32x4_splat(g.channels);
-    let c256 = f32x4_splat(256.0);
-    let half = f32x4_splat(0.5);
-    let i256 = i32x4_splat(256);
     let i128 = i32x4_splat(128);
     let byte = i32x4_splat(0xFF);
     let hi_byte = i32x4_splat(0xFF_0000);
     let lo_bytes = i16x8_splat(0x00FF);
     let one = i32x4_splat(1);
-    let lane = f32x4(0.0, 1.0, 2.0, 3.0);
-    let eps = f32x4_splat(1e-6);
-    let one_ps = f32x4_splat(1.0);
-    let nan = f32x4_splat(f32::NAN);
-    // An integral float t in [0, 2^23): the bits of t + 2^23 are 0x4B00_0000 + t.
-    let magic = f32x4_splat(8_388_608.0);
-    let magic_bits = i32x4_splat(0x4B00_0000);
-    let to_int = |t: v128| i32x4_sub(f32x4_add(t, magic), magic_bits);
     let (s, c) = (g.stride as usize, g.channels as usize);
     let rgba = c == 4;
     let stride_f = f32x4_splat(g.stride as f32);
@@ -74,50 +55,19 @@ pub(super) unsafe fn accumulate_row(
         let coord = coords[f];
         let mut u = 0;
         while u < n8 {
-            let (sx, sy) = match coord {
-                RowCoords::Table(xs, ys) => (
-                    v128_load(xs.as_ptr().add(u) as *const v128),
-                    v128_load(ys.as_ptr().add(u) as *const v128),
-                ),
-                RowCoords::Homography {
-                    x0,
-                    y0,
-                    z0,
-                    dx,
-                    dy,
-                    dz,
-                } => {
-                    let uf = f32x4_add(f32x4_splat(u as f32), lane);
-                    // Same operation order as the scalar path (no FMA): bit-exact.
-                    let z = f32x4_add(f32x4_splat(z0), f32x4_mul(f32x4_splat(dz), uf));
-                    let iz = v128_bitselect(f32x4_div(one_ps, z), nan, f32x4_gt(z, eps));
-                    let x = f32x4_add(f32x4_splat(x0), f32x4_mul(f32x4_splat(dx), uf));
-                    let y = f32x4_add(f32x4_splat(y0), f32x4_mul(f32x4_splat(dy), uf));
-                    (f32x4_mul(x, iz), f32x4_mul(y, iz))
-                }
-            };
-            // NaN compares false: NaN coordinates are invalid.
-            let valid = v128_and(
-                v128_and(f32x4_ge(sx, lo), f32x4_ge(sy, lo)),
-                v128_and(f32x4_le(sx, hi_x), f32x4_le(sy, hi_y)),
-            );
-            if !v128_any_true(valid) {
+            let Some(Taps4 {
+                valid,
+                x0f,
+                y0f,
+                ax,
+                ay,
+                bx,
+                by,
+            }) = taps4(&g, row_coords4(&coord, u))
+            else {
                 u += 4;
                 continue;
-            }
-            // Invalid lanes get coordinate 0 (offset 0 below, always readable);
-            // valid ones are clamped onto the frame (edge tolerance).
-            let sxv = f32x4_pmin(f32x4_pmax(v128_and(sx, valid), zero_ps), max_x);
-            let syv = f32x4_pmin(f32x4_pmax(v128_and(sy, valid), zero_ps), max_y);
-            // x0 = min(trunc(sx), max_x0) as in the scalar `(sx as usize).min(max_x0)`.
-            let x0f = f32x4_pmin(f32x4_trunc(sxv), max_x0);
-            let y0f = f32x4_pmin(f32x4_trunc(syv), max_y0);
-            let fx = f32x4_sub(sxv, x0f);
-            let fy = f32x4_sub(syv, y0f);
-            let ax = to_int(f32x4_trunc(f32x4_add(f32x4_mul(fx, c256), half)));
-            let ay = to_int(f32x4_trunc(f32x4_add(f32x4_mul(fy, c256), half)));
-            let bx = i32x4_sub(i256, ax);
-            let by = i32x4_sub(i256, ay);
+            };
             // Byte offsets: in f32 when every offset is below 2^23 (exact,
             // and no 32-bit multiplies), else in integers.
             let i00 = if small_frame {
@@ -288,29 +238,11 @@ pub(super) unsafe fn accumulate_row_gray(
 ) {
     debug_assert!(n8 % 4 == 0 && datas.len() == coords.len());
     debug_assert!(acc.len() >= n8 && count.len() >= n8);
-    let zero_ps = f32x4_splat(0.0);
-    let max_x = f32x4_splat(g.max_x);
-    let max_y = f32x4_splat(g.max_y);
-    let lo = f32x4_splat(-EDGE_TOLERANCE);
-    let hi_x = f32x4_splat(g.max_x + EDGE_TOLERANCE);
-    let hi_y = f32x4_splat(g.max_y + EDGE_TOLERANCE);
-    let max_x0 = f32x4_splat(g.max_x0 as f32);
-    let max_y0 = f32x4_splat(g.max_y0 as f32);
     let stride = i32x4_splat(g.stride);
-    let c256 = f32x4_splat(256.0);
-    let half = f32x4_splat(0.5);
-    let i256 = i32x4_splat(256);
     let i128 = i32x4_splat(128);
     let byte = i32x4_splat(0xFF);
     let hi_byte = i32x4_splat(0xFF_0000);
     let one = i32x4_splat(1);
-    let lane = f32x4(0.0, 1.0, 2.0, 3.0);
-    let eps = f32x4_splat(1e-6);
-    let one_ps = f32x4_splat(1.0);
-    let nan = f32x4_splat(f32::NAN);
-    let magic = f32x4_splat(8_388_608.0);
-    let magic_bits = i32x4_splat(0x4B00_0000);
-    let to_int = |t: v128| i32x4_sub(f32x4_add(t, magic), magic_bits);
     let s = g.stride as usize;
     let stride_f = f32x4_splat(g.stride as f32);
     let small_frame = (g.max_y0 as i64 * g.stride as i64 + g.max_x0 as i64) < (1 << 23);
@@ -321,45 +253,19 @@ pub(super) unsafe fn accumulate_row_gray(
         let coord = coords[f];
         let mut u = 0;
         while u < n8 {
-            let (sx, sy) = match coord {
-                RowCoords::Table(xs, ys) => (
-                    v128_load(xs.as_ptr().add(u) as *const v128),
-                    v128_load(ys.as_ptr().add(u) as *const v128),
-                ),
-                RowCoords::Homography {
-                    x0,
-                    y0,
-                    z0,
-                    dx,
-                    dy,
-                    dz,
-                } => {
-                    let uf = f32x4_add(f32x4_splat(u as f32), lane);
-                    let z = f32x4_add(f32x4_splat(z0), f32x4_mul(f32x4_splat(dz), uf));
-                    let iz = v128_bitselect(f32x4_div(one_ps, z), nan, f32x4_gt(z, eps));
-                    let x = f32x4_add(f32x4_splat(x0), f32x4_mul(f32x4_splat(dx), uf));
-                    let y = f32x4_add(f32x4_splat(y0), f32x4_mul(f32x4_splat(dy), uf));
-                    (f32x4_mul(x, iz), f32x4_mul(y, iz))
-                }
-            };
-            let valid = v128_and(
-                v128_and(f32x4_ge(sx, lo), f32x4_ge(sy, lo)),
-                v128_and(f32x4_le(sx, hi_x), f32x4_le(sy, hi_y)),
-            );
-            if !v128_any_true(valid) {
+            let Some(Taps4 {
+                valid,
+                x0f,
+                y0f,
+                ax,
+                ay,
+                bx,
+                by,
+            }) = taps4(&g, row_coords4(&coord, u))
+            else {
                 u += 4;
                 continue;
-            }
-            let sxv = f32x4_pmin(f32x4_pmax(v128_and(sx, valid), zero_ps), max_x);
-            let syv = f32x4_pmin(f32x4_pmax(v128_and(sy, valid), zero_ps), max_y);
-            let x0f = f32x4_pmin(f32x4_trunc(sxv), max_x0);
-            let y0f = f32x4_pmin(f32x4_trunc(syv), max_y0);
-            let fx = f32x4_sub(sxv, x0f);
-            let fy = f32x4_sub(syv, y0f);
-            let ax = to_int(f32x4_trunc(f32x4_add(f32x4_mul(fx, c256), half)));
-            let ay = to_int(f32x4_trunc(f32x4_add(f32x4_mul(fy, c256), half)));
-            let bx = i32x4_sub(i256, ax);
-            let by = i32x4_sub(i256, ay);
+            };
             let i00 = if small_frame {
                 to_int(f32x4_add(f32x4_mul(y0f, stride_f), x0f))
             } else {
@@ -396,4 +302,104 @@ pub(super) unsafe fn accumulate_row_gray(
             u += 4;
         }
     }
+}
+
+/// Source coordinates of output pixels `u..u + 4` of one frame's row: loaded
+/// from its table, or evaluated from its homography exactly as the scalar
+/// formula does (no FMA, same operation order: bit-exact).
+#[inline(always)]
+unsafe fn row_coords4(coord: &RowCoords<'_>, u: usize) -> (v128, v128) {
+    match *coord {
+        RowCoords::Table(xs, ys) => (
+            v128_load(xs.as_ptr().add(u) as *const v128),
+            v128_load(ys.as_ptr().add(u) as *const v128),
+        ),
+        RowCoords::Homography {
+            x0,
+            y0,
+            z0,
+            dx,
+            dy,
+            dz,
+        } => {
+            let uf = f32x4_add(f32x4_splat(u as f32), f32x4(0.0, 1.0, 2.0, 3.0));
+            let z = f32x4_add(f32x4_splat(z0), f32x4_mul(f32x4_splat(dz), uf));
+            let iz = v128_bitselect(
+                f32x4_div(f32x4_splat(1.0), z),
+                f32x4_splat(f32::NAN),
+                f32x4_gt(z, f32x4_splat(1e-6)),
+            );
+            let x = f32x4_add(f32x4_splat(x0), f32x4_mul(f32x4_splat(dx), uf));
+            let y = f32x4_add(f32x4_splat(y0), f32x4_mul(f32x4_splat(dy), uf));
+            (f32x4_mul(x, iz), f32x4_mul(y, iz))
+        }
+    }
+}
+
+/// The bilinear footprint of four sample points: which lanes fall inside the
+/// frame (`valid`), the top-left tap `(x0f, y0f)` of each (integral floats),
+/// and the 8-bit weights `ax = round(256 fx)`, `bx = 256 - ax` (and `ay`,
+/// `by`) the scalar reference uses.
+struct Taps4 {
+    valid: v128,
+    x0f: v128,
+    y0f: v128,
+    ax: v128,
+    ay: v128,
+    bx: v128,
+    by: v128,
+}
+
+/// [`Taps4`] of the points `(sx, sy)` in a frame of geometry `g`; `None`
+/// when no lane is inside (NaN compares false: NaN points are outside).
+#[inline(always)]
+unsafe fn taps4(g: &KernelGeometry, (sx, sy): (v128, v128)) -> Option<Taps4> {
+    let lo = f32x4_splat(-EDGE_TOLERANCE);
+    let valid = v128_and(
+        v128_and(f32x4_ge(sx, lo), f32x4_ge(sy, lo)),
+        v128_and(
+            f32x4_le(sx, f32x4_splat(g.max_x + EDGE_TOLERANCE)),
+            f32x4_le(sy, f32x4_splat(g.max_y + EDGE_TOLERANCE)),
+        ),
+    );
+    if !v128_any_true(valid) {
+        return None;
+    }
+    // Invalid lanes get coordinate 0 (offset 0, always readable); valid ones
+    // are clamped onto the frame (edge tolerance).
+    let zero = f32x4_splat(0.0);
+    let sxv = f32x4_pmin(f32x4_pmax(v128_and(sx, valid), zero), f32x4_splat(g.max_x));
+    let syv = f32x4_pmin(f32x4_pmax(v128_and(sy, valid), zero), f32x4_splat(g.max_y));
+    // x0 = min(trunc(sx), max_x0) as in the scalar `(sx as usize).min(max_x0)`.
+    let x0f = f32x4_pmin(f32x4_trunc(sxv), f32x4_splat(g.max_x0 as f32));
+    let y0f = f32x4_pmin(f32x4_trunc(syv), f32x4_splat(g.max_y0 as f32));
+    let (c256, half) = (f32x4_splat(256.0), f32x4_splat(0.5));
+    let ax = to_int(f32x4_trunc(f32x4_add(
+        f32x4_mul(f32x4_sub(sxv, x0f), c256),
+        half,
+    )));
+    let ay = to_int(f32x4_trunc(f32x4_add(
+        f32x4_mul(f32x4_sub(syv, y0f), c256),
+        half,
+    )));
+    let i256 = i32x4_splat(256);
+    Some(Taps4 {
+        valid,
+        x0f,
+        y0f,
+        ax,
+        ay,
+        bx: i32x4_sub(i256, ax),
+        by: i32x4_sub(i256, ay),
+    })
+}
+
+/// An integral float `t` in `[0, 2^23)` as an integer: the bits of
+/// `t + 2^23` are `0x4B00_0000 + t` (cheaper than the saturating conversion).
+#[inline(always)]
+fn to_int(t: v128) -> v128 {
+    i32x4_sub(
+        f32x4_add(t, f32x4_splat(8_388_608.0)),
+        i32x4_splat(0x4B00_0000),
+    )
 }
