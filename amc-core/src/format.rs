@@ -55,3 +55,10 @@ impl PixelFormat {
 pub const fn chroma_size(width: usize, height: usize) -> (usize, usize) {
     (width.div_ceil(2), height.div_ceil(2))
 }
+
+/// Where the U and V planes of a `width x height` [`PixelFormat::Yuv420p`]
+/// buffer start (the Y plane starts at 0), bytes.
+pub const fn yuv_plane_offsets(width: usize, height: usize) -> (usize, usize) {
+    let (cw, ch) = chroma_size(width, height);
+    (width * height, width * height + cw * ch)
+}

@@ -10,14 +10,13 @@
 
 use crate::error::AmcError;
 
-pub use crate::format::{chroma_size, PixelFormat};
+pub use crate::format::{chroma_size, yuv_plane_offsets, PixelFormat};
 
 /// The three planes of a [`PixelFormat::Yuv420p`] buffer: `(y, u, v)`.
 /// Panics when `data` is shorter than [`PixelFormat::buffer_len`].
 pub fn yuv_planes(width: usize, height: usize, data: &[u8]) -> (&[u8], &[u8], &[u8]) {
-    let (cw, ch) = chroma_size(width, height);
-    let (n, nc) = (width * height, cw * ch);
-    (&data[..n], &data[n..n + nc], &data[n + nc..n + 2 * nc])
+    let (u, v) = yuv_plane_offsets(width, height);
+    (&data[..u], &data[u..v], &data[v..v + (v - u)])
 }
 
 /// The three planes of a [`PixelFormat::Yuv420p`] buffer, mutable: `(y, u, v)`.
@@ -27,11 +26,10 @@ pub fn yuv_planes_mut(
     height: usize,
     data: &mut [u8],
 ) -> (&mut [u8], &mut [u8], &mut [u8]) {
-    let (cw, ch) = chroma_size(width, height);
-    let (n, nc) = (width * height, cw * ch);
-    let (y, rest) = data.split_at_mut(n);
-    let (u, rest) = rest.split_at_mut(nc);
-    (y, u, &mut rest[..nc])
+    let (u, v) = yuv_plane_offsets(width, height);
+    let (y, rest) = data.split_at_mut(u);
+    let (u_plane, rest) = rest.split_at_mut(v - u);
+    (y, u_plane, &mut rest[..v - u])
 }
 
 /// A borrowed colour frame.

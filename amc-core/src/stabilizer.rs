@@ -478,13 +478,12 @@ impl Rendering {
                 ring.range(first..=pos)
                     .map(|b| b.r_est.matrix().transpose() * r_view.matrix()),
             );
-            let ring = &ring;
             valid_fraction = if format.is_planar() {
                 // One geometry, three planes: Y through the luma cameras, U and V
                 // through the chroma cameras, all with the same rotations.
                 let (w, h) = (src.0, src.1);
                 let (cw, ch) = crate::image::chroma_size(w, h);
-                let (n, nc) = (w * h, cw * ch);
+                let (u_at, v_at) = crate::image::yuv_plane_offsets(w, h);
                 let (oy, ou, ov) = crate::image::yuv_planes_mut(ow, oh, &mut self.output.data);
                 // Each plane is passed with what follows it in the buffer (the
                 // next planes, then the tail padding) for the kernels' gathers.
@@ -498,7 +497,7 @@ impl Rendering {
                     &mut self.acc.count,
                     16,
                 );
-                for (at, out) in [(n, ou), (n + nc, ov)] {
+                for (at, out) in [(u_at, ou), (v_at, ov)] {
                     self.chroma.average_plane_into(
                         |i| plane(i, at),
                         cw,
@@ -601,7 +600,7 @@ impl Rendering {
             if planar {
                 let (w, h) = (src.0, src.1);
                 let (scw, sch) = crate::image::chroma_size(w, h);
-                let (n, snc) = (w * h, scw * sch);
+                let (u_at, v_at) = crate::image::yuv_plane_offsets(w, h);
                 slot.index = b.index;
                 slot.value.clear();
                 slot.value.resize(n_px + 2 * nc, 0);
@@ -614,15 +613,9 @@ impl Rendering {
                 let data = &b.frame.data;
                 self.warper.warp_plane_into(data, w, h, &m, vy, cy);
                 self.chroma
-                    .warp_plane_into(&data[n..], scw, sch, &m, vu, cc);
-                self.chroma.warp_plane_into(
-                    &data[n + snc..],
-                    scw,
-                    sch,
-                    &m,
-                    vv,
-                    &mut self.chroma_cov,
-                );
+                    .warp_plane_into(&data[u_at..], scw, sch, &m, vu, cc);
+                self.chroma
+                    .warp_plane_into(&data[v_at..], scw, sch, &m, vv, &mut self.chroma_cov);
             } else {
                 self.warper
                     .warp_into_slot(&b.frame.as_ref(), &m, &mut slot, b.index);
