@@ -28,6 +28,12 @@ use std::fs::File;
 use std::io::{BufRead, BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
+/// Largest frame side (pixels), the stabilizer's limit.
+const MAX_SIDE: usize = 16384;
+
+/// Highest frame rate a header may declare (frames per second), the limit of `--fps`.
+const MAX_FPS: f64 = 10_000.0;
+
 /// Longest header or `FRAME` line accepted (real ones are well under 100 bytes).
 const MAX_LINE: u64 = 4096;
 
@@ -112,6 +118,16 @@ impl Y4mSource {
         let fps = opts.fps_override.or(file_fps).unwrap_or(DEFAULT_IMAGE_FPS);
         // With plain `FRAME` lines (the usual case) the count follows from the size.
         let per_frame = 6 + layout.frame_bytes() as u64;
+        // A frame buffer is only allocated for a file that can hold one, so a
+        // corrupt header cannot make a small file allocate gigabytes.
+        let body = file_len.map(|len| len.saturating_sub(header.len() as u64 + 1));
+        if let Some(body) = body.filter(|&b| b > 0 && b < per_frame) {
+            return Err(bad(format!(
+                "the file is shorter than one frame: {body} bytes after the header, and one \
+                 {}x{} frame takes {per_frame}",
+                layout.width, layout.height
+            )));
+        }
         let frame_count = file_len
             .map(|len| len.saturating_sub(header.len() as u64 + 1))
             .filter(|body| body % per_frame == 0)
@@ -237,18 +253,24 @@ fn parse_header(header: &str) -> Result<(Layout, Option<f64>), String> {
     let mut chroma = Chroma::C420;
     let mut full_range = false;
     for tok in tokens {
-        let (key, val) = tok.split_at(1);
+        // The key is the token's first character, which need not be ASCII
+        // in a corrupt header (so no byte-index split).
+        let mut chars = tok.chars();
+        let key = chars.next().unwrap_or(' ');
+        let val = chars.as_str();
         match key {
-            "W" => width = val.parse::<usize>().ok().filter(|&w| w > 0),
-            "H" => height = val.parse::<usize>().ok().filter(|&h| h > 0),
-            "F" => {
+            'W' => width = val.parse::<usize>().ok().filter(|&w| w > 0),
+            'H' => height = val.parse::<usize>().ok().filter(|&h| h > 0),
+            'F' => {
                 let rate = val
                     .split_once(':')
                     .and_then(|(n, d)| Some(n.parse::<f64>().ok()? / d.parse::<f64>().ok()?))
-                    .filter(|r| r.is_finite() && *r > 0.0);
-                fps = Some(rate.ok_or_else(|| format!("bad frame rate \"{tok}\"")))
+                    .filter(|r| r.is_finite() && *r > 0.0 && *r <= MAX_FPS);
+                fps = Some(rate.ok_or_else(|| {
+                    format!("bad frame rate \"{tok}\" (allowed: N:D above 0 and at most {MAX_FPS} frames per second)")
+                }))
             }
-            "C" => {
+            'C' => {
                 chroma = match val {
                     "420jpeg" | "420paldv" | "420mpeg2" | "420" => Chroma::C420,
                     "422" => Chroma::C422,
@@ -261,7 +283,7 @@ fn parse_header(header: &str) -> Result<(Layout, Option<f64>), String> {
                     }
                 }
             }
-            "X" if val == "COLORRANGE=FULL" => full_range = true,
+            'X' if val == "COLORRANGE=FULL" => full_range = true,
             // Interlacing, aspect ratio and other extensions do not change the data.
             _ => {}
         }
@@ -270,8 +292,10 @@ fn parse_header(header: &str) -> Result<(Layout, Option<f64>), String> {
         return Err("the header lacks a valid width (W) or height (H)".into());
     };
     // Guard the allocation against absurd sizes in corrupt headers.
-    if width.saturating_mul(height) > 1 << 28 {
-        return Err(format!("frame size {width}x{height} is implausibly large"));
+    if width > MAX_SIDE || height > MAX_SIDE {
+        return Err(format!(
+            "frame size {width}x{height} is too large (allowed: at most {MAX_SIDE} pixels a side)"
+        ));
     }
     let fps = fps.transpose()?;
     Ok((
