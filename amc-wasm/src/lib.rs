@@ -1,7 +1,7 @@
 //! # amc-wasm
 //!
 //! Thin wasm-bindgen bindings over [`amc_core`] for the web page: a
-//! [`Stabilizer`] built from the shared [`StabilizerParams`] (JSON, the same
+//! [`Stabilizer`] built from the shared [`StabilizerParams`](amc_core::StabilizerParams) (JSON, the same
 //! definition the CLI and the REST API use), fed frames with their timestamps,
 //! returning the stabilized frame as a view into WASM memory and its telemetry
 //! as a plain object.
@@ -21,95 +21,14 @@
 
 use amc_core::camera::CameraModel;
 use amc_core::metrics::{FrameMetrics, MetricsAccumulator};
-use amc_core::{FrameRef, PixelFormat, StabilizerParams, Telemetry};
+use amc_core::{FrameRef, PixelFormat, Telemetry};
+use args::{nv12_to_i420, InputFormat, LensArg};
 use wasm_bindgen::prelude::*;
 
-/// Largest frame side accepted (the core's limit).
-const MAX_SIDE: f64 = 16384.0;
+pub mod args;
 
 fn err(e: impl std::fmt::Display) -> JsError {
     JsError::new(&e.to_string())
-}
-
-/// Checks a frame dimension given as a JS number.
-fn dimension(name: &str, v: f64) -> Result<usize, JsError> {
-    if v.is_finite() && v.fract() == 0.0 && (1.0..=MAX_SIDE).contains(&v) {
-        Ok(v as usize)
-    } else {
-        Err(JsError::new(&format!(
-            "invalid {name}: {v} (allowed: an integer 1..=16384 pixels)"
-        )))
-    }
-}
-
-/// Parses the shared parameters from JSON (`""`, `null` or `{}`: the defaults).
-fn parse_params(json: &str) -> Result<StabilizerParams, JsError> {
-    let json = json.trim();
-    let params: StabilizerParams = if json.is_empty() || json == "null" {
-        StabilizerParams::default()
-    } else {
-        serde_json::from_str(json).map_err(|e| {
-            JsError::new(&format!(
-                "invalid stabilizer parameters: {e} (allowed: a JSON object of StabilizerParams: \
-                 track_width, tracker, view, render)"
-            ))
-        })?
-    };
-    params.validate().map_err(err)?;
-    Ok(params)
-}
-
-/// The lens: a number is a horizontal field of view in degrees (pinhole), a
-/// string is the text of a lens file (project JSON, OpenCV YAML/JSON, Gyroflow).
-fn parse_camera(lens: &JsValue, width: usize, height: usize) -> Result<CameraModel, JsError> {
-    if let Some(deg) = lens.as_f64() {
-        // The one definition of the `fov` option's range.
-        amc_core::LensSpec::parse_fov(&deg.to_string()).map_err(err)?;
-        CameraModel::pinhole_hfov(width, height, deg).map_err(err)
-    } else if let Some(text) = lens.as_string() {
-        amc_core::lens::parse_lens(&text).map_err(|e| JsError::new(&format!("lens file: {e}")))
-    } else {
-        Err(JsError::new(
-            "invalid lens: expected a number (horizontal field of view, degrees) or the text of a lens file",
-        ))
-    }
-}
-
-/// WebAssembly (wasm32) memory a stabilizer may use; beyond it allocations
-/// would fail inside the module (a trap), so such sizes are refused up front.
-const MEMORY_BUDGET: usize = 2 << 30;
-
-/// Rough upper bound of the stabilizer's memory: the frame ring (`n_avg +
-/// lookahead` frames), the input buffer, the saccade slots (7 bytes per
-/// output pixel per frame) and working images; refuses what cannot fit.
-fn check_memory(
-    width: usize,
-    height: usize,
-    format: InputFormat,
-    p: &StabilizerParams,
-) -> Result<(), JsError> {
-    let frame = format.buffer_len(width, height);
-    let frames = p.render.n_avg + p.view.lookahead + 4;
-    let slots = if p.view.mode == amc_core::Mode::Saccade {
-        p.render.n_avg * width * height * 7
-    } else {
-        0
-    };
-    let need = frame
-        .saturating_mul(frames)
-        .saturating_add(slots)
-        .saturating_add(width * height * 8);
-    if need > MEMORY_BUDGET {
-        return Err(JsError::new(&format!(
-            "invalid size: {width}x{height} with n_avg {} and lookahead {} needs about {} MiB \
-             (allowed: at most {} MiB of WebAssembly memory; use a smaller frame, n_avg or lookahead)",
-            p.render.n_avg,
-            p.view.lookahead,
-            need >> 20,
-            MEMORY_BUDGET >> 20
-        )));
-    }
-    Ok(())
 }
 
 fn to_js(v: &serde_json::Value) -> Result<JsValue, JsError> {
@@ -126,69 +45,6 @@ fn metrics_json(m: &FrameMetrics) -> serde_json::Value {
 
 fn norm_dps(v: [f64; 3]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt().to_degrees()
-}
-
-/// Pixel layout of the frames a [`Stabilizer`] takes (its `format` argument).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum InputFormat {
-    /// `"RGBA"`: 4 bytes per pixel; the output is RGBA.
-    Rgba,
-    /// `"I420"`: planar 4:2:0, Y then U then V, rows packed; the output is I420.
-    I420,
-    /// `"NV12"`: the Y plane, then one plane of interleaved U, V pairs
-    /// (`ceil(w/2) x ceil(h/2)` pairs, rows packed); the output is I420.
-    Nv12,
-}
-
-impl InputFormat {
-    const ALLOWED: &'static str = r#""RGBA" (the default), "I420" or "NV12""#;
-
-    fn parse(name: Option<String>) -> Result<Self, JsError> {
-        match name.as_deref() {
-            None | Some("RGBA") => Ok(InputFormat::Rgba),
-            Some("I420") => Ok(InputFormat::I420),
-            Some("NV12") => Ok(InputFormat::Nv12),
-            Some(other) => Err(JsError::new(&format!(
-                "invalid format: {other:?} (allowed: {})",
-                Self::ALLOWED
-            ))),
-        }
-    }
-
-    fn name(self) -> &'static str {
-        match self {
-            InputFormat::Rgba => "RGBA",
-            InputFormat::I420 => "I420",
-            InputFormat::Nv12 => "NV12",
-        }
-    }
-
-    /// The core's format of the frames pushed (NV12 is de-interleaved to I420).
-    fn core(self) -> PixelFormat {
-        match self {
-            InputFormat::Rgba => PixelFormat::Rgba8,
-            InputFormat::I420 | InputFormat::Nv12 => PixelFormat::Yuv420p,
-        }
-    }
-
-    /// Bytes of one `width x height` frame (NV12 and I420 have the same size).
-    /// Sizes are at most 16384 x 16384, so this cannot overflow.
-    fn buffer_len(self, width: usize, height: usize) -> usize {
-        self.core().buffer_len(width, height).unwrap_or(usize::MAX)
-    }
-}
-
-/// De-interleaves an NV12 frame (`width x height`, its exact length) into I420 in `out` (resized).
-fn nv12_to_i420(width: usize, height: usize, nv12: &[u8], out: &mut Vec<u8>) {
-    let n = width * height;
-    out.resize(nv12.len(), 0);
-    out[..n].copy_from_slice(&nv12[..n]);
-    let nc = (nv12.len() - n) / 2;
-    let (u, v) = out[n..].split_at_mut(nc);
-    for ((pair, u), v) in nv12[n..].chunks_exact(2).zip(u).zip(v) {
-        *u = pair[0];
-        *v = pair[1];
-    }
 }
 
 /// A streaming stabilizer for one clip of `width x height` frames (RGBA, I420 or NV12).
@@ -241,13 +97,18 @@ impl Stabilizer {
         lens: JsValue,
         format: Option<String>,
     ) -> Result<Stabilizer, JsError> {
-        let format = InputFormat::parse(format)?;
-        let width = dimension("width", width)?;
-        let height = dimension("height", height)?;
-        let params = parse_params(params_json)?;
-        check_memory(width, height, format, &params)?;
-        let cam = parse_camera(&lens, width, height)?;
-        let inner = amc_core::Stabilizer::new(&cam, width, height, params).map_err(err)?;
+        let text = lens.as_string();
+        let lens_arg = match (lens.as_f64(), text.as_deref()) {
+            (Some(deg), _) => LensArg::Fov(deg),
+            (None, Some(text)) => LensArg::Text(text),
+            (None, None) => LensArg::Other,
+        };
+        let args::Opened {
+            stabilizer: inner,
+            width,
+            height,
+            format,
+        } = args::open(width, height, params_json, lens_arg, format.as_deref()).map_err(err)?;
         Ok(Stabilizer {
             inner,
             width,
@@ -401,26 +262,17 @@ impl Stabilizer {
     /// copied into WASM memory) at `t` seconds (strictly increasing). Returns
     /// the telemetry of the output frame that became ready, or `undefined`.
     pub fn push(&mut self, data: &[u8], t: f64) -> Result<JsValue, JsError> {
-        let expected = self.format.buffer_len(self.width, self.height);
-        if data.len() != expected {
-            return Err(JsError::new(&format!(
-                "invalid frame buffer length: {} bytes (allowed: exactly {expected} = {}x{} {})",
-                data.len(),
-                self.width,
-                self.height,
-                self.format.name()
-            )));
-        }
         let mut planar = std::mem::take(&mut self.planar);
-        let data = if self.format == InputFormat::Nv12 {
-            nv12_to_i420(self.width, self.height, data, &mut planar);
-            &planar[..]
-        } else {
-            data
-        };
-        let pushed = FrameRef::new(self.width, self.height, self.format.core(), data)
-            .map_err(err)
-            .and_then(|frame| self.inner.push(frame, t).map_err(err));
+        let pushed = args::push_frame(
+            &mut self.inner,
+            self.format,
+            self.width,
+            self.height,
+            data,
+            t,
+            &mut planar,
+        )
+        .map_err(err);
         self.planar = planar;
         match pushed? {
             Some(tel) => self.report(&tel),
@@ -494,7 +346,10 @@ pub fn simd_matches_scalar(
 ) -> Result<bool, JsError> {
     use amc_core::render::{RenderParams, Warper};
     use amc_core::so3::{self, Tangent};
-    let (w, h) = (dimension("width", width)?, dimension("height", height)?);
+    let (w, h) = (
+        args::dimension("width", width).map_err(err)?,
+        args::dimension("height", height).map_err(err)?,
+    );
     if w < 16 || h < 16 {
         return Err(JsError::new(&format!(
             "invalid size: {w}x{h} (allowed: at least 16x16)"

@@ -1,0 +1,290 @@
+//! The checks of every argument the page passes in, in plain Rust (no
+//! `JsValue`), so that they run natively too: in the unit tests and under
+//! the fuzzer (`fuzz/`, target `wasm_args`). The bindings in `lib.rs` only
+//! convert JavaScript values into these types and map [`ArgError`] to a
+//! JavaScript `Error` with the same message.
+
+use amc_core::camera::CameraModel;
+use amc_core::{AmcError, PixelFormat, StabilizerParams};
+use thiserror::Error;
+
+/// Largest frame side accepted (the core's limit).
+pub const MAX_SIDE: f64 = 16384.0;
+
+/// WebAssembly (wasm32) memory a stabilizer may use; beyond it allocations
+/// would fail inside the module (a trap), so such sizes are refused up front.
+pub const MEMORY_BUDGET: usize = 2 << 30;
+
+/// A bad argument from JavaScript; the message names the value and what is allowed.
+#[derive(Debug, Error)]
+pub enum ArgError {
+    #[error("invalid {name}: {value} (allowed: an integer 1..=16384 pixels)")]
+    Dimension { name: &'static str, value: f64 },
+    #[error(
+        "invalid stabilizer parameters: {detail} (allowed: a JSON object of StabilizerParams: \
+         track_width, tracker, view, render)"
+    )]
+    ParamsJson { detail: String },
+    #[error("invalid format: {found:?} (allowed: {})", InputFormat::ALLOWED)]
+    Format { found: String },
+    #[error(
+        "invalid size: {width}x{height} with n_avg {n_avg} and lookahead {lookahead} needs about \
+         {need_mib} MiB (allowed: at most {} MiB of WebAssembly memory; use a smaller frame, \
+         n_avg or lookahead)", MEMORY_BUDGET >> 20
+    )]
+    Memory {
+        width: usize,
+        height: usize,
+        n_avg: usize,
+        lookahead: usize,
+        need_mib: usize,
+    },
+    #[error("lens file: {0}")]
+    LensFile(amc_core::lens::LensError),
+    #[error(
+        "invalid lens: expected a number (horizontal field of view, degrees) or the text of a lens file"
+    )]
+    LensType,
+    #[error(
+        "invalid frame buffer length: {got} bytes (allowed: exactly {expected} = {width}x{height} {format})"
+    )]
+    BufferLength {
+        got: usize,
+        expected: usize,
+        width: usize,
+        height: usize,
+        format: &'static str,
+    },
+    /// The core refused a value (parameters, lens, timestamps).
+    #[error(transparent)]
+    Core(#[from] AmcError),
+}
+
+impl From<amc_core::camera::CameraError> for ArgError {
+    fn from(e: amc_core::camera::CameraError) -> Self {
+        ArgError::Core(e.into())
+    }
+}
+
+/// Checks a frame dimension given as a JS number.
+pub fn dimension(name: &'static str, value: f64) -> Result<usize, ArgError> {
+    if value.is_finite() && value.fract() == 0.0 && (1.0..=MAX_SIDE).contains(&value) {
+        Ok(value as usize)
+    } else {
+        Err(ArgError::Dimension { name, value })
+    }
+}
+
+/// Parses the shared parameters from JSON (`""`, `null` or `{}`: the defaults).
+pub fn parse_params(json: &str) -> Result<StabilizerParams, ArgError> {
+    let json = json.trim();
+    let params: StabilizerParams = if json.is_empty() || json == "null" {
+        StabilizerParams::default()
+    } else {
+        serde_json::from_str(json).map_err(|e| ArgError::ParamsJson {
+            detail: e.to_string(),
+        })?
+    };
+    params.validate()?;
+    Ok(params)
+}
+
+/// The lens argument: a number is a horizontal field of view in degrees
+/// (pinhole), a string the text of a lens file; anything else is refused.
+#[derive(Clone, Copy, Debug)]
+pub enum LensArg<'a> {
+    Fov(f64),
+    Text(&'a str),
+    Other,
+}
+
+/// The camera of `width x height` frames described by `lens`.
+pub fn parse_camera(
+    lens: LensArg<'_>,
+    width: usize,
+    height: usize,
+) -> Result<CameraModel, ArgError> {
+    match lens {
+        LensArg::Fov(deg) => {
+            // The one definition of the `fov` option's range.
+            amc_core::LensSpec::parse_fov(&deg.to_string())?;
+            Ok(CameraModel::pinhole_hfov(width, height, deg)?)
+        }
+        LensArg::Text(text) => amc_core::lens::parse_lens(text).map_err(ArgError::LensFile),
+        LensArg::Other => Err(ArgError::LensType),
+    }
+}
+
+/// Rough upper bound of the stabilizer's memory: the frame ring (`n_avg +
+/// lookahead` frames), the input buffer, the saccade slots (7 bytes per
+/// output pixel per frame) and working images; refuses what cannot fit.
+pub fn check_memory(
+    width: usize,
+    height: usize,
+    format: InputFormat,
+    p: &StabilizerParams,
+) -> Result<(), ArgError> {
+    let frame = format.buffer_len(width, height);
+    let frames = p
+        .render
+        .n_avg
+        .saturating_add(p.view.lookahead)
+        .saturating_add(4);
+    let slots = if p.view.mode == amc_core::Mode::Saccade {
+        p.render.n_avg.saturating_mul(width * height * 7)
+    } else {
+        0
+    };
+    let need = frame
+        .saturating_mul(frames)
+        .saturating_add(slots)
+        .saturating_add(width * height * 8);
+    if need > MEMORY_BUDGET {
+        return Err(ArgError::Memory {
+            width,
+            height,
+            n_avg: p.render.n_avg,
+            lookahead: p.view.lookahead,
+            need_mib: need >> 20,
+        });
+    }
+    Ok(())
+}
+
+/// The pixel layout of the frames pushed, named as WebCodecs' `VideoPixelFormat`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InputFormat {
+    /// `"RGBA"`: 4 bytes per pixel; the output is RGBA.
+    Rgba,
+    /// `"I420"`: planar 4:2:0, Y then U then V, rows packed; the output is I420.
+    I420,
+    /// `"NV12"`: the Y plane, then one plane of interleaved U, V pairs
+    /// (`ceil(w/2) x ceil(h/2)` pairs, rows packed); the output is I420.
+    Nv12,
+}
+
+impl InputFormat {
+    pub const ALLOWED: &'static str = r#""RGBA" (the default), "I420" or "NV12""#;
+
+    /// `None` (JavaScript `undefined` or `null`) is RGBA.
+    pub fn parse(name: Option<&str>) -> Result<Self, ArgError> {
+        match name {
+            None | Some("RGBA") => Ok(InputFormat::Rgba),
+            Some("I420") => Ok(InputFormat::I420),
+            Some("NV12") => Ok(InputFormat::Nv12),
+            Some(other) => Err(ArgError::Format {
+                found: other.to_string(),
+            }),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            InputFormat::Rgba => "RGBA",
+            InputFormat::I420 => "I420",
+            InputFormat::Nv12 => "NV12",
+        }
+    }
+
+    /// The core's format of the frames pushed (NV12 is de-interleaved to I420).
+    pub fn core(self) -> PixelFormat {
+        match self {
+            InputFormat::Rgba => PixelFormat::Rgba8,
+            InputFormat::I420 | InputFormat::Nv12 => PixelFormat::Yuv420p,
+        }
+    }
+
+    /// Bytes of one `width x height` frame (NV12 and I420 have the same size).
+    /// Sizes are at most 16384 x 16384, so this cannot overflow.
+    pub fn buffer_len(self, width: usize, height: usize) -> usize {
+        self.core().buffer_len(width, height).unwrap_or(usize::MAX)
+    }
+}
+
+/// A checked `new Stabilizer(width, height, paramsJson, lens, format)`.
+pub struct Opened {
+    pub stabilizer: amc_core::Stabilizer,
+    pub width: usize,
+    pub height: usize,
+    pub format: InputFormat,
+}
+
+/// Checks the constructor's arguments in the order the page's errors name
+/// them (format, sizes, parameters, memory, lens) and builds the core's stabilizer.
+pub fn open(
+    width: f64,
+    height: f64,
+    params_json: &str,
+    lens: LensArg<'_>,
+    format: Option<&str>,
+) -> Result<Opened, ArgError> {
+    let format = InputFormat::parse(format)?;
+    let width = dimension("width", width)?;
+    let height = dimension("height", height)?;
+    let params = parse_params(params_json)?;
+    check_memory(width, height, format, &params)?;
+    let cam = parse_camera(lens, width, height)?;
+    let stabilizer = amc_core::Stabilizer::new(&cam, width, height, params)?;
+    Ok(Opened {
+        stabilizer,
+        width,
+        height,
+        format,
+    })
+}
+
+/// Checks that a pushed frame has exactly the length its size and format need.
+pub fn check_frame_len(
+    format: InputFormat,
+    width: usize,
+    height: usize,
+    got: usize,
+) -> Result<(), ArgError> {
+    let expected = format.buffer_len(width, height);
+    if got != expected {
+        return Err(ArgError::BufferLength {
+            got,
+            expected,
+            width,
+            height,
+            format: format.name(),
+        });
+    }
+    Ok(())
+}
+
+/// Pushes one frame of `data` (checked against the size and format) at `t`
+/// seconds into `stabilizer`; NV12 is de-interleaved into `planar` (reused).
+pub fn push_frame(
+    stabilizer: &mut amc_core::Stabilizer,
+    format: InputFormat,
+    width: usize,
+    height: usize,
+    data: &[u8],
+    t: f64,
+    planar: &mut Vec<u8>,
+) -> Result<Option<amc_core::Telemetry>, ArgError> {
+    check_frame_len(format, width, height, data.len())?;
+    let data = if format == InputFormat::Nv12 {
+        nv12_to_i420(width, height, data, planar);
+        &planar[..]
+    } else {
+        data
+    };
+    let frame = amc_core::FrameRef::new(width, height, format.core(), data)?;
+    Ok(stabilizer.push(frame, t)?)
+}
+
+/// De-interleaves an NV12 frame (`width x height`, its exact length, checked
+/// by [`check_frame_len`]) into I420 in `out` (resized).
+pub fn nv12_to_i420(width: usize, height: usize, nv12: &[u8], out: &mut Vec<u8>) {
+    let n = width * height;
+    out.resize(nv12.len(), 0);
+    out[..n].copy_from_slice(&nv12[..n]);
+    let nc = (nv12.len() - n) / 2;
+    let (u, v) = out[n..].split_at_mut(nc);
+    for ((pair, u), v) in nv12[n..].chunks_exact(2).zip(u).zip(v) {
+        *u = pair[0];
+        *v = pair[1];
+    }
+}
