@@ -19,7 +19,7 @@ pub const MAX_PINHOLE_HFOV_DEG: f64 = 179.0;
 pub use crate::view::MAX_LOOKAHEAD;
 
 /// One user-facing option: its name and what it accepts.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OptionSpec {
     /// The REST / WASM name (snake_case).
     pub name: &'static str,
@@ -29,6 +29,34 @@ pub struct OptionSpec {
     pub value_name: &'static str,
     /// What the option does, with its allowed values and default.
     pub help: &'static str,
+    /// The values it accepts (checked against the setters by a test; the
+    /// service's OpenAPI document gives them as each parameter's schema).
+    pub allowed: Allowed,
+}
+
+/// The values an option accepts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Allowed {
+    /// One of these words.
+    Words(&'static [&'static str]),
+    /// An integer in `min..=max`.
+    Integer {
+        /// The least value.
+        min: u64,
+        /// The greatest value.
+        max: u64,
+    },
+    /// A number in `min..=max` (`min` itself excluded when `above_min`), or one of `words`.
+    Number {
+        /// The lower bound.
+        min: f64,
+        /// The greatest value.
+        max: f64,
+        /// Whether values must be above `min` rather than at least `min`.
+        above_min: bool,
+        /// Words accepted instead of a number (`auto`).
+        words: &'static [&'static str],
+    },
 }
 
 /// Every option a user can set on a run, in the order help texts list them.
@@ -38,66 +66,97 @@ pub const OPTIONS: &[OptionSpec] = &[
         flag: "mode",
         value_name: "stabilize|saccade|none",
         help: "stabilize (smooth view), saccade (fixed view, re-centred when needed) or none (default stabilize)",
+        allowed: Allowed::Words(&["stabilize", "saccade", "none"]),
     },
     OptionSpec {
         name: "fov",
         flag: "fov",
         value_name: "DEG|auto",
         help: "horizontal field of view of a pinhole lens in degrees, 0 < DEG <= 179, or auto to estimate it from the footage (default auto)",
+        allowed: Allowed::Number {
+            min: 0.0,
+            max: MAX_PINHOLE_HFOV_DEG,
+            above_min: true,
+            words: &["auto"],
+        },
     },
     OptionSpec {
         name: "n_avg",
         flag: "n-avg",
         value_name: "N",
         help: "frames averaged into each output frame, 1..=64 (default 6)",
+        allowed: Allowed::Integer { min: 1, max: 64 },
     },
     OptionSpec {
         name: "n_track",
         flag: "n-track",
         value_name: "N",
         help: "template reset period in frames, 1..=1000 (default 5)",
+        allowed: Allowed::Integer { min: 1, max: 1000 },
     },
     OptionSpec {
         name: "margin",
         flag: "margin",
         value_name: "FRAC",
         help: "share cropped from each side of the output, 0..=0.45 (default 0.125)",
+        allowed: Allowed::Number {
+            min: 0.0,
+            max: 0.45,
+            above_min: false,
+            words: &[],
+        },
     },
     OptionSpec {
         name: "track_width",
         flag: "track-width",
         value_name: "PX",
         help: "width of the grayscale image the tracker works on, 32..=8192 pixels (default 320)",
+        allowed: Allowed::Integer { min: 32, max: 8192 },
     },
     OptionSpec {
         name: "lookahead",
         flag: "lookahead",
         value_name: "N",
         help: "future frames used to smooth the view, 0..=600 (default 0 = online); adds N frames of latency",
+        allowed: Allowed::Integer { min: 0, max: 600 },
     },
     OptionSpec {
         name: "rate_a",
         flag: "rate-a",
         value_name: "PER_S",
         help: "smoothing: constant part of the view filter's gain, 0..=1000 per second (default 2; lower is smoother)",
+        allowed: Allowed::Number {
+            min: 0.0,
+            max: 1000.0,
+            above_min: false,
+            words: &[],
+        },
     },
     OptionSpec {
         name: "rate_b",
         flag: "rate-b",
         value_name: "PER_S_RAD",
         help: "smoothing: gain growing with the view's lag behind the camera, 0..=10000 per second per radian (default 40)",
+        allowed: Allowed::Number {
+            min: 0.0,
+            max: 10000.0,
+            above_min: false,
+            words: &[],
+        },
     },
     OptionSpec {
         name: "output_width",
         flag: "output-width",
         value_name: "PX",
         help: "output width, 16..=16384 pixels (default: the cropped input width)",
+        allowed: Allowed::Integer { min: 16, max: 16384 },
     },
     OptionSpec {
         name: "output_height",
         flag: "output-height",
         value_name: "PX",
         help: "output height, 16..=16384 pixels (default: keeps the aspect ratio)",
+        allowed: Allowed::Integer { min: 16, max: 16384 },
     },
 ];
 
@@ -205,6 +264,60 @@ fn parse_value<T: std::str::FromStr>(spec: &OptionSpec, value: &str) -> Result<T
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `allowed` is what the setters and `validate` accept: its bounds and
+    /// words pass, values just outside fail, and the help text names the bounds.
+    #[test]
+    fn allowed_values_are_what_the_setters_accept() {
+        let accepts = |name: &str, value: &str| {
+            let mut o = StabilizerOptions::default();
+            o.set(name, value).and_then(|()| o.validate()).is_ok()
+        };
+        for spec in OPTIONS {
+            let n = spec.name;
+            match spec.allowed {
+                Allowed::Words(words) => {
+                    for w in words {
+                        assert!(accepts(n, w), "{n}={w}");
+                    }
+                    assert!(!accepts(n, "wobble"), "{n}");
+                }
+                Allowed::Integer { min, max } => {
+                    assert!(accepts(n, &min.to_string()), "{n}={min}");
+                    assert!(accepts(n, &max.to_string()), "{n}={max}");
+                    assert!(!accepts(n, &(max + 1).to_string()), "{n}={}", max + 1);
+                    if min > 0 {
+                        assert!(!accepts(n, &(min - 1).to_string()), "{n}={}", min - 1);
+                    }
+                    assert!(!accepts(n, "1.5"), "{n}=1.5");
+                    assert!(
+                        spec.help.contains(&format!("{min}..={max}")),
+                        "{n}: {}",
+                        spec.help
+                    );
+                }
+                Allowed::Number {
+                    min,
+                    max,
+                    above_min,
+                    words,
+                } => {
+                    assert_eq!(accepts(n, &min.to_string()), !above_min, "{n}={min}");
+                    assert!(accepts(n, &(min + 1e-6).to_string()), "{n}");
+                    assert!(accepts(n, &max.to_string()), "{n}={max}");
+                    assert!(!accepts(n, &(max + 1e-6 * max.max(1.0)).to_string()), "{n}");
+                    assert!(!accepts(n, &(min - 1e-6).to_string()), "{n}");
+                    for bad in ["nan", "inf", "x"] {
+                        assert!(!accepts(n, bad), "{n}={bad}");
+                    }
+                    for w in words {
+                        assert!(accepts(n, w), "{n}={w}");
+                    }
+                    assert!(spec.help.contains(&format!("{max}")), "{n}: {}", spec.help);
+                }
+            }
+        }
+    }
 
     #[test]
     fn every_option_has_a_setter_and_a_flag() {

@@ -3,6 +3,7 @@
 
 use super::options::all_options;
 use super::stabilize::SUMMARY_HEADERS;
+use amc_core::options::Allowed;
 use axum::Json;
 use serde_json::{json, Map, Value};
 
@@ -13,12 +14,38 @@ fn problem(description: &str) -> Value {
     })
 }
 
+/// The JSON Schema of an option's values (as its query parameter carries them).
+fn allowed_schema(allowed: &Allowed) -> Value {
+    match *allowed {
+        Allowed::Words(words) => json!({"type": "string", "enum": words}),
+        Allowed::Integer { min, max } => json!({"type": "integer", "minimum": min, "maximum": max}),
+        Allowed::Number {
+            min,
+            max,
+            above_min,
+            words,
+        } => {
+            let mut number = json!({"type": "number", "maximum": max});
+            number[if above_min {
+                "exclusiveMinimum"
+            } else {
+                "minimum"
+            }] = json!(min);
+            if words.is_empty() {
+                number
+            } else {
+                json!({"anyOf": [number, {"type": "string", "enum": words}]})
+            }
+        }
+    }
+}
+
 fn query_parameters() -> Vec<Value> {
     all_options()
         .into_iter()
-        .map(|(name, allowed)| {
-            json!({"name": name, "in": "query", "required": false, "description": allowed,
-                   "schema": {"type": "string"}})
+        .map(|(name, help, allowed)| {
+            json!({"name": name, "in": "query", "required": false, "description": help,
+                   "schema": allowed_schema(&allowed)})
         })
         .collect()
 }
@@ -28,11 +55,11 @@ fn upload_body() -> Value {
         "required": true,
         "description": "The clip: the raw body with a video/* content type, or multipart/form-data with a `video` file and an optional `lens` file (the project's lens JSON, an OpenCV calibration or a Gyroflow profile).",
         "content": {
-            "video/*": {"schema": {"type": "string", "format": "binary"}},
-            "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
-            "multipart/form-data": {"schema": {"type": "object", "required": ["video"], "properties": {
-                "video": {"type": "string", "format": "binary"},
-                "lens": {"type": "string", "format": "binary"}
+            "video/*": {"schema": {"type": "string", "format": "binary", "minLength": 1}},
+            "application/octet-stream": {"schema": {"type": "string", "format": "binary", "minLength": 1}},
+            "multipart/form-data": {"schema": {"type": "object", "required": ["video"], "additionalProperties": false, "properties": {
+                "video": {"type": "string", "format": "binary", "minLength": 1},
+                "lens": {"type": "string", "description": "The lens file's text (UTF-8 JSON or YAML, at most 1 MiB)"}
             }}}
         }
     })
@@ -117,7 +144,7 @@ pub fn spec() -> Value {
                         {"name": "limit", "in": "query", "required": false, "description": "Jobs per page: 1..=100 (default 20)",
                          "schema": {"type": "integer", "minimum": 1, "maximum": 100, "default": 20}},
                         {"name": "cursor", "in": "query", "required": false, "description": "The next_cursor of the previous page (absent: the newest jobs)",
-                         "schema": {"type": "string"}}
+                         "schema": {"type": "string", "pattern": "^[0-9]{1,19}$"}}
                     ],
                     "responses": {
                         "200": {"description": "One page of jobs", "content": {"application/json": {"schema": {"$ref": "#/components/schemas/JobPage"}}}},

@@ -4,7 +4,7 @@
 //! API use too; only `format` and `metrics` are the service's own.
 
 use super::problem::ApiError;
-use amc_core::options::OPTIONS as STABILIZER_OPTIONS;
+use amc_core::options::{Allowed, OPTIONS as STABILIZER_OPTIONS};
 use amc_core::StabilizerOptions;
 
 /// Container of the stabilized video.
@@ -44,20 +44,25 @@ pub struct JobOptions {
     pub measure: bool,
 }
 
-/// The service's own options, with their allowed values.
-pub const SERVICE_OPTIONS: &[(&str, &str)] = &[
-    ("format", "mp4 or webm (default mp4)"),
+/// The service's own options: name, help, allowed values.
+pub const SERVICE_OPTIONS: &[(&str, &str, Allowed)] = &[
+    (
+        "format",
+        "mp4 or webm (default mp4)",
+        Allowed::Words(&["mp4", "webm"]),
+    ),
     (
         "metrics",
         "true or false: measure normal flow, frame change and sharpness (default true)",
+        Allowed::Words(&["true", "false"]),
     ),
 ];
 
 /// Every option a request may carry, with its allowed values (for the OpenAPI document).
-pub fn all_options() -> Vec<(&'static str, &'static str)> {
+pub fn all_options() -> Vec<(&'static str, &'static str, Allowed)> {
     STABILIZER_OPTIONS
         .iter()
-        .map(|o| (o.name, o.help))
+        .map(|o| (o.name, o.help, o.allowed))
         .chain(SERVICE_OPTIONS.iter().copied())
         .collect()
 }
@@ -93,7 +98,7 @@ impl JobOptions {
                     .set(name, value)
                     .map_err(|e| ApiError::BadOption(e.to_string()))?,
                 other => {
-                    let names: Vec<_> = all_options().iter().map(|(n, _)| *n).collect();
+                    let names: Vec<_> = all_options().iter().map(|(n, ..)| *n).collect();
                     return Err(ApiError::BadOption(format!(
                         "unknown option {other:?} (known: {})",
                         names.join(", ")
