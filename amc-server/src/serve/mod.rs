@@ -23,6 +23,8 @@
 //! shutdown). This file only declares and re-exports.
 
 mod config;
+#[doc(hidden)]
+pub mod fuzzing;
 mod intake;
 mod jobs;
 mod live;
@@ -30,6 +32,7 @@ mod metrics;
 mod openapi;
 mod ops;
 mod options;
+pub mod panics;
 mod problem;
 mod router;
 mod run;
@@ -43,6 +46,7 @@ mod work;
 
 pub use config::{Limits, ServeConfig, ServeError};
 pub use live::LiveConfig;
+pub use options::{JobOptions, OutputFormat};
 pub use router::app;
 pub use run::run;
 pub use state::AppState;

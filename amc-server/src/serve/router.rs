@@ -14,6 +14,7 @@ use axum::response::{Html, IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::Router;
 use std::sync::Arc;
+use tower_http::catch_panic::CatchPanicLayer;
 use tower_http::services::ServeDir;
 use tower_http::trace::TraceLayer;
 
@@ -43,6 +44,7 @@ pub fn app(state: Arc<AppState>) -> Router {
     };
     router
         .method_not_allowed_fallback(method_not_allowed)
+        .layer(CatchPanicLayer::custom(super::panics::panic_response))
         .layer(TraceLayer::new_for_http())
         .with_state(state)
 }

@@ -34,6 +34,7 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
     let limits = args.limits()?;
     let live = args.live()?;
     amc_video::ffmpeg_available()?;
+    super::panics::install_hook();
     let (work_dir, owned_dir) = match &args.work_dir {
         Some(d) => {
             let io = |source| ServeError::Io {

@@ -6,6 +6,7 @@
 //! children, and the scratch folder is removed with the future.
 
 use super::intake::{self, Intake};
+use super::panics::PANICKED;
 use super::problem::ApiError;
 use super::state::AppState;
 use super::work::{self, WorkSpec};
@@ -75,15 +76,9 @@ async fn stabilize(state: &Arc<AppState>, request: Request) -> Result<Response, 
         .acquire_owned()
         .await
         .map_err(|_| ApiError::Saturated("the service is shutting down".into()))?;
-    let limits = state.limits.clone();
-    let (spec, result) = state
-        .tasks
-        .spawn_blocking(move || {
-            let result = work::stabilize(&spec, &limits, &control);
-            (spec, result)
-        })
+    let (spec, result) = work::stabilize_on_worker(state, spec, control.clone())
         .await
-        .map_err(|e| ApiError::Internal(format!("the worker failed: {e}")))?;
+        .map_err(|_| ApiError::Internal(PANICKED.into()))?;
     drop(permit);
     let summary = result?;
     guard.disarm();

@@ -31,9 +31,23 @@ pub struct AppState {
     pub tasks: TaskTracker,
     /// Becomes true when the service is shutting down.
     pub shutdown: watch::Sender<bool>,
+    /// Test-only trigger: workers panic while set (the panic path's tests).
+    #[cfg(test)]
+    pub panic_in_workers: std::sync::atomic::AtomicBool,
 }
 
 impl AppState {
+    /// Whether the test-only trigger asks workers to panic (never, outside
+    /// this crate's unit tests).
+    pub fn panics_for_test(&self) -> bool {
+        #[cfg(test)]
+        return self
+            .panic_in_workers
+            .load(std::sync::atomic::Ordering::SeqCst);
+        #[cfg(not(test))]
+        false
+    }
+
     /// State with its work directory at `work_dir` (created if missing).
     pub fn new(
         limits: Limits,
@@ -53,6 +67,8 @@ impl AppState {
             metrics,
             tasks: TaskTracker::new(),
             shutdown: watch::channel(false).0,
+            #[cfg(test)]
+            panic_in_workers: std::sync::atomic::AtomicBool::new(false),
             limits,
             work_dir,
             web_dir,

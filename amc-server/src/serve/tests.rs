@@ -153,10 +153,9 @@ fn job_times_are_rfc3339() {
     assert!(jobs::rfc3339(SystemTime::now()).starts_with("20"));
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_small_job_runs_to_done_and_its_files_go_with_it() {
-    let dir = tempfile::tempdir().unwrap();
-    let clip = dir.path().join("clip.mp4");
+/// A 1 s, 160x90, 30 fps H.264 clip in `dir`.
+fn small_clip(dir: &std::path::Path) -> std::path::PathBuf {
+    let clip = dir.join("clip.mp4");
     let ok = std::process::Command::new("ffmpeg")
         .args([
             "-v",
@@ -181,6 +180,13 @@ async fn a_small_job_runs_to_done_and_its_files_go_with_it() {
         .map(|s| s.success())
         .unwrap_or(false);
     assert!(ok, "ffmpeg could not make a test clip");
+    clip
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_small_job_runs_to_done_and_its_files_go_with_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let clip = small_clip(dir.path());
     let st = state(dir.path());
     let app = app(st.clone());
     let (s, _, j) = call(
@@ -251,4 +257,106 @@ async fn a_small_job_runs_to_done_and_its_files_go_with_it() {
         .unwrap()
         .collect();
     assert!(left.is_empty(), "{left:?}");
+}
+
+/// A panic in a worker (the test-only trigger) costs that request or job
+/// only: `POST /stabilize` answers 500 problem+json, a job fails with the
+/// reason, nothing is left on disk, and the next clip goes through.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_panicking_worker_fails_its_request_and_the_service_carries_on() {
+    use std::sync::atomic::Ordering;
+    let dir = tempfile::tempdir().unwrap();
+    let clip = std::fs::read(small_clip(dir.path())).unwrap();
+    let st = state(dir.path());
+    let app = app(st.clone());
+    let post = |path: &str| {
+        Request::post(path)
+            .header("content-type", "video/mp4")
+            .body(Body::from(clip.clone()))
+            .unwrap()
+    };
+    st.panic_in_workers.store(true, Ordering::SeqCst);
+
+    let (s, ctype, j) = call(&app, post("/stabilize?metrics=false")).await;
+    assert_eq!(s, StatusCode::INTERNAL_SERVER_ERROR, "{j}");
+    assert_eq!(ctype, "application/problem+json");
+    assert_eq!(j["status"], 500, "{j}");
+    assert_eq!(j["detail"], panics::PANICKED, "{j}");
+
+    let (s, _, j) = call(&app, post("/jobs?metrics=false")).await;
+    assert_eq!(s, StatusCode::ACCEPTED, "{j}");
+    let id = j["id"].as_str().unwrap().to_string();
+    let mut last = serde_json::Value::Null;
+    for _ in 0..600 {
+        let (_, _, j) = call(&app, get(&format!("/jobs/{id}"))).await;
+        if j["state"] != "queued" && j["state"] != "running" {
+            last = j;
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    assert_eq!(last["state"], "failed", "{last}");
+    assert_eq!(last["error"], panics::PANICKED, "{last}");
+    let (s, ctype, _) = call(&app, get(&format!("/jobs/{id}/output"))).await;
+    assert_eq!(s, StatusCode::CONFLICT);
+    assert_eq!(ctype, "application/problem+json");
+
+    // The service carries on.
+    st.panic_in_workers.store(false, Ordering::SeqCst);
+    let (s, _, j) = call(&app, get("/healthz")).await;
+    assert_eq!(s, StatusCode::OK, "{j}");
+    let res = app
+        .clone()
+        .oneshot(post("/stabilize?metrics=false"))
+        .await
+        .unwrap();
+    assert_eq!(res.status(), StatusCode::OK);
+    to_bytes(res.into_body(), 1 << 26).await.unwrap();
+    let res = app
+        .clone()
+        .oneshot(
+            Request::delete(format!("/jobs/{id}"))
+                .body(Body::empty())
+                .unwrap(),
+        )
+        .await
+        .unwrap();
+    assert_eq!(res.status(), StatusCode::NO_CONTENT);
+    // Nothing of the three requests is left on disk.
+    for _ in 0..100 {
+        if std::fs::read_dir(dir.path().join("work")).unwrap().count() == 0 {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let left: Vec<_> = std::fs::read_dir(dir.path().join("work"))
+        .unwrap()
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+    assert_eq!(st.disk.used(), 0);
+}
+
+/// A panic in a handler is answered with a 500 problem+json by the router's
+/// catch-panic layer (the connection is not just dropped).
+#[tokio::test]
+async fn a_panicking_handler_is_answered_with_problem_json() {
+    let res = panics::panic_response(Box::new("boom"));
+    assert_eq!(res.status(), StatusCode::INTERNAL_SERVER_ERROR);
+    let app: Router = Router::new()
+        .route(
+            "/boom",
+            axum::routing::get(|| async {
+                if std::hint::black_box(true) {
+                    panic!("test-only trigger: a handler panicked");
+                }
+                "unreachable"
+            }),
+        )
+        .layer(tower_http::catch_panic::CatchPanicLayer::custom(
+            panics::panic_response,
+        ));
+    let (s, ctype, j) = call(&app, get("/boom")).await;
+    assert_eq!(s, StatusCode::INTERNAL_SERVER_ERROR);
+    assert_eq!(ctype, "application/problem+json");
+    assert_eq!(j["detail"], panics::PANICKED, "{j}");
 }

@@ -84,6 +84,31 @@ pub fn inspect(path: &Path, limits: &Limits) -> Result<Inspection, ApiError> {
     Ok(found)
 }
 
+/// What a worker thread gives back: the spec, and the run's outcome.
+pub type Finished = (WorkSpec, Result<RunSummary, ApiError>);
+
+/// Runs [`stabilize`] on a blocking thread the service tracks (awaited on
+/// shutdown). A panic in it comes back as the `JoinError` (the panic hook
+/// has logged it with its backtrace); the service itself carries on.
+pub async fn stabilize_on_worker(
+    state: &super::state::AppState,
+    spec: WorkSpec,
+    control: std::sync::Arc<RunControl>,
+) -> Result<Finished, tokio::task::JoinError> {
+    let limits = state.limits.clone();
+    let panic_for_test = state.panics_for_test();
+    state
+        .tasks
+        .spawn_blocking(move || {
+            if panic_for_test {
+                panic!("test-only trigger: a worker panicked");
+            }
+            let result = stabilize(&spec, &limits, &control);
+            (spec, result)
+        })
+        .await
+}
+
 /// Stabilizes `spec.input` into `spec.output`.
 pub fn stabilize(
     spec: &WorkSpec,

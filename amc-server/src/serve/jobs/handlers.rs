@@ -5,6 +5,7 @@
 
 use super::store::{lock, Job, JobPage, JobState, JobView};
 use crate::serve::intake::{self, Intake};
+use crate::serve::panics::PANICKED;
 use crate::serve::problem::ApiError;
 use crate::serve::state::AppState;
 use crate::serve::work::{self, WorkSpec};
@@ -92,15 +93,7 @@ async fn run(state: Arc<AppState>, job: Arc<Job>, spec: WorkSpec) {
         inner.state = JobState::Running;
     }
     tracing::info!(job = %job.id, "job running");
-    let limits = state.limits.clone();
-    let control = job.control.clone();
-    let worker = state
-        .tasks
-        .spawn_blocking(move || {
-            let result = work::stabilize(&spec, &limits, &control);
-            (spec, result)
-        })
-        .await;
+    let worker = work::stabilize_on_worker(&state, spec, job.control.clone()).await;
     drop(permit);
     match worker {
         Ok((spec, Ok(summary))) => {
@@ -128,11 +121,7 @@ async fn run(state: Arc<AppState>, job: Arc<Job>, spec: WorkSpec) {
         }
         Err(e) => {
             tracing::error!(job = %job.id, error = %e, "job worker panicked");
-            job.finish(
-                JobState::Failed,
-                None,
-                Some("internal error while processing; the clip was not stabilized".into()),
-            );
+            job.finish(JobState::Failed, None, Some(PANICKED.into()));
         }
     }
 }

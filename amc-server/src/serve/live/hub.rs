@@ -16,7 +16,7 @@
 //! fan-out is a `watch` channel holding only the newest frame, so a slow
 //! viewer skips frames instead of queueing them and never delays the others.
 
-use super::jpeg::{decode_jpeg, encode_jpeg};
+use super::jpeg::{decode_ingest_frame, encode_jpeg};
 use crate::serve::metrics::Metrics;
 use amc_core::view::Mode;
 use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams};
@@ -411,7 +411,7 @@ impl LiveHub {
                     }
                     (frame, t, arrived, true)
                 }
-                Input::Jpeg { bytes, arrived } => match decode_jpeg(&bytes, &mut rgb) {
+                Input::Jpeg { bytes, arrived } => match decode_ingest_frame(&bytes, &mut rgb) {
                     Ok(()) => (
                         std::mem::replace(&mut rgb, Frame::new(0, 0, PixelFormat::Rgb8)),
                         None,

@@ -93,8 +93,34 @@ impl jpeg_encoder::ImageBuffer for Yuv420pImage<'_> {
     }
 }
 
-pub fn decode_jpeg(bytes: &[u8], into: &mut Frame) -> Result<(), image::ImageError> {
-    let img = image::load_from_memory_with_format(bytes, image::ImageFormat::Jpeg)?.into_rgb8();
+/// Largest side of a frame a publisher may send (8K UHD is 7680).
+pub const MAX_INGEST_SIDE: u32 = 8192;
+/// Most pixels in a frame a publisher may send (8K UHD, 7680 x 4320).
+pub const MAX_INGEST_PIXELS: u64 = 7680 * 4320;
+
+/// Decodes a publisher's JPEG frame into `into` (RGB), refusing frames over
+/// [`MAX_INGEST_SIDE`] or [`MAX_INGEST_PIXELS`] before any pixel memory is
+/// allocated: the header's size is checked first, and the decoder's own
+/// allocations are capped at what such a frame needs.
+pub fn decode_ingest_frame(bytes: &[u8], into: &mut Frame) -> Result<(), image::ImageError> {
+    let reader = || {
+        let mut r =
+            image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Jpeg);
+        let mut limits = image::Limits::default();
+        limits.max_image_width = Some(MAX_INGEST_SIDE);
+        limits.max_image_height = Some(MAX_INGEST_SIDE);
+        // RGB output plus the decoder's planes and working rows.
+        limits.max_alloc = Some(MAX_INGEST_PIXELS * 3 * 2 + (16 << 20));
+        r.limits(limits);
+        r
+    };
+    let (w, h) = reader().into_dimensions()?;
+    if u64::from(w) * u64::from(h) > MAX_INGEST_PIXELS {
+        return Err(image::ImageError::Limits(
+            image::error::LimitError::from_kind(image::error::LimitErrorKind::DimensionError),
+        ));
+    }
+    let img = reader().decode()?.into_rgb8();
     let (w, h) = (img.width() as usize, img.height() as usize);
     into.width = w;
     into.height = h;
@@ -126,8 +152,8 @@ mod tests {
             Frame::new(0, 0, PixelFormat::Rgb8),
             Frame::new(0, 0, PixelFormat::Rgb8),
         );
-        decode_jpeg(&a, &mut da).unwrap();
-        decode_jpeg(&b, &mut db).unwrap();
+        decode_ingest_frame(&a, &mut da).unwrap();
+        decode_ingest_frame(&b, &mut db).unwrap();
         assert_eq!((db.width, db.height), (w, h));
         let mean_abs = da
             .data

@@ -16,4 +16,5 @@ mod viewer;
 
 pub use hub::{LiveConfig, LiveHub};
 pub use ingest::ingest;
+pub use jpeg::decode_ingest_frame;
 pub use viewer::viewer;
