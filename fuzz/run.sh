@@ -2,14 +2,17 @@
 # Fuzzes every parser of ours with libFuzzer (cargo-fuzz, nightly only here;
 # the project builds on stable). Usage:
 #
-#   fuzz/run.sh [--minutes N] [--jobs J] [TARGET...]
+#   fuzz/run.sh [--minutes N] [--jobs J] [--fork F] [--bin PATH] [--seed-only] [TARGET...]
 #
-# Builds the targets, seeds fuzz/corpus/TARGET from fuzz/seeds and from real
-# files in ../shared/data (cut down with ffmpeg), then runs each TARGET (all
-# by default) for N minutes (default 10), J at a time (default: the cores).
-# Crashes land in fuzz/artifacts/TARGET/; copy each into
-# fuzz/regressions/TARGET/ with the fix, and `cargo test --release -p amc-e2e
-# --test fuzz_regressions` replays them on stable from then on.
+# Builds the `all` binary (every target, picked by AMC_FUZZ_TARGET), seeds
+# fuzz/corpus/TARGET from fuzz/seeds and from real files in ../shared/data
+# (cut down with ffmpeg), then runs each TARGET (all by default) for N minutes
+# of wall time (default 10), J targets at a time (default: the cores), each
+# with F libFuzzer processes (-fork, default 1). --bin runs a prebuilt `all`
+# (e.g. copied to a machine without Rust, after --seed-only here).
+# Crashes land in fuzz/artifacts/TARGET/ (fuzzing goes on after one); copy
+# each into fuzz/regressions/TARGET/ with the fix, and `cargo test --release
+# -p amc-e2e --test fuzz_regressions` replays them on stable from then on.
 #
 # Limits per target (what "no allocation beyond the documented limits"
 # means here) are in LIMITS below; -timeout 10 s catches hangs.
@@ -18,12 +21,18 @@ cd "$(dirname "$0")"
 
 minutes=10
 jobs=$(nproc)
+fork=1
+bin=""
+seed_only=0
 targets=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --minutes) minutes="$2"; shift 2 ;;
     --jobs) jobs="$2"; shift 2 ;;
-    -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
+    --fork) fork="$2"; shift 2 ;;
+    --bin) bin="$2"; shift 2 ;;
+    --seed-only) seed_only=1; shift ;;
+    -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
     *) targets+=("$1"); shift ;;
   esac
 done
@@ -41,8 +50,6 @@ declare -A LIMITS=(
   [wasm_args]="4096 2600 4096"
 )
 
-command -v cargo-fuzz >/dev/null || cargo +nightly install cargo-fuzz --locked
-rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
 data=../../shared/data
 [ -d "$data" ] || data=../shared/data
 
@@ -64,35 +71,40 @@ seed() {
       ;;
     ingest_frame)
       # JPEGs as publishers send them: baseline, progressive, grey, odd sizes.
-      local src
-      src=$(ls "$data"/cc9/frames/*.jpg | head -1)
-      [ -f "$dir/cc9.jpg" ] || ffmpeg -v error -y -i "$src" -vf scale=64:36 "$dir/cc9.jpg"
+      [ -f "$dir/cc9.jpg" ] || ffmpeg -v error -y -i "$data/cc9/frames/RE_frame-99.jpg" \
+        -vf scale=64:36 "$dir/cc9.jpg" || true
       [ -f "$dir/pano-grey.jpg" ] || ffmpeg -v error -y -i "$data/pano/pannellum_examplepano.jpg" \
-        -vf scale=96:48,format=gray "$dir/pano-grey.jpg"
+        -vf scale=96:48,format=gray "$dir/pano-grey.jpg" || true
       [ -f "$dir/karma-odd.jpg" ] || ffmpeg -v error -y -i "$data/karma/karma.mp4" -frames:v 1 \
-        -vf scale=31:17 -q:v 8 "$dir/karma-odd.jpg"
+        -vf scale=31:17 -q:v 8 "$dir/karma-odd.jpg" || true
       ;;
   esac
 }
 
-# Debug assertions on (-a): an overflow is a finding too.
-cargo +nightly fuzz build -a
-bin=target/x86_64-unknown-linux-gnu/release
-[ -n "${CARGO_TARGET_DIR:-}" ] && bin=$CARGO_TARGET_DIR/x86_64-unknown-linux-gnu/release
+for t in "${targets[@]}"; do seed "$t"; done
+[ "$seed_only" = 1 ] && exit 0
+
+if [ -z "$bin" ]; then
+  command -v cargo-fuzz >/dev/null || cargo +nightly install cargo-fuzz --locked
+  rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
+  # Debug assertions on (-a): an overflow is a finding too.
+  cargo +nightly fuzz build -a all
+  bin=${CARGO_TARGET_DIR:-target}/x86_64-unknown-linux-gnu/release/all
+fi
 
 run_one() {
   local t=$1
   read -r max_len malloc rss <<<"${LIMITS[$t]}"
   mkdir -p "artifacts/$t" "logs"
-  "$bin/$t" "corpus/$t" -max_total_time=$((minutes * 60)) -timeout=10 \
-    -max_len="$max_len" -malloc_limit_mb="$malloc" -rss_limit_mb="$rss" \
-    -artifact_prefix="artifacts/$t/" -print_final_stats=1 > "logs/$t.log" 2>&1
-  local rc=$?
-  echo "$t: exit $rc, $(grep -o 'stat::number_of_executed_units: *[0-9]*' "logs/$t.log" | tail -1)"
+  local rc=0
+  AMC_FUZZ_TARGET=$t "$bin" "corpus/$t" -max_total_time="$(awk "BEGIN{print int($minutes*60)}")" \
+    -timeout=10 -max_len="$max_len" -malloc_limit_mb="$malloc" -rss_limit_mb="$rss" \
+    -fork="$fork" -ignore_crashes=1 -ignore_ooms=1 -ignore_timeouts=1 \
+    -artifact_prefix="artifacts/$t/" -print_final_stats=1 > "logs/$t.log" 2>&1 || rc=$?
+  echo "$t: exit $rc, $(grep -Eo 'Done [0-9]+ runs in [0-9]+ second|#[0-9]+: cov: [0-9]+ ft: [0-9]+ corp: [0-9]+' "logs/$t.log" | tail -1)"
   return $rc
 }
 
-for t in "${targets[@]}"; do seed "$t"; done
 failed=0
 running=0
 for t in "${targets[@]}"; do
@@ -101,5 +113,12 @@ for t in "${targets[@]}"; do
   if [ "$running" -ge "$jobs" ]; then wait -n || failed=1; running=$((running - 1)); fi
 done
 while [ "$running" -gt 0 ]; do wait -n || failed=1; running=$((running - 1)); done
-ls artifacts/*/ 2>/dev/null | grep -v ':$' | grep . && echo "crashes: see fuzz/artifacts" || echo "no crashes"
+found=$(find artifacts -type f 2>/dev/null | sort)
+if [ -n "$found" ]; then
+  echo "findings (crash, leak, OOM or timeout inputs):"
+  echo "$found"
+  failed=1
+else
+  echo "no findings"
+fi
 exit $failed

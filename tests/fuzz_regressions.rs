@@ -49,8 +49,9 @@ fn y4m_error(bytes: &[u8]) -> String {
     }
 }
 
-/// Found by `y4m`: a header token starting with a non-ASCII character was
-/// split inside the character (a panic); now it is ignored like any unknown tag.
+/// Found while writing the `y4m` target (reading the parser it drives): a
+/// header token starting with a non-ASCII character was split inside the
+/// character (a panic); now it is ignored like any unknown tag.
 #[test]
 fn y4m_header_with_non_ascii_token() {
     let e = y4m_error(

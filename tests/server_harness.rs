@@ -149,6 +149,12 @@ impl Drop for Server {
                 let _ = self.child.wait();
             }
         }
+        // The server's log stays only for a failed test, to read.
+        if std::thread::panicking() {
+            eprintln!("amc serve's log: {}", self.stderr_log.display());
+        } else {
+            let _ = std::fs::remove_file(&self.stderr_log);
+        }
     }
 }
 

@@ -307,8 +307,11 @@ pub fn wasm_args(data: &[u8]) {
     while opened.stabilizer.finish().is_some() {}
 }
 
+/// A target's body.
+pub type Body = fn(&[u8]);
+
 /// Every target by name (`fuzz/run.sh`, the `all` binary, the regression replay).
-pub const TARGETS: &[(&str, fn(&[u8]))] = &[
+pub const TARGETS: &[(&str, Body)] = &[
     ("y4m", y4m),
     ("lens", lens),
     ("params_json", params_json),

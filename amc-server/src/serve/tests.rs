@@ -143,6 +143,82 @@ async fn every_stabilizer_option_is_documented_with_its_help() {
     }
 }
 
+/// The schema says what the service accepts (what schemathesis found it did
+/// not): option ranges and words, the cursor's form, a non-empty video, a
+/// text lens field and no other form fields.
+#[tokio::test]
+async fn the_schema_states_what_is_accepted() {
+    let doc = openapi::spec();
+    let post = &doc["paths"]["/stabilize"]["post"];
+    let param = |name: &str| {
+        post["parameters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == name)
+            .unwrap()["schema"]
+            .clone()
+    };
+    assert_eq!(
+        param("n_avg"),
+        serde_json::json!({"type": "integer", "minimum": 1, "maximum": 64})
+    );
+    assert_eq!(
+        param("mode")["enum"],
+        serde_json::json!(["stabilize", "saccade", "none"])
+    );
+    assert_eq!(param("format")["enum"], serde_json::json!(["mp4", "webm"]));
+    assert_eq!(
+        param("metrics")["enum"],
+        serde_json::json!(["true", "false"])
+    );
+    let fov = param("fov");
+    assert_eq!(fov["anyOf"][0]["exclusiveMinimum"], 0.0, "{fov}");
+    assert_eq!(fov["anyOf"][0]["maximum"], 179.0, "{fov}");
+    assert_eq!(
+        fov["anyOf"][1]["enum"],
+        serde_json::json!(["auto"]),
+        "{fov}"
+    );
+    assert_eq!(param("margin")["minimum"], 0.0);
+    let body = &post["requestBody"]["content"];
+    assert_eq!(body["video/*"]["schema"]["minLength"], 1);
+    let form = &body["multipart/form-data"]["schema"];
+    assert_eq!(form["additionalProperties"], false, "{form}");
+    assert_eq!(form["properties"]["lens"]["type"], "string");
+    assert!(form["properties"]["lens"].get("format").is_none(), "{form}");
+    let list = doc["paths"]["/jobs"]["get"]["parameters"]
+        .as_array()
+        .unwrap();
+    let cursor = list.iter().find(|p| p["name"] == "cursor").unwrap();
+    assert_eq!(cursor["schema"]["pattern"], "^[0-9]{1,19}$");
+    // Each stated bound is what the service does: the edges pass, one past fails.
+    let dir = tempfile::tempdir().unwrap();
+    let app = app(state(dir.path()));
+    for (query, ok) in [
+        ("n_avg=64", true),
+        ("n_avg=65", false),
+        ("fov=179", true),
+        ("fov=0", false),
+    ] {
+        let (s, _, j) = call(
+            &app,
+            Request::post(format!("/stabilize?{query}"))
+                .header("content-type", "video/mp4")
+                .body(Body::from("not a video"))
+                .unwrap(),
+        )
+        .await;
+        // A valid option gets as far as the body (415: not a video).
+        let want = if ok {
+            StatusCode::UNSUPPORTED_MEDIA_TYPE
+        } else {
+            StatusCode::BAD_REQUEST
+        };
+        assert_eq!(s, want, "{query}: {j}");
+    }
+}
+
 #[test]
 fn job_times_are_rfc3339() {
     use std::time::{SystemTime, UNIX_EPOCH};
