@@ -302,8 +302,9 @@ pub fn post(url: &str, content_type: &str, body: &[u8]) -> Reply {
     reply(req.send(body).unwrap_or_else(|e| panic!("POST {url}: {e}")))
 }
 
-/// POSTs a multipart form with (name, filename, content type, bytes) parts.
-pub fn post_multipart(url: &str, parts: &[(&str, &str, &str, &[u8])]) -> Reply {
+/// A multipart form of (name, filename, content type, bytes) parts: its
+/// Content-Type (with the boundary) and its body.
+pub fn multipart_body(parts: &[(&str, &str, &str, &[u8])]) -> (String, Vec<u8>) {
     let boundary = "amc-test-boundary-7d41c2";
     let mut body = Vec::new();
     for (name, filename, ctype, bytes) in parts {
@@ -316,11 +317,13 @@ pub fn post_multipart(url: &str, parts: &[(&str, &str, &str, &[u8])]) -> Reply {
         body.extend_from_slice(b"\r\n");
     }
     write!(body, "--{boundary}--\r\n").unwrap();
-    post(
-        url,
-        &format!("multipart/form-data; boundary={boundary}"),
-        &body,
-    )
+    (format!("multipart/form-data; boundary={boundary}"), body)
+}
+
+/// POSTs a multipart form with (name, filename, content type, bytes) parts.
+pub fn post_multipart(url: &str, parts: &[(&str, &str, &str, &[u8])]) -> Reply {
+    let (content_type, body) = multipart_body(parts);
+    post(url, &content_type, &body)
 }
 
 /// Sends a request by hand: `head` (request line and headers, without the

@@ -35,7 +35,7 @@
 //! The report (one row per sample, then the statuses by kind) goes to stdout.
 
 use amc_e2e::fixtures::{lavfi, test_clip, test_picture};
-use amc_e2e::server::{raw_request, rss_kb, websocket, Server};
+use amc_e2e::server::{multipart_body, raw_request, rss_kb, websocket, Server};
 use amc_e2e::{data, s};
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -157,25 +157,14 @@ fn post(agent: &ureq::Agent, url: &str, ctype: &str, body: &[u8]) -> (u16, Vec<u
     answer(req.send(body))
 }
 
-const BOUNDARY: &str = "amc-soak-boundary-51f0";
-
-fn multipart(parts: &[(&str, &str, &str, &[u8])]) -> Vec<u8> {
-    let mut body = Vec::new();
-    for (name, filename, ctype, bytes) in parts {
-        write!(
-            body,
-            "--{BOUNDARY}\r\nContent-Disposition: form-data; name=\"{name}\"; filename=\"{filename}\"\r\nContent-Type: {ctype}\r\n\r\n"
-        )
-        .unwrap();
-        body.extend_from_slice(bytes);
-        body.extend_from_slice(b"\r\n");
-    }
-    write!(body, "--{BOUNDARY}--\r\n").unwrap();
-    body
-}
-
-fn multipart_type() -> String {
-    format!("multipart/form-data; boundary={BOUNDARY}")
+/// POSTs a multipart form of (name, filename, content type, bytes) parts.
+fn post_form(
+    agent: &ureq::Agent,
+    url: &str,
+    parts: &[(&str, &str, &str, &[u8])],
+) -> (u16, Vec<u8>) {
+    let (ctype, body) = multipart_body(parts);
+    post(agent, url, &ctype, &body)
 }
 
 fn text(body: &[u8]) -> String {
@@ -294,11 +283,10 @@ fn good_uploads(c: &Ctx, seed: u64) {
             ),
             2 => (
                 "multipart + lens",
-                post(
+                post_form(
                     &agent,
                     &c.url("/stabilize?mode=saccade&n_avg=4"),
-                    &multipart_type(),
-                    &multipart(&[
+                    &[
                         ("video", "good.mp4", "video/mp4", &c.clips.good),
                         (
                             "lens",
@@ -306,7 +294,7 @@ fn good_uploads(c: &Ctx, seed: u64) {
                             "application/json",
                             br#"{"model":"pinhole","width":160,"height":90,"fx":125,"fy":125,"cx":79.5,"cy":44.5}"#,
                         ),
-                    ]),
+                    ],
                 ),
             ),
             _ => (
@@ -409,24 +397,22 @@ fn bad_requests(c: &Ctx, seed: u64) {
             ),
             10 => (
                 "broken lens",
-                post(
+                post_form(
                     &agent,
                     &c.url("/stabilize"),
-                    &multipart_type(),
-                    &multipart(&[
+                    &[
                         ("video", "good.mp4", "video/mp4", &k.good),
                         ("lens", "l.json", "application/json", b"{not json"),
-                    ]),
+                    ],
                 ),
                 400,
             ),
             11 => (
                 "form without video",
-                post(
+                post_form(
                     &agent,
                     &c.url("/jobs"),
-                    &multipart_type(),
-                    &multipart(&[("clip", "good.mp4", "video/mp4", &k.good)]),
+                    &[("clip", "good.mp4", "video/mp4", &k.good)],
                 ),
                 400,
             ),
@@ -677,10 +663,9 @@ fn quitters(c: &Ctx, seed: u64) {
                 );
             }
             1 => {
-                let body = multipart(&[("video", "long.mp4", "video/mp4", &k.long)]);
+                let (ctype, body) = multipart_body(&[("video", "long.mp4", "video/mp4", &k.long)]);
                 let head = format!(
-                    "POST /stabilize HTTP/1.1\r\nHost: x\r\nContent-Type: {}\r\nContent-Length: {}",
-                    multipart_type(),
+                    "POST /stabilize HTTP/1.1\r\nHost: x\r\nContent-Type: {ctype}\r\nContent-Length: {}",
                     body.len()
                 );
                 let part = 1 + rng.below(body.len() as u64 - 1) as usize;
