@@ -12,6 +12,17 @@ WORKDIR /src
 RUN apt-get update \
  && apt-get install -y --no-install-recommends nodejs npm \
  && rm -rf /var/lib/apt/lists/*
+# The page's tools, each in a layer of its own before the sources, so that an
+# edit does not reinstall them: the wasm32 target, the wasm-bindgen CLI at the
+# exact version amc-wasm pins (--locked), and the page's runtime npm packages
+# (not the test-only playwright-core).
+RUN rustup target add wasm32-unknown-unknown
+COPY amc-wasm/Cargo.toml amc-wasm/Cargo.toml
+RUN --mount=type=cache,target=/usr/local/cargo/registry \
+    cargo install --locked wasm-bindgen-cli \
+      --version "$(sed -n 's/^wasm-bindgen = "=\(.*\)"/\1/p' amc-wasm/Cargo.toml)"
+COPY web/package.json web/package-lock.json web/
+RUN cd web && npm ci --omit=dev --no-audit --no-fund
 COPY . .
 # BuildKit cache mounts keep the crate registry and target/ between builds,
 # so an edit rebuilds only what changed. The binary and the page are copied
@@ -20,7 +31,7 @@ RUN --mount=type=cache,target=/usr/local/cargo/registry \
     --mount=type=cache,target=/src/target \
     cargo build --release -p amc-server --bin amc \
  && cp target/release/amc /usr/local/bin/amc \
- && if [ -f web/build.sh ]; then bash web/build.sh; else mkdir -p web/dist; fi
+ && bash web/build.sh
 
 FROM debian:bookworm-slim AS runtime
 RUN apt-get update \
@@ -35,4 +46,5 @@ EXPOSE 8080
 # tini forwards SIGTERM so `docker stop` shuts the service down gracefully
 # (running jobs cancelled, ffmpeg children killed, scratch files removed).
 ENTRYPOINT ["/usr/bin/tini", "--", "amc"]
-CMD ["serve", "--addr", "0.0.0.0:8080", "--web-dir", "/srv/amc/web"]
+# One JSON object per log line (for log collectors; never coloured).
+CMD ["serve", "--addr", "0.0.0.0:8080", "--web-dir", "/srv/amc/web", "--log-json"]

@@ -14,7 +14,12 @@ if [ "$have" != "$want" ]; then
   echo "installing wasm-bindgen-cli $want (found: ${have:-none})" >&2
   cargo install wasm-bindgen-cli --version "$want"
 fi
-rustup target add wasm32-unknown-unknown >/dev/null 2>&1 || true
+if ! rustup target list --installed 2>/dev/null | grep -qx wasm32-unknown-unknown; then
+  rustup target add wasm32-unknown-unknown || {
+    echo "cannot add the Rust target wasm32-unknown-unknown (needs rustup and the network): the page cannot be built" >&2
+    exit 1
+  }
+fi
 
 # Only the wasm target gets +simd128 (native builds of the workspace are untouched).
 CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS="-C target-feature=+simd128" \
@@ -25,7 +30,8 @@ mkdir -p "$dist/pkg" "$dist/vendor"
 wasm-bindgen --target web --no-typescript --out-dir "$dist/pkg" \
   "$root/target/wasm32-unknown-unknown/release/amc_wasm.wasm"
 
-[ -d node_modules/mediabunny ] && [ -d node_modules/playwright-core ] || npm ci --no-audit --no-fund
+# The page needs only its runtime packages (the tests install playwright-core too).
+[ -d node_modules/mediabunny ] || npm ci --omit=dev --no-audit --no-fund
 cp node_modules/mediabunny/dist/bundles/mediabunny.min.mjs "$dist/vendor/mediabunny.mjs"
 # The page: index.html, style.css, main.js and the ES modules it imports, worker.js (and the bench page).
 cp src/*.html src/*.js src/*.css "$dist/"
