@@ -31,4 +31,4 @@ pub use camera::CameraModel;
 pub use image::{Frame, FrameRef, PixelFormat};
 pub use options::{LensSpec, StabilizerOptions};
 pub use stabilizer::{Stabilizer, StabilizerParams, Telemetry};
-pub use view::Mode;
+pub use view::{Mode, Roll};

@@ -69,6 +69,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         allowed: Allowed::Words(&["stabilize", "saccade", "none"]),
     },
     OptionSpec {
+        name: "roll",
+        flag: "roll",
+        value_name: "smooth|lock|follow",
+        help: "the view's roll in stabilize mode: smooth (with pan and tilt), lock (level with the first frame: the horizon holds its angle) or follow (the camera's roll; only pan and tilt smoothed) (default smooth)",
+        allowed: Allowed::Words(&["smooth", "lock", "follow"]),
+    },
+    OptionSpec {
         name: "fov",
         flag: "fov",
         value_name: "DEG|auto",
@@ -228,6 +235,7 @@ impl StabilizerOptions {
         let p = &mut self.params;
         match spec.name {
             "mode" => p.view.mode = value.trim().parse()?,
+            "roll" => p.view.roll = value.trim().parse()?,
             "fov" => self.lens = LensSpec::parse_fov(value)?,
             "n_avg" => p.render.n_avg = parse_value(spec, value)?,
             "n_track" => p.tracker.n_track = parse_value(spec, value)?,
@@ -324,6 +332,7 @@ mod tests {
         for spec in OPTIONS {
             let value = match spec.name {
                 "mode" => "saccade",
+                "roll" => "lock",
                 "fov" => "90",
                 _ => "20",
             };

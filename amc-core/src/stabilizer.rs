@@ -434,14 +434,15 @@ impl Rendering {
         let r_view = match mode {
             Mode::None => r_est,
             Mode::Stabilize => {
-                if params.view.lookahead == 0 {
+                let filtered = if params.view.lookahead == 0 {
                     cur.view_fwd
                 } else {
                     self.window.clear();
                     self.window
                         .extend(ring.iter().skip(pos).map(|b| (b.t, b.view_fwd)));
                     backward_pass(&params.view, &self.window)
-                }
+                };
+                params.view.roll.apply(&filtered, &r_est)
             }
             Mode::Saccade => *self.saccade_view.get_or_insert(r_est),
         };

@@ -18,6 +18,15 @@
 //! `B_i = B_{i+1} exp(alpha_i log(B_{i+1}^T F_i))`, and frame `j` is shown from `B_j`.
 //! As in `filtfilt`, the backward pass cancels the forward pass's phase lag.
 //!
+//! ## Roll
+//! In stabilize mode the view's roll (its turn about the optical axis) is, by
+//! [`Roll`]: smoothed with pan and tilt (the paper's view); locked level with
+//! the first frame, keeping the filtered optical axis `z_v` and choosing the
+//! right axis `x = normalize(e_y x z_v)` (no component along the first
+//! frame's down axis `e_y`), `y = z_v x x`; or the camera's own, the shown view
+//! being the camera turned by the shortest rotation taking its optical axis onto
+//! `z_v` (so only pan and tilt are smoothed).
+//!
 //! ## Saccade
 //! The view is held fixed; the stabilizer re-centres it on the current estimate
 //! when fewer than `saccade_coverage` of the output pixels are covered by every
@@ -66,6 +75,66 @@ impl std::fmt::Display for Mode {
     }
 }
 
+/// How the view's roll moves in stabilize mode (see the module's "Roll").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Roll {
+    /// Smoothed with pan and tilt by the same filter (the paper's view).
+    #[default]
+    Smooth,
+    /// Held level with the first frame: the horizon keeps the first frame's
+    /// angle whatever the camera does ("horizon lock"); pan and tilt are smoothed.
+    Lock,
+    /// The camera's own roll: only pan and tilt are smoothed, the horizon turns
+    /// with the craft (as FPV pilots fly).
+    Follow,
+}
+
+impl std::str::FromStr for Roll {
+    type Err = AmcError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "smooth" => Ok(Roll::Smooth),
+            "lock" => Ok(Roll::Lock),
+            "follow" => Ok(Roll::Follow),
+            _ => Err(AmcError::invalid("roll", s, "smooth, lock or follow")),
+        }
+    }
+}
+
+impl Roll {
+    /// The view shown for the filtered `view` of a frame whose camera is
+    /// `camera` (both `R_{0,j}`): `view` with its roll set as this mode says.
+    /// Where the construction has no answer (the optical axis along the first
+    /// frame's down axis for `Lock`, opposite to the camera's for `Follow`),
+    /// `view` is kept.
+    pub fn apply(self, view: &Rot, camera: &Rot) -> Rot {
+        let z = view.matrix().column(2).into_owned();
+        match self {
+            Roll::Smooth => *view,
+            Roll::Lock => {
+                let x = nalgebra::Vector3::y().cross(&z);
+                let norm = x.norm();
+                if norm < 1e-6 {
+                    return *view;
+                }
+                let x = x / norm;
+                let y = z.cross(&x);
+                so3::renormalize(&Rot::from_matrix_unchecked(
+                    nalgebra::Matrix3::from_columns(&[x, y, z]),
+                ))
+            }
+            Roll::Follow => {
+                let zc = camera.matrix().column(2).into_owned();
+                match Rot::rotation_between(&zc, &z) {
+                    Some(swing) => so3::renormalize(&(swing * camera)),
+                    None => *view,
+                }
+            }
+        }
+    }
+}
+
 /// Parameters of the viewpoint.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -82,6 +151,9 @@ pub struct ViewParams {
     /// Future frames used to smooth the view (0 = online, as in the paper).
     /// Adds this many frames of latency. Range 0..=600.
     pub lookahead: usize,
+    /// The view's roll in stabilize mode: smoothed, locked level with the
+    /// first frame, or the camera's (default smoothed).
+    pub roll: Roll,
 }
 
 impl Default for ViewParams {
@@ -92,6 +164,7 @@ impl Default for ViewParams {
             rate_b: 40.0,
             saccade_coverage: 0.9,
             lookahead: 0,
+            roll: Roll::Smooth,
         }
     }
 }
@@ -148,6 +221,34 @@ pub fn backward_pass(params: &ViewParams, window: &[(f64, Rot)]) -> Rot {
 mod tests {
     use super::*;
     use crate::so3::Tangent;
+
+    fn roll_deg(r: &Rot) -> f64 {
+        // How far the right axis leans out of the first frame's level plane.
+        r.matrix()[(1, 0)].asin().to_degrees()
+    }
+
+    #[test]
+    fn roll_modes_keep_the_optical_axis_and_set_the_roll() {
+        let view = so3::exp(&Tangent::new(0.2, -0.3, 0.25));
+        let camera = so3::exp(&Tangent::new(0.25, -0.2, -0.4));
+        assert_eq!(Roll::Smooth.apply(&view, &camera), view);
+        for mode in [Roll::Lock, Roll::Follow] {
+            let shown = mode.apply(&view, &camera);
+            let (a, b) = (shown.matrix().column(2), view.matrix().column(2));
+            assert!((a - b).norm() < 1e-12, "{mode:?} moved the optical axis");
+            assert!((shown.matrix().determinant() - 1.0).abs() < 1e-12);
+        }
+        assert!(roll_deg(&view).abs() > 5.0);
+        assert!(roll_deg(&Roll::Lock.apply(&view, &camera)).abs() < 1e-9);
+        // Follow: the camera turned without twist about its own optical axis.
+        let rel = so3::log(&(camera.transpose() * Roll::Follow.apply(&view, &camera)));
+        assert!(rel.z.abs() < 1e-12, "{rel:?}");
+        // Degenerate: looking straight along the first frame's down axis.
+        let down = so3::exp(&Tangent::new(std::f64::consts::FRAC_PI_2, 0.0, 0.0));
+        assert_eq!(Roll::Lock.apply(&down, &camera), down);
+        assert_eq!("LOCK".parse::<Roll>().unwrap(), Roll::Lock);
+        assert!("level".parse::<Roll>().is_err());
+    }
 
     #[test]
     fn filter_converges_to_a_constant_target() {

@@ -123,7 +123,13 @@ impl Errors {
 }
 
 /// Renders the clip of `case`, stabilizes it and measures the estimate against the shake.
-fn run(case: &Case, pano_full: &Frame) -> Errors {
+/// Renders `case`'s clip and pushes it through a stabilizer with `params`;
+/// returns every output's telemetry, in frame order, and the shake.
+fn stabilize(
+    case: &Case,
+    pano_full: &Frame,
+    params: StabilizerParams,
+) -> (Vec<amc_core::Telemetry>, Shake) {
     let cam = &case.camera;
     let pano = downsample_pano(
         &pano_full.as_ref(),
@@ -137,15 +143,14 @@ fn run(case: &Case, pano_full: &Frame) -> Errors {
         ..ShakeParams::default()
     })
     .expect("valid shake");
-    let mut stab = Stabilizer::new(cam, cam.width, cam.height, StabilizerParams::default())
-        .expect("valid stabilizer");
+    let mut stab = Stabilizer::new(cam, cam.width, cam.height, params).expect("valid stabilizer");
 
     let n = (SECONDS * FPS).round() as usize;
-    let mut r_est: Vec<Option<Rot>> = vec![None; n];
+    let mut out: Vec<Option<amc_core::Telemetry>> = vec![None; n];
     let mut record = |tel: amc_core::Telemetry| {
         let j = tel.frame as usize;
-        assert!(j < n && r_est[j].is_none(), "telemetry for frame {j} twice");
-        r_est[j] = Some(so3::exp(&Tangent::from(tel.r_est)));
+        assert!(j < n && out[j].is_none(), "telemetry for frame {j} twice");
+        out[j] = Some(tel);
     };
     let mut frame = Frame::new(cam.width, cam.height, PixelFormat::Rgb8);
     let mut planar = Frame::new(cam.width, cam.height, PixelFormat::Yuv420p);
@@ -168,11 +173,20 @@ fn run(case: &Case, pano_full: &Frame) -> Errors {
     while let Some(tel) = stab.finish() {
         record(tel);
     }
-
-    let est: Vec<Rot> = r_est
+    let telemetry = out
         .into_iter()
         .enumerate()
-        .map(|(j, r)| r.unwrap_or_else(|| panic!("[{}] no telemetry for frame {j}", case.name)))
+        .map(|(j, t)| t.unwrap_or_else(|| panic!("[{}] no telemetry for frame {j}", case.name)))
+        .collect();
+    (telemetry, shake)
+}
+
+fn run(case: &Case, pano_full: &Frame) -> Errors {
+    let (telemetry, shake) = stabilize(case, pano_full, StabilizerParams::default());
+    let n = telemetry.len();
+    let est: Vec<Rot> = telemetry
+        .iter()
+        .map(|t| so3::exp(&Tangent::from(t.r_est)))
         .collect();
     for (j, r) in est.iter().enumerate() {
         assert!(
@@ -300,4 +314,67 @@ fn estimate_matches_ground_truth() {
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// `roll=lock` holds the output's roll within 0.1 deg of the first frame's
+/// while pan and tilt are still smoothed; `roll=follow` shows the camera's
+/// roll (no twist between camera and view). Shake of 100 deg/s about all three
+/// axes, pinhole 90 deg.
+#[test]
+fn roll_lock_holds_the_horizon_and_follow_keeps_the_cameras_roll() {
+    use amc_core::Roll;
+    let (w, h) = SIZE;
+    let case = Case {
+        name: "roll",
+        camera: CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
+        shake_dps: 100.0,
+        seed: 4,
+        format: PixelFormat::Rgb8,
+        max_median_frame_deg: 0.0,
+        max_final_deg: 0.0,
+        max_orientation_deg: 0.0,
+    };
+    let pano = panorama();
+    let rot = |v: [f64; 3]| so3::exp(&Tangent::from(v));
+    // How far the right axis leans out of the first frame's level plane, degrees.
+    let roll_deg = |r: &Rot| r.matrix()[(1, 0)].asin().to_degrees();
+    // RMS frame-to-frame turn of the optical axis, degrees.
+    let axis_motion = |rs: &[Rot]| {
+        let turns: Vec<f64> = rs
+            .windows(2)
+            .map(|p| {
+                let (a, b) = (p[0].matrix().column(2), p[1].matrix().column(2));
+                a.dot(&b).clamp(-1.0, 1.0).acos().to_degrees()
+            })
+            .collect();
+        (turns.iter().map(|t| t * t).sum::<f64>() / turns.len() as f64).sqrt()
+    };
+    for roll in [Roll::Smooth, Roll::Lock, Roll::Follow] {
+        let mut params = StabilizerParams::default();
+        params.view.roll = roll;
+        let (tel, _) = stabilize(&case, &pano, params);
+        let views: Vec<Rot> = tel.iter().map(|t| rot(t.r_view)).collect();
+        let cams: Vec<Rot> = tel.iter().map(|t| rot(t.r_est)).collect();
+        let max_roll = views.iter().map(|v| roll_deg(v).abs()).fold(0.0, f64::max);
+        let cam_roll = cams.iter().map(|c| roll_deg(c).abs()).fold(0.0, f64::max);
+        let (view_axis, cam_axis) = (axis_motion(&views), axis_motion(&cams));
+        eprintln!(
+            "roll {roll:?}: view roll max {max_roll:.4} deg (camera {cam_roll:.3}); \
+             optical axis turn per frame RMS {view_axis:.4} deg (camera {cam_axis:.4})"
+        );
+        assert!(
+            view_axis < 0.3 * cam_axis,
+            "{roll:?}: pan and tilt not smoothed"
+        );
+        match roll {
+            Roll::Lock => assert!(max_roll < 0.1, "lock: roll reached {max_roll} deg"),
+            Roll::Follow => {
+                for (c, v) in cams.iter().zip(&views) {
+                    let twist = so3::log(&(c.transpose() * v)).z.to_degrees();
+                    assert!(twist.abs() < 1e-6, "follow: twist {twist} deg");
+                }
+            }
+            Roll::Smooth => assert!(cam_roll > 0.5, "the shake has no roll to remove"),
+        }
+    }
 }

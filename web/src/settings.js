@@ -51,7 +51,10 @@ export function settings() {
   }
   return {
     params: {
-      view: { mode: $('mode').value, rate_a: values.rate_a, rate_b: values.rate_b, lookahead: values.lookahead },
+      view: {
+        mode: $('mode').value, roll: $('roll').value,
+        rate_a: values.rate_a, rate_b: values.rate_b, lookahead: values.lookahead,
+      },
       render: { n_avg: values.n_avg, margin: values.margin },
     },
     fov: values.fov,
@@ -116,5 +119,8 @@ export function serverQuery(s) {
   if (!s.lensFile) q.set('fov', s.fov);
   if (s.params.view.rate_a !== def.rate_a) q.set('rate_a', s.params.view.rate_a);
   if (s.params.view.rate_b !== def.rate_b) q.set('rate_b', s.params.view.rate_b);
+  // Sent only when set, like the rates (older servers do not know it).
+  const roll = s.params.view.roll;
+  if (roll && roll !== 'smooth') q.set('roll', roll);
   return q;
 }

@@ -108,6 +108,8 @@ test('bad sizes and parameters are JS Errors naming the value and the allowed ra
   throwsMsg(() => new Stabilizer(W, H, '{"render":{"margin":0.6}}', 70), /invalid margin: 0\.6 \(allowed: 0\.\.=0\.45/);
   throwsMsg(() => new Stabilizer(W, H, '{"bogus":1}', 70), /unknown field `bogus`/);
   throwsMsg(() => new Stabilizer(W, H, '{"view":{"mode":"wobble"}}', 70), /unknown variant `wobble`/);
+  throwsMsg(() => new Stabilizer(W, H, '{"view":{"roll":"level"}}', 70), /unknown variant `level`/);
+  new Stabilizer(W, H, '{"view":{"roll":"lock"}}', 70).free();
   throwsMsg(() => new Stabilizer(W, H, 'not json', 70), /invalid stabilizer parameters/);
   throwsMsg(() => new Stabilizer(W, H, '{}', 0), /invalid fov: "0" \(allowed: .*0 < DEG <= 179/);
   throwsMsg(() => new Stabilizer(W, H, '{}', 400), /invalid fov: "400"/);
@@ -386,6 +388,9 @@ test("the page's form ranges are the core's, and the server query sends smoothin
   assert.equal(serverQuery(s(1.5, 40)).has('rate_b'), false);
   assert.equal(serverQuery(s(2, 80)).get('rate_b'), '80');
   assert.equal(serverQuery({ ...s(2, 40), lensFile: {} }).has('fov'), false);
+  const locked = s(2, 40);
+  locked.params.view.roll = 'lock';
+  assert.equal(serverQuery(locked).get('roll'), 'lock');
 });
 
 test('plot ticks are round numbers covering the range', () => {
