@@ -47,6 +47,9 @@ pub struct ServeConfig {
     pub live_format: Option<String>,
     /// Live feed mode: stabilize or saccade.
     pub live_mode: Mode,
+    /// The live view's roll in stabilize mode: smooth, lock (the horizon held
+    /// level with the first frame) or follow (the camera's).
+    pub live_roll: amc_core::Roll,
     /// Horizontal field of view of the live camera, degrees (a pinhole).
     pub live_fov: f64,
     /// Lens file of the live camera (as for `amc stabilize --lens`).
@@ -199,6 +202,7 @@ impl ServeConfig {
         }
         let mut params = amc_core::StabilizerParams::default();
         params.view.mode = self.live_mode;
+        params.view.roll = self.live_roll;
         params.render.n_avg = self.live_n_avg;
         params.render.margin = self.live_margin;
         params.render.output_width = self.live_width;

@@ -185,6 +185,10 @@ pub fn parse_mode(s: &str) -> Result<Mode, String> {
     s.parse::<Mode>().map_err(|e| e.to_string())
 }
 
+fn parse_roll(s: &str) -> Result<amc_core::Roll, String> {
+    s.parse::<amc_core::Roll>().map_err(|e| e.to_string())
+}
+
 fn parse_floats<const N: usize>(s: &str, what: &str) -> Result<[f64; N], String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     if parts.len() != N {
@@ -284,6 +288,10 @@ pub struct ServeArgs {
     /// Live feed mode: stabilize or saccade.
     #[arg(long, default_value = "stabilize", value_parser = parse_mode)]
     pub live_mode: Mode,
+    /// The live view's roll in stabilize mode: smooth, lock (the horizon held
+    /// level with the first frame) or follow (the camera's).
+    #[arg(long, default_value = "smooth", value_name = "smooth|lock|follow", value_parser = parse_roll)]
+    pub live_roll: amc_core::Roll,
     /// Horizontal field of view of the live camera, degrees (a pinhole).
     #[arg(long, default_value_t = amc_server::engine::FALLBACK_FOV_DEG, conflicts_with = "live_lens")]
     pub live_fov: f64,
@@ -329,6 +337,7 @@ impl ServeArgs {
             live_loop: self.live_loop,
             live_format: self.live_format,
             live_mode: self.live_mode,
+            live_roll: self.live_roll,
             live_fov: self.live_fov,
             live_lens: self.live_lens,
             live_n_avg: self.live_n_avg,
@@ -520,6 +529,26 @@ mod tests {
 
     fn parse(argv: &[&str]) -> Result<Cli, clap::Error> {
         Cli::try_parse_from(std::iter::once("amc").chain(argv.iter().copied()))
+    }
+
+    #[test]
+    fn live_roll_reaches_the_live_feeds_view() {
+        let roll = |argv: &[&str]| {
+            let Command::Serve(a) = parse(argv).unwrap().command else {
+                panic!("not serve")
+            };
+            a.config().live().unwrap().params.view.roll
+        };
+        assert_eq!(roll(&["serve"]), amc_core::Roll::Smooth);
+        assert_eq!(
+            roll(&["serve", "--live-roll", "lock"]),
+            amc_core::Roll::Lock
+        );
+        let e = parse(&["serve", "--live-roll", "level"])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("smooth, lock or follow"), "{e}");
     }
 
     #[test]
