@@ -113,6 +113,8 @@ for t in "${targets[@]}"; do
   if [ "$running" -ge "$jobs" ]; then wait -n || failed=1; running=$((running - 1)); fi
 done
 while [ "$running" -gt 0 ]; do wait -n || failed=1; running=$((running - 1)); done
+# The targets' scratch folders (one per fuzzing process).
+rm -rf /dev/shm/amc-fuzz-* "${TMPDIR:-/tmp}"/amc-fuzz-* 2>/dev/null || true
 found=$(find artifacts -type f 2>/dev/null | sort)
 if [ -n "$found" ]; then
   echo "findings (crash, leak, OOM or timeout inputs):"

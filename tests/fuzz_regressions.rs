@@ -37,6 +37,7 @@ fn every_found_crash_and_seed_passes_its_target() {
         }
     }
     assert!(ran >= 20, "only {ran} inputs replayed");
+    std::fs::remove_dir_all(targets::scratch_root()).unwrap();
 }
 
 fn y4m_error(bytes: &[u8]) -> String {

@@ -16,8 +16,9 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 /// A private folder for the targets that go through files (kept for the
-/// process's life; on tmpfs where there is one).
-fn scratch_root() -> &'static Path {
+/// process's life, on tmpfs where there is one; `fuzz/run.sh` and the
+/// regression replay remove it when done).
+pub fn scratch_root() -> &'static Path {
     static ROOT: OnceLock<PathBuf> = OnceLock::new();
     ROOT.get_or_init(|| {
         let base = Path::new("/dev/shm");
