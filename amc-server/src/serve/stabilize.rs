@@ -76,7 +76,7 @@ async fn stabilize(state: &Arc<AppState>, request: Request) -> Result<Response, 
         .acquire_owned()
         .await
         .map_err(|_| ApiError::Saturated("the service is shutting down".into()))?;
-    let (spec, result) = work::stabilize_on_worker(state, spec, control.clone())
+    let (spec, result) = work::stabilize_on_worker(state, spec, control)
         .await
         .map_err(|_| ApiError::Internal(PANICKED.into()))?;
     drop(permit);

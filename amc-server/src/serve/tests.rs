@@ -41,6 +41,10 @@ fn get(uri: &str) -> Request<Body> {
     Request::get(uri).body(Body::empty()).unwrap()
 }
 
+fn delete(uri: &str) -> Request<Body> {
+    Request::delete(uri).body(Body::empty()).unwrap()
+}
+
 #[tokio::test]
 async fn routes_and_errors() {
     let dir = tempfile::tempdir().unwrap();
@@ -318,16 +322,8 @@ async fn a_small_job_runs_to_done_and_its_files_go_with_it() {
         st.disk.used() > 0,
         "the output is counted against the disk budget"
     );
-    let res = app
-        .clone()
-        .oneshot(
-            Request::delete(format!("/jobs/{id}"))
-                .body(Body::empty())
-                .unwrap(),
-        )
-        .await
-        .unwrap();
-    assert_eq!(res.status(), StatusCode::NO_CONTENT);
+    let (s, _, _) = call(&app, delete(&format!("/jobs/{id}"))).await;
+    assert_eq!(s, StatusCode::NO_CONTENT);
     assert_eq!(st.disk.used(), 0);
     let left: Vec<_> = std::fs::read_dir(dir.path().join("work"))
         .unwrap()
@@ -381,23 +377,10 @@ async fn a_panicking_worker_fails_its_request_and_the_service_carries_on() {
     st.panic_in_workers.store(false, Ordering::SeqCst);
     let (s, _, j) = call(&app, get("/healthz")).await;
     assert_eq!(s, StatusCode::OK, "{j}");
-    let res = app
-        .clone()
-        .oneshot(post("/stabilize?metrics=false"))
-        .await
-        .unwrap();
-    assert_eq!(res.status(), StatusCode::OK);
-    to_bytes(res.into_body(), 1 << 26).await.unwrap();
-    let res = app
-        .clone()
-        .oneshot(
-            Request::delete(format!("/jobs/{id}"))
-                .body(Body::empty())
-                .unwrap(),
-        )
-        .await
-        .unwrap();
-    assert_eq!(res.status(), StatusCode::NO_CONTENT);
+    let (s, _, _) = call(&app, post("/stabilize?metrics=false")).await;
+    assert_eq!(s, StatusCode::OK);
+    let (s, _, _) = call(&app, delete(&format!("/jobs/{id}"))).await;
+    assert_eq!(s, StatusCode::NO_CONTENT);
     // Nothing of the three requests is left on disk.
     for _ in 0..100 {
         if std::fs::read_dir(dir.path().join("work")).unwrap().count() == 0 {
