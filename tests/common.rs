@@ -7,6 +7,7 @@
 pub mod fixtures;
 #[path = "server_harness.rs"]
 pub mod server;
+pub mod services;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
