@@ -21,7 +21,7 @@ out=target/schemathesis
 mkdir -p "$out"
 work=$(mktemp -d)
 log="$out/serve.log"
-"$amc" serve --addr 127.0.0.1:0 --work-dir "$work" --workers 1 --queue 4 \
+"$amc" serve --addr 127.0.0.1:0 --work-dir "$work" --workers 1 --max-queued 4 \
   --max-upload-mb 8 --log-json > "$out/serve.stdout" 2> "$log" &
 pid=$!
 cleanup() {

@@ -4,6 +4,8 @@
 //! test process. Shared real data lives outside the repository in `../shared/data`. Everything
 //! that runs ffmpeg or ffprobe (probing outputs, generated test clips) is in [`fixtures`].
 
+#[path = "cluster_harness.rs"]
+pub mod cluster;
 pub mod fixtures;
 #[path = "server_harness.rs"]
 pub mod server;

@@ -786,7 +786,7 @@ fn bad_inputs_get_clear_statuses_and_leave_the_server_healthy() {
 #[test]
 fn bounded_load_every_request_succeeds_or_gets_503() {
     let _g = serial();
-    let server = Server::start(&["--workers", "2", "--queue", "4"]);
+    let server = Server::start(&["--workers", "2", "--max-queued", "4"]);
     let dir = tempfile::tempdir().unwrap();
     let clip = dir.path().join("short.mp4");
     test_clip(&clip, 320, 180, 30, 1.0);

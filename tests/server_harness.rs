@@ -1,4 +1,5 @@
-//! A real `amc serve` on a loopback port, for the service's end-to-end tests and bench.
+//! A real `amc serve` (or `amc worker`) on a loopback port, for the service's
+//! end-to-end tests and bench.
 
 use super::amc;
 use std::io::{BufRead, BufReader, Read, Write};
@@ -21,11 +22,21 @@ pub struct Server {
 impl Server {
     /// Starts `amc serve --addr 127.0.0.1:0 --work-dir TMP ARGS...` and waits until it listens.
     pub fn start(args: &[&str]) -> Server {
+        Self::launch("serve", args)
+    }
+
+    /// Starts `amc worker --addr 127.0.0.1:0 --work-dir TMP ARGS...` (its
+    /// `/healthz` and `/metrics`) and waits until it listens.
+    pub fn worker(args: &[&str]) -> Server {
+        Self::launch("worker", args)
+    }
+
+    fn launch(command: &str, args: &[&str]) -> Server {
         let work_parent = tempfile::tempdir().expect("temp dir");
         let stderr_log = work_parent.path().with_extension("log");
         let log = std::fs::File::create(&stderr_log).expect("log file");
         let mut child = Command::new(amc())
-            .arg("serve")
+            .arg(command)
             .args(["--addr", "127.0.0.1:0", "--work-dir"])
             .arg(work_parent.path())
             .args(args)
@@ -34,18 +45,18 @@ impl Server {
             .stdout(Stdio::piped())
             .stderr(Stdio::from(log))
             .spawn()
-            .expect("could not start amc serve");
+            .unwrap_or_else(|e| panic!("could not start amc {command}: {e}"));
         let stdout = child.stdout.take().expect("stdout");
         let mut line = String::new();
         BufReader::new(stdout)
             .read_line(&mut line)
-            .expect("reading amc serve's first line");
+            .unwrap_or_else(|e| panic!("reading amc {command}'s first line: {e}"));
         let base = line
             .trim()
             .strip_prefix("listening on ")
             .unwrap_or_else(|| {
                 let log = std::fs::read_to_string(&stderr_log).unwrap_or_default();
-                panic!("amc serve did not start: {line:?}\n{log}")
+                panic!("amc {command} did not start: {line:?}\n{log}")
             })
             .to_string();
         let addr = base.trim_start_matches("http://").to_string();
@@ -120,6 +131,12 @@ impl Server {
         rss_kb(self.pid())
     }
 
+    /// Kills the process at once (SIGKILL: no clean-up of its own).
+    pub fn kill(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+
     /// Sends SIGTERM and waits (up to `within`) for the exit status.
     pub fn terminate(&mut self, within: Duration) -> Option<std::process::ExitStatus> {
         let _ = Command::new("kill")
@@ -151,7 +168,7 @@ impl Drop for Server {
         }
         // The server's log stays only for a failed test, to read.
         if std::thread::panicking() {
-            eprintln!("amc serve's log: {}", self.stderr_log.display());
+            eprintln!("amc's log: {}", self.stderr_log.display());
         } else {
             let _ = std::fs::remove_file(&self.stderr_log);
         }

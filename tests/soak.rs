@@ -764,7 +764,7 @@ fn soak_mixed_traffic_keeps_memory_and_descriptors_flat() {
     let server = Server::start(&[
         "--workers",
         "2",
-        "--queue",
+        "--max-queued",
         "8",
         "--max-upload-mb",
         "50",

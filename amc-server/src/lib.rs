@@ -7,6 +7,7 @@
 //! command line's error type, progress bars, exit codes). See
 //! `docs/ARCHITECTURE.md`.
 
+pub mod cluster;
 pub mod compare;
 pub mod demo;
 pub mod engine;
@@ -15,3 +16,4 @@ pub mod gt;
 pub mod plot;
 pub mod serve;
 pub mod synth;
+pub mod worker;

@@ -28,7 +28,7 @@ pub struct ServeConfig {
     /// Clips processed at once (default: the number of CPU cores).
     pub workers: Option<usize>,
     /// Clips accepted beyond those being processed (they wait); more get 503.
-    pub queue: usize,
+    pub max_queued: usize,
     /// Longest a clip may take to process, seconds.
     pub job_time_limit: u64,
     /// How long a finished job's results are kept, seconds.
@@ -65,6 +65,10 @@ pub struct ServeConfig {
     /// Log one JSON object per line (for log collectors) instead of text.
     /// The level is set with RUST_LOG (default: info).
     pub log_json: bool,
+    /// Keep jobs in a shared PostgreSQL table and S3-compatible bucket
+    /// (`--queue`, `--store`) for `amc worker`s to run, instead of in this
+    /// process: any replica then answers for any job.
+    pub cluster: Option<crate::cluster::ClusterConfig>,
 }
 
 /// The service's limits, from the flags.
@@ -80,6 +84,8 @@ pub struct Limits {
     pub job_ttl: Duration,
     pub max_disk_bytes: u64,
     pub ffmpeg_timeout: Duration,
+    /// Threads of one clip's run (decode, track, render rows, encode).
+    pub threads: usize,
 }
 
 impl Default for Limits {
@@ -95,6 +101,7 @@ impl Default for Limits {
             job_ttl: Duration::from_secs(3600),
             max_disk_bytes: 20_000_000_000,
             ffmpeg_timeout: Duration::from_secs(60),
+            threads: crate::engine::default_threads(),
         }
     }
 }
@@ -120,6 +127,9 @@ pub enum ServeError {
     /// ffmpeg is missing.
     #[error(transparent)]
     Video(#[from] amc_video::VideoError),
+    /// The shared job table or bucket cannot be used.
+    #[error(transparent)]
+    Cluster(#[from] crate::cluster::ClusterError),
     /// A file or folder the service needs cannot be used.
     #[error("{}: {source}", path.display())]
     Io {
@@ -162,7 +172,7 @@ impl ServeConfig {
         check("max-height", self.max_height, 16, 16384)?;
         check("max-duration", self.max_duration, 0.1, 86_400.0)?;
         check("workers", workers, 1, 256)?;
-        check("queue", self.queue, 0, 10_000)?;
+        check("max-queued", self.max_queued, 0, 10_000)?;
         check("job-time-limit", self.job_time_limit, 1, 604_800)?;
         check("job-ttl", self.job_ttl, 1, 2_592_000)?;
         check("max-disk-mb", self.max_disk_mb, 1, 1_000_000_000)?;
@@ -182,11 +192,12 @@ impl ServeConfig {
             max_height: self.max_height,
             max_duration_s: self.max_duration,
             workers,
-            queue: self.queue,
+            queue: self.max_queued,
             job_time_limit: Duration::from_secs(self.job_time_limit),
             job_ttl: Duration::from_secs(self.job_ttl),
             max_disk_bytes: self.max_disk_mb * 1_000_000,
             ffmpeg_timeout: Duration::from_secs(self.ffmpeg_timeout),
+            threads: crate::engine::default_threads(),
         })
     }
 

@@ -19,6 +19,9 @@ pub struct Intake {
     /// Holds the request's place among those the service takes at once.
     pub admission: OwnedSemaphorePermit,
     pub options: JobOptions,
+    /// The request's query string, as sent (the shared job table keeps it
+    /// for the worker, which parses it again).
+    pub query: String,
     pub scratch: Scratch,
     pub upload: Upload,
     pub inspection: Inspection,
@@ -47,7 +50,7 @@ async fn accept_parts(
     let options = JobOptions::from_query(parts.uri.query())?;
     let admission = state.admission.clone().try_acquire_owned().map_err(|_| {
         ApiError::Saturated(format!(
-            "the service is busy: {} being processed or queued (--workers {} plus --queue {}); try again shortly",
+            "the service is busy: {} being processed or queued (--workers {} plus --max-queued {}); try again shortly",
             count((state.limits.workers + state.limits.queue) as u64, "clip is", "clips are"),
             state.limits.workers,
             state.limits.queue
@@ -70,6 +73,7 @@ async fn accept_parts(
     Ok(Intake {
         admission,
         options,
+        query: parts.uri.query().unwrap_or("").to_string(),
         scratch,
         upload,
         inspection,

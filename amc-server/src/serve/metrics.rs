@@ -10,12 +10,17 @@
 //! amc_live_frames_total                frames stabilized by the live feed
 //! amc_live_frames_dropped_total        live frames not processed (processor busy) or skipped by a slow viewer
 //! amc_disk_used_bytes / amc_disk_limit_bytes   scratch space of uploads and results
+//! amc_queue_depth                      jobs waiting for a worker (all replicas, with --queue)
+//! amc_job_retries                      claims beyond the first, over the jobs in the table
+//! amc_job_duration_seconds             histogram of the runs this process finished
+//! amc_jobs_finished_total{state}       runs this process finished, by outcome
 //! ```
 
 use prometheus_client::encoding::EncodeLabelSet;
 use prometheus_client::metrics::counter::Counter;
 use prometheus_client::metrics::family::Family;
 use prometheus_client::metrics::gauge::Gauge;
+use prometheus_client::metrics::histogram::{exponential_buckets, Histogram};
 use prometheus_client::registry::Registry;
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -50,6 +55,10 @@ pub struct Metrics {
     pub live_dropped: Counter,
     pub disk_used: Gauge,
     pub disk_limit: Gauge,
+    pub queue_depth: Gauge,
+    pub job_retries: Gauge,
+    pub job_duration: Histogram,
+    pub jobs_finished: Family<StateLabel, Counter>,
 }
 
 impl Metrics {
@@ -107,9 +116,38 @@ impl Metrics {
             "Scratch space allowed",
             disk_limit.clone(),
         );
+        let queue_depth = Gauge::default();
+        registry.register(
+            "queue_depth",
+            "Jobs waiting for a worker",
+            queue_depth.clone(),
+        );
+        let job_retries = Gauge::default();
+        registry.register(
+            "job_retries",
+            "Claims beyond the first (a worker died), summed over the jobs kept",
+            job_retries.clone(),
+        );
+        // 0.5 s to ~35 min.
+        let job_duration = Histogram::new(exponential_buckets(0.5, 2.0, 13));
+        registry.register(
+            "job_duration_seconds",
+            "Wall time of the job runs this process finished",
+            job_duration.clone(),
+        );
+        let jobs_finished = Family::<StateLabel, Counter>::default();
+        registry.register(
+            "jobs_finished",
+            "Job runs this process finished, by outcome",
+            jobs_finished.clone(),
+        );
         Self {
             registry,
             jobs,
+            queue_depth,
+            job_retries,
+            job_duration,
+            jobs_finished,
             frames_processed: Arc::new(AtomicU64::new(0)),
             frames_counter,
             rate,
@@ -145,6 +183,14 @@ impl Metrics {
             self.rate
                 .set(if dt > 0.0 { (n1 - n0) as f64 / dt } else { 0.0 });
         }
+    }
+
+    /// Records a finished job run: its outcome and how long it took.
+    pub fn job_finished(&self, state: &'static str, seconds: f64) {
+        self.jobs_finished
+            .get_or_create(&StateLabel { state })
+            .inc();
+        self.job_duration.observe(seconds);
     }
 
     pub fn reject(&self, status: u16) {

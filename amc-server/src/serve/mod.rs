@@ -10,7 +10,7 @@
 //! | `GET /` | the web page (`--web-dir`) |
 //!
 //! CPU work runs on blocking threads, at most `--workers` at once (a
-//! semaphore); at most `--workers + --queue` clips are accepted at once and
+//! semaphore); at most `--workers + --max-queued` clips are accepted at once and
 //! the rest get 503 with `Retry-After`. Uploads and results live in
 //! per-request scratch folders under the work directory, removed with their
 //! request or job, and the work directory itself is removed on shutdown.
@@ -25,15 +25,15 @@
 mod config;
 #[doc(hidden)]
 pub mod fuzzing;
-mod intake;
-mod jobs;
+pub(crate) mod intake;
+pub(crate) mod jobs;
 mod live;
-mod metrics;
+pub(crate) mod metrics;
 mod openapi;
 mod ops;
-mod options;
+pub(crate) mod options;
 pub mod panics;
-mod problem;
+pub(crate) mod problem;
 mod router;
 mod run;
 mod stabilize;
@@ -42,11 +42,11 @@ mod storage;
 #[cfg(test)]
 mod tests;
 mod upload;
-mod work;
+pub(crate) mod work;
 
 pub use config::{Limits, ServeConfig, ServeError};
 pub use live::LiveConfig;
 pub use options::{JobOptions, OutputFormat};
 pub use router::app;
-pub use run::run;
+pub use run::{init_logs, run, shutdown_signal, CONNECT_PATIENCE};
 pub use state::AppState;

@@ -74,10 +74,19 @@ fn upload_errors(responses: &mut Map<String, Value>) {
         problem("Over the size or duration limits, or not stabilizable"),
     );
     responses.insert("503".into(), json!({
-        "description": "Saturated: too many clips in flight or the disk budget used up; retry after the Retry-After header's seconds",
+        "description": "Saturated: too many clips in flight or the disk budget used up, or (with --queue/--store) the job table's database or the bucket is unreachable; retry after the Retry-After header's seconds",
         "headers": {"Retry-After": {"schema": {"type": "integer"}}},
         "content": {"application/problem+json": {"schema": {"$ref": "#/components/schemas/Problem"}}}
     }));
+}
+
+/// 503 of the job endpoints when the shared job table or bucket is down.
+fn unavailable() -> Value {
+    json!({
+        "description": "With --queue/--store: the job table's database or the bucket is unreachable; retry after the Retry-After header's seconds",
+        "headers": {"Retry-After": {"schema": {"type": "integer"}}},
+        "content": {"application/problem+json": {"schema": {"$ref": "#/components/schemas/Problem"}}}
+    })
 }
 
 fn job_state() -> Value {
@@ -148,7 +157,8 @@ pub fn spec() -> Value {
                     ],
                     "responses": {
                         "200": {"description": "One page of jobs", "content": {"application/json": {"schema": {"$ref": "#/components/schemas/JobPage"}}}},
-                        "400": problem("A bad limit or cursor, or an unknown parameter")
+                        "400": problem("A bad limit or cursor, or an unknown parameter"),
+                        "503": unavailable()
                     }
                 }
             },
@@ -159,7 +169,8 @@ pub fn spec() -> Value {
                     "parameters": [id_parameter()],
                     "responses": {
                         "200": {"description": "The job", "content": {"application/json": {"schema": {"$ref": "#/components/schemas/Job"}}}},
-                        "404": not_found
+                        "404": not_found,
+                        "503": unavailable()
                     }
                 },
                 "delete": {
@@ -169,7 +180,8 @@ pub fn spec() -> Value {
                     "responses": {
                         "200": {"description": "Cancelled", "content": {"application/json": {"schema": {"$ref": "#/components/schemas/Job"}}}},
                         "204": {"description": "Removed with its files"},
-                        "404": not_found
+                        "404": not_found,
+                        "503": unavailable()
                     }
                 }
             },
@@ -180,7 +192,8 @@ pub fn spec() -> Value {
                 "responses": {
                     "200": {"description": "The video", "content": {"video/mp4": {}, "video/webm": {}}},
                     "404": not_found,
-                    "409": problem("The job is not done")
+                    "409": problem("The job is not done"),
+                    "503": unavailable()
                 }
             }},
             "/jobs/{id}/telemetry.csv": {"get": {
@@ -190,7 +203,8 @@ pub fn spec() -> Value {
                 "responses": {
                     "200": {"description": "CSV", "content": {"text/csv": {}}},
                     "404": not_found,
-                    "409": problem("The job is not done")
+                    "409": problem("The job is not done"),
+                    "503": unavailable()
                 }
             }},
             "/live": {"get": {
@@ -212,7 +226,7 @@ pub fn spec() -> Value {
             }},
             "/healthz": {"get": {
                 "operationId": "getHealth",
-                "summary": "Health: ffmpeg runs, the work directory is writable and the --live-source (if any) can be opened",
+                "summary": "Health: ffmpeg runs, the work directory is writable, the --live-source (if any) can be opened, and with --queue/--store the database and the bucket answer",
                 "responses": {
                     "200": {"description": "Healthy", "content": {"application/json": {"schema": {"$ref": "#/components/schemas/Health"}}}},
                     "503": {"description": "Unhealthy: `detail` says why (a live source that cannot be opened is named)", "content": {"application/json": {"schema": {"$ref": "#/components/schemas/Health"}}}}
@@ -220,8 +234,8 @@ pub fn spec() -> Value {
             }},
             "/metrics": {"get": {
                 "operationId": "getMetrics",
-                "summary": "Prometheus text format: jobs by state, frames processed, processing rate, live viewers, frames dropped",
-                "responses": {"200": {"description": "Metrics", "content": {"text/plain": {}}}}
+                "summary": "Prometheus text format: jobs by state, queue depth, retries, job durations, frames processed, processing rate, live viewers, frames dropped",
+                "responses": {"200": {"description": "Metrics", "content": {"text/plain": {}}}, "503": unavailable()}
             }},
             "/openapi.json": {"get": {
                 "operationId": "getOpenApi",

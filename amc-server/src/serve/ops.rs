@@ -8,10 +8,12 @@ use axum::extract::State;
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
+use std::collections::HashMap;
 use std::sync::Arc;
 
 /// `GET /healthz`: 200 while the service can work (ffmpeg runs, the work dir
-/// is writable, the `--live-source` if any can be opened); 503 with a
+/// is writable, the `--live-source` if any can be opened, and with
+/// `--queue`/`--store` the database and the bucket answer); 503 with a
 /// `detail` saying what is wrong otherwise.
 pub async fn healthz(State(state): State<Arc<AppState>>) -> Response {
     let work_dir = state.work_dir.clone();
@@ -25,6 +27,11 @@ pub async fn healthz(State(state): State<Arc<AppState>>) -> Response {
     // The API works without the live feed, but a source that cannot be
     // opened is something to fix: the probe says so.
     .and_then(|()| state.live.source_error().map_or(Ok(()), Err));
+    // Without its database and bucket a replica can take no job.
+    let check = match (check, &state.cluster) {
+        (Ok(()), Some(cluster)) => cluster.ping().await.map_err(|e| e.to_string()),
+        (check, _) => check,
+    };
     let body = |status: &str, detail: Option<String>| {
         Json(serde_json::json!({
             "status": status,
@@ -47,7 +54,23 @@ pub async fn healthz(State(state): State<Arc<AppState>>) -> Response {
 
 /// `GET /metrics`.
 pub async fn prometheus(State(state): State<Arc<AppState>>) -> Response {
-    let counts = state.jobs.counts();
+    let counts: HashMap<JobState, usize> = match &state.cluster {
+        None => state.jobs.counts(),
+        Some(cluster) => match cluster.queue.counts().await {
+            Ok(c) => {
+                state.metrics.job_retries.set(c.retries);
+                c.by_state
+                    .iter()
+                    .filter_map(|(s, n)| Some((JobState::parse(s)?, *n as usize)))
+                    .collect()
+            }
+            // The scrape still answers, with the last known counts.
+            Err(e) => {
+                tracing::warn!(error = %e, "cannot count jobs for /metrics");
+                return state.refuse(e.into());
+            }
+        },
+    };
     for s in JobState::ALL {
         state
             .metrics
@@ -55,6 +78,10 @@ pub async fn prometheus(State(state): State<Arc<AppState>>) -> Response {
             .get_or_create(&StateLabel { state: s.name() })
             .set(counts.get(&s).copied().unwrap_or(0) as i64);
     }
+    state
+        .metrics
+        .queue_depth
+        .set(counts.get(&JobState::Queued).copied().unwrap_or(0) as i64);
     state.metrics.disk_used.set(state.disk.used() as i64);
     let mut res = state.metrics.encode().into_response();
     res.headers_mut().insert(

@@ -24,6 +24,13 @@ impl OutputFormat {
         }
     }
 
+    /// The format of an extension (`mp4`, `webm`).
+    pub fn from_extension(ext: &str) -> Option<Self> {
+        [OutputFormat::Mp4, OutputFormat::Webm]
+            .into_iter()
+            .find(|f| f.extension() == ext)
+    }
+
     pub fn content_type(self) -> &'static str {
         match self {
             OutputFormat::Mp4 => "video/mp4",

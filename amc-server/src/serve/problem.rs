@@ -50,9 +50,28 @@ pub enum ApiError {
     /// Too many requests or jobs in flight, or the disk budget is used up.
     #[error("{0}")]
     Saturated(String),
+    /// A dependency (the job table's database, the object store) is down:
+    /// answered 503 with `Retry-After`, as the service recovers by itself.
+    #[error("{0}")]
+    Unavailable(String),
     /// The server cannot work (ffmpeg missing, disk error): not the client's fault.
     #[error("{0}")]
     Internal(String),
+}
+
+impl From<crate::cluster::ClusterError> for ApiError {
+    /// A dependency that is down is 503 (try again); anything else about the
+    /// shared job table or store is the server's problem.
+    fn from(e: crate::cluster::ClusterError) -> Self {
+        if e.unreachable() {
+            ApiError::Unavailable(format!(
+                "the service cannot reach its {}; try again shortly",
+                e
+            ))
+        } else {
+            ApiError::Internal(e.to_string())
+        }
+    }
 }
 
 #[derive(Serialize)]
@@ -75,7 +94,7 @@ impl ApiError {
             ApiError::MethodNotAllowed(_) => StatusCode::METHOD_NOT_ALLOWED,
             ApiError::UpgradeRequired(_) => StatusCode::UPGRADE_REQUIRED,
             ApiError::Conflict(_) => StatusCode::CONFLICT,
-            ApiError::Saturated(_) => StatusCode::SERVICE_UNAVAILABLE,
+            ApiError::Saturated(_) | ApiError::Unavailable(_) => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
         }
     }
@@ -94,6 +113,7 @@ impl ApiError {
             ApiError::UpgradeRequired(_) => "upgrade-required",
             ApiError::Conflict(_) => "conflict",
             ApiError::Saturated(_) => "saturated",
+            ApiError::Unavailable(_) => "unavailable",
             ApiError::Internal(_) => "internal",
         }
     }

@@ -4,11 +4,13 @@
 use super::config::{ServeConfig, ServeError};
 use super::router::app;
 use super::state::AppState;
+use crate::cluster::{redact, Cluster};
 use std::io::IsTerminal;
+use std::sync::Arc;
 use std::time::Duration;
 
 /// Waits for Ctrl-C or SIGTERM.
-async fn shutdown_signal() {
+pub async fn shutdown_signal() {
     let ctrl_c = async {
         let _ = tokio::signal::ctrl_c().await;
     };
@@ -27,6 +29,55 @@ async fn shutdown_signal() {
         _ = ctrl_c => {},
         _ = term => {},
     }
+}
+
+/// How long start-up waits for the job table's database (containers start
+/// in any order).
+pub const CONNECT_PATIENCE: Duration = Duration::from_secs(60);
+
+/// Removes expired jobs: from this process's table, or (every replica and
+/// worker sweeps; rows are locked one sweeper at a time) from the shared
+/// table and bucket, failing jobs whose workers kept dying too.
+async fn sweep(state: &Arc<AppState>) {
+    match &state.cluster {
+        None => {
+            let n = state.jobs.expire(state.limits.job_ttl);
+            if n > 0 {
+                tracing::info!(expired = n, "finished jobs removed");
+            }
+        }
+        Some(cluster) => match cluster.sweep().await {
+            Ok((failed, expired)) => {
+                if failed > 0 {
+                    tracing::warn!(failed, "jobs failed: their workers kept dying");
+                }
+                if expired > 0 {
+                    tracing::info!(expired, "finished jobs and their objects removed");
+                }
+            }
+            Err(e) => tracing::warn!(error = %e, "cannot sweep the job table now"),
+        },
+    }
+}
+
+/// Logs to stderr at RUST_LOG's level (default: info), one JSON object per
+/// line with `json`.
+pub fn init_logs(json: bool) {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,sqlx=warn"));
+    // Colours only for a person at a terminal; never in JSON (log collectors)
+    // nor in a file or pipe. This covers every event, the HTTP trace
+    // layer's spans and fields included.
+    let colour = !json && std::io::stderr().is_terminal();
+    let logs = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(colour);
+    let _ = if json {
+        logs.json().try_init()
+    } else {
+        logs.try_init()
+    };
 }
 
 /// Runs the service until Ctrl-C or SIGTERM.
@@ -59,21 +110,7 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
             (dir.path().to_path_buf(), dir)
         }
     };
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
-    // Colours only for a person at a terminal; never in JSON (log collectors)
-    // nor in a file or pipe. This covers every event, the HTTP trace
-    // layer's spans and fields included.
-    let colour = !args.log_json && std::io::stderr().is_terminal();
-    let logs = tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .with_ansi(colour);
-    let _ = if args.log_json {
-        logs.json().try_init()
-    } else {
-        logs.try_init()
-    };
+    init_logs(args.log_json);
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
@@ -81,14 +118,20 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
             what: "cannot start the async runtime".into(),
             source,
         })?;
-    let state =
-        AppState::new(limits, work_dir.clone(), args.web_dir.clone(), live).map_err(|source| {
-            ServeError::Io {
+    runtime.block_on(async {
+        let cluster = match &args.cluster {
+            Some(config) => {
+                let cluster = Cluster::connect(config.clone(), CONNECT_PATIENCE).await?;
+                tracing::info!(queue = %redact(&config.queue_url), store = %cluster.store.location, "jobs are kept in the shared job table and bucket");
+                Some(cluster)
+            }
+            None => None,
+        };
+        let state = AppState::new(limits, work_dir.clone(), args.web_dir.clone(), live, cluster)
+            .map_err(|source| ServeError::Io {
                 path: work_dir.clone(),
                 source,
-            }
-        })?;
-    runtime.block_on(async {
+            })?;
         let listener = tokio::net::TcpListener::bind(args.addr)
             .await
             .map_err(|source| ServeError::Network {
@@ -115,10 +158,7 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
                     state.metrics.sample();
                     if last_sweep.elapsed() >= sweep_every {
                         last_sweep = tokio::time::Instant::now();
-                        let n = state.jobs.expire(state.limits.job_ttl);
-                        if n > 0 {
-                            tracing::info!(expired = n, "finished jobs removed");
-                        }
+                        sweep(&state).await;
                     }
                 }
             })
@@ -142,7 +182,6 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
             source,
         })
     })?;
-    drop(state);
     drop(owned_dir);
     tracing::info!("stopped; work directory removed");
     Ok(())

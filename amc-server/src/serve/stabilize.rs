@@ -62,6 +62,7 @@ async fn stabilize(state: &Arc<AppState>, request: Request) -> Result<Response, 
     let Intake {
         admission,
         options,
+        query: _,
         scratch,
         upload,
         inspection,

@@ -8,6 +8,7 @@ use super::live::{LiveConfig, LiveHub};
 use super::metrics::Metrics;
 use super::problem::ApiError;
 use super::storage::DiskBudget;
+use crate::cluster::Cluster;
 use axum::response::{IntoResponse, Response};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -24,7 +25,11 @@ pub struct AppState {
     /// One permit per clip accepted (processing or waiting).
     pub admission: Arc<Semaphore>,
     pub disk: Arc<DiskBudget>,
+    /// Jobs kept in this process (without `--queue`).
     pub jobs: JobStore,
+    /// The shared job table and bucket (`--queue`/`--store`): jobs live
+    /// there instead, and `amc worker`s run them.
+    pub cluster: Option<Cluster>,
     pub live: Arc<LiveHub>,
     pub metrics: Arc<Metrics>,
     /// Every spawned task and blocking worker, awaited on shutdown.
@@ -48,12 +53,14 @@ impl AppState {
         false
     }
 
-    /// State with its work directory at `work_dir` (created if missing).
+    /// State with its work directory at `work_dir` (created if missing),
+    /// its jobs in `cluster` when given, else in this process.
     pub fn new(
         limits: Limits,
         work_dir: PathBuf,
         web_dir: PathBuf,
         live: LiveConfig,
+        cluster: Option<Cluster>,
     ) -> std::io::Result<Arc<Self>> {
         std::fs::create_dir_all(&work_dir)?;
         let metrics = Arc::new(Metrics::new());
@@ -63,6 +70,7 @@ impl AppState {
             admission: Arc::new(Semaphore::new(limits.workers + limits.queue)),
             disk: Arc::new(DiskBudget::new(limits.max_disk_bytes)),
             jobs: JobStore::default(),
+            cluster,
             live: LiveHub::start(live, metrics.clone()),
             metrics,
             tasks: TaskTracker::new(),

@@ -19,6 +19,7 @@ fn state(dir: &std::path::Path) -> Arc<AppState> {
         dir.join("work"),
         dir.join("no-web"),
         LiveConfig::default(),
+        None,
     )
     .unwrap()
 }

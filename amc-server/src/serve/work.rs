@@ -150,7 +150,7 @@ pub fn stabilize(
         measure: spec.options.measure,
         control: Some(control),
         progress: None,
-        threads: engine::default_threads(),
+        threads: limits.threads,
     })
     .map_err(|e| run_error(e, &spec.input))
     .and_then(|summary| {

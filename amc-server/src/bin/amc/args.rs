@@ -33,6 +33,8 @@ pub enum Command {
     Demo(DemoArgs),
     /// Run the HTTP service: REST stabilization, batch jobs, a live WebSocket feed, the web page.
     Serve(ServeArgs),
+    /// Run the jobs of `amc serve --queue --store` replicas (any number of workers, anywhere).
+    Worker(WorkerArgs),
     /// Compare our modes with ffmpeg's vid.stab and deshake: speed and quality, one report.
     Compare(CompareArgs),
 }
@@ -259,8 +261,9 @@ pub struct ServeArgs {
     #[arg(long)]
     pub workers: Option<usize>,
     /// Clips accepted beyond those being processed (they wait); more get 503.
+    /// (With --queue, this bounds uploads being received by this replica.)
     #[arg(long, default_value_t = 8)]
-    pub queue: usize,
+    pub max_queued: usize,
     /// Longest a clip may take to process, seconds.
     #[arg(long, default_value_t = 3600)]
     pub job_time_limit: u64,
@@ -314,12 +317,144 @@ pub struct ServeArgs {
     /// The level is set with RUST_LOG (default: info).
     #[arg(long)]
     pub log_json: bool,
+    /// The shared job table and bucket (optional: without them jobs are kept
+    /// in this process).
+    #[command(flatten)]
+    pub cluster: ClusterFlags,
+}
+
+/// Where jobs are kept when the service runs on several machines: one
+/// definition of each flag for `amc serve` and `amc worker`.
+#[derive(Args, Debug, Clone)]
+pub struct ClusterFlags {
+    /// PostgreSQL URL of the shared job table (postgres://USER[:PASS]@HOST:PORT/DB).
+    /// With --store, jobs live there and `amc worker`s run them; any replica
+    /// answers for any job. The schema is created or updated at start-up.
+    #[arg(long, value_name = "URL", requires = "store")]
+    pub queue: Option<String>,
+    /// S3-compatible bucket of uploads and results: s3://BUCKET[/PREFIX].
+    /// Credentials come from --s3-access-key-id/--s3-secret-access-key or
+    /// AWS_ACCESS_KEY_ID/AWS_SECRET_ACCESS_KEY (and the other AWS_* variables).
+    #[arg(long, value_name = "s3://BUCKET[/PREFIX]", requires = "queue")]
+    pub store: Option<String>,
+    /// Endpoint of an S3-compatible server other than AWS (e.g.
+    /// http://127.0.0.1:8333 for SeaweedFS; default: AWS_ENDPOINT_URL, else AWS).
+    #[arg(long, value_name = "URL")]
+    pub s3_endpoint: Option<String>,
+    /// Region of the bucket (default: AWS_REGION, else us-east-1).
+    #[arg(long, value_name = "REGION")]
+    pub s3_region: Option<String>,
+    /// Path-style requests (ENDPOINT/BUCKET/KEY), as SeaweedFS and MinIO need
+    /// (default: true with --s3-endpoint, false for AWS).
+    #[arg(long, value_name = "BOOL")]
+    pub s3_path_style: Option<bool>,
+    /// Access key id (default: AWS_ACCESS_KEY_ID).
+    #[arg(long, value_name = "ID")]
+    pub s3_access_key_id: Option<String>,
+    /// Secret access key (default: AWS_SECRET_ACCESS_KEY, which other users
+    /// of the machine cannot read in the process list).
+    #[arg(long, value_name = "KEY")]
+    pub s3_secret_access_key: Option<String>,
+    /// Seconds a worker's claim on a job lasts unless renewed (2..=3600); a
+    /// job whose worker died is retried this long after it stopped answering.
+    #[arg(long, default_value_t = amc_server::cluster::ClusterConfig::LEASE_SECS)]
+    pub lease_secs: u64,
+    /// Claims of one job before it is failed (1..=100).
+    #[arg(long, default_value_t = amc_server::cluster::ClusterConfig::MAX_ATTEMPTS)]
+    pub max_attempts: u32,
+}
+
+impl ClusterFlags {
+    /// The library's settings, when --queue and --store are given.
+    pub fn config(
+        self,
+        job_ttl: u64,
+    ) -> Result<Option<amc_server::cluster::ClusterConfig>, amc_server::cluster::ClusterError> {
+        let (Some(queue_url), Some(store)) = (self.queue, self.store) else {
+            return Ok(None);
+        };
+        let store = amc_server::cluster::StoreConfig {
+            endpoint: self.s3_endpoint,
+            region: self.s3_region,
+            path_style: self.s3_path_style,
+            access_key_id: self.s3_access_key_id,
+            secret_access_key: self.s3_secret_access_key,
+            ..amc_server::cluster::StoreConfig::from_url(&store)?
+        };
+        let config = amc_server::cluster::ClusterConfig {
+            queue_url,
+            store,
+            lease: std::time::Duration::from_secs(self.lease_secs),
+            max_attempts: self.max_attempts,
+            job_ttl: std::time::Duration::from_secs(job_ttl),
+        };
+        config.validate()?;
+        Ok(Some(config))
+    }
+}
+
+/// `amc worker` options.
+#[derive(Args, Debug, Clone)]
+pub struct WorkerArgs {
+    /// Address of the worker's /healthz and /metrics (port 0 picks a free port;
+    /// the chosen one is printed).
+    #[arg(long, default_value = "127.0.0.1:9090")]
+    pub addr: SocketAddr,
+    /// Folder for a job's files while it runs (default: the system's temp dir).
+    #[arg(long)]
+    pub work_dir: Option<PathBuf>,
+    /// Threads of one job's run (1..=256; default: every core). One worker per
+    /// machine with every core, or one single-threaded worker per core.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
+    pub threads: Option<u16>,
+    /// Longest a clip may take to process, seconds.
+    #[arg(long, default_value_t = 3600)]
+    pub job_time_limit: u64,
+    /// How long a finished job's results are kept, seconds (the worker sweeps
+    /// expired jobs, as the replicas do).
+    #[arg(long, default_value_t = 3600)]
+    pub job_ttl: u64,
+    /// Longest an ffmpeg child may stall before it is killed, seconds.
+    #[arg(long, default_value_t = 60)]
+    pub ffmpeg_timeout: u64,
+    /// This worker's name in the job table (default: host-pid-random).
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Log one JSON object per line (for log collectors) instead of text.
+    #[arg(long)]
+    pub log_json: bool,
+    /// The shared job table and bucket (required).
+    #[command(flatten)]
+    pub cluster: ClusterFlags,
+}
+
+impl WorkerArgs {
+    /// The library's settings.
+    pub fn config(self) -> Result<amc_server::worker::WorkerConfig, CliError> {
+        let cluster = self
+            .cluster
+            .config(self.job_ttl)?
+            .ok_or(CliError::WorkerNeedsCluster)?;
+        Ok(amc_server::worker::WorkerConfig {
+            cluster,
+            addr: self.addr,
+            work_dir: self.work_dir,
+            threads: self
+                .threads
+                .map_or_else(amc_server::engine::default_threads, usize::from),
+            job_time_limit: self.job_time_limit,
+            ffmpeg_timeout: self.ffmpeg_timeout,
+            name: self.name,
+            log_json: self.log_json,
+        })
+    }
 }
 
 impl ServeArgs {
     /// The library's settings.
-    pub fn config(self) -> amc_server::serve::ServeConfig {
-        amc_server::serve::ServeConfig {
+    pub fn config(self) -> Result<amc_server::serve::ServeConfig, CliError> {
+        Ok(amc_server::serve::ServeConfig {
+            cluster: self.cluster.config(self.job_ttl)?,
             addr: self.addr,
             web_dir: self.web_dir,
             work_dir: self.work_dir,
@@ -328,7 +463,7 @@ impl ServeArgs {
             max_height: self.max_height,
             max_duration: self.max_duration,
             workers: self.workers,
-            queue: self.queue,
+            max_queued: self.max_queued,
             job_time_limit: self.job_time_limit,
             job_ttl: self.job_ttl,
             max_disk_mb: self.max_disk_mb,
@@ -345,7 +480,7 @@ impl ServeArgs {
             live_width: self.live_width,
             live_jpeg_quality: self.live_jpeg_quality,
             log_json: self.log_json,
-        }
+        })
     }
 }
 
@@ -537,7 +672,7 @@ mod tests {
             let Command::Serve(a) = parse(argv).unwrap().command else {
                 panic!("not serve")
             };
-            a.config().live().unwrap().params.view.roll
+            a.config().unwrap().live().unwrap().params.view.roll
         };
         assert_eq!(roll(&["serve"]), amc_core::Roll::Smooth);
         assert_eq!(

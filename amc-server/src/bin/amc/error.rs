@@ -32,6 +32,15 @@ pub enum CliError {
     /// `amc compare`.
     #[error(transparent)]
     Compare(#[from] compare::CompareError),
+    /// `amc worker` and its job table.
+    #[error(transparent)]
+    Worker(#[from] amc_server::worker::WorkerError),
+    /// The shared job table's or bucket's flags.
+    #[error(transparent)]
+    Cluster(#[from] amc_server::cluster::ClusterError),
+    /// `amc worker` without the job table it works for.
+    #[error("amc worker needs --queue postgres://... and --store s3://BUCKET (the same as the amc serve replicas')")]
+    WorkerNeedsCluster,
     /// A ground-truth file.
     #[error(transparent)]
     Gt(#[from] gt::GtError),

@@ -190,14 +190,15 @@ fn run(cli: Cli, control: &engine::RunControl) -> Result<(), CliError> {
             println!("{report}");
             Ok(())
         }
-        Command::Serve(a) => Ok(serve::run(&a.config())?),
+        Command::Serve(a) => Ok(serve::run(&a.config()?)?),
+        Command::Worker(a) => Ok(amc_server::worker::run(&a.config()?)?),
         Command::Compare(a) => Ok(compare::run(&a.config()?)?),
     }
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let serving = matches!(cli.command, Command::Serve(_));
+    let serving = matches!(cli.command, Command::Serve(_) | Command::Worker(_));
     let control = std::sync::Arc::new(engine::RunControl::new(None));
     if !serving {
         // The service handles its own signals (graceful shutdown).

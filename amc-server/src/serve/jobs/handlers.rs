@@ -3,7 +3,9 @@
 //! output and telemetry are fetched when done; `DELETE /jobs/{id}` cancels
 //! or removes. A job's task waits for a worker, stabilizes, settles.
 
-use super::store::{lock, Job, JobPage, JobState, JobView};
+use super::shared::{self, JobFile};
+use super::store::{lock, Job};
+use super::view::{JobPage, JobState, JobView};
 use crate::serve::intake::{self, Intake};
 use crate::serve::panics::PANICKED;
 use crate::serve::problem::ApiError;
@@ -43,13 +45,18 @@ pub async fn create(State(state): State<Arc<AppState>>, request: Request) -> Res
 }
 
 async fn create_job(state: &Arc<AppState>, request: Request) -> Result<JobView, ApiError> {
+    let intake = intake::accept(state, request).await?;
+    if let Some(cluster) = &state.cluster {
+        return shared::create(cluster, new_id(), intake).await;
+    }
     let Intake {
         admission,
         options,
+        query: _,
         scratch,
         upload,
         inspection,
-    } = intake::accept(state, request).await?;
+    } = intake;
     let id = new_id();
     let format = options.format;
     let bytes = upload.bytes;
@@ -93,8 +100,17 @@ async fn run(state: Arc<AppState>, job: Arc<Job>, spec: WorkSpec) {
         inner.state = JobState::Running;
     }
     tracing::info!(job = %job.id, "job running");
+    let started = std::time::Instant::now();
     let worker = work::stabilize_on_worker(&state, spec, job.control.clone()).await;
     drop(permit);
+    let outcome = match &worker {
+        Ok((_, Ok(_))) => "done",
+        _ if job.control.is_cancelled() => "cancelled",
+        _ => "failed",
+    };
+    state
+        .metrics
+        .job_finished(outcome, started.elapsed().as_secs_f64());
     match worker {
         Ok((spec, Ok(summary))) => {
             {
@@ -166,7 +182,10 @@ pub async fn list(
             }
         }
     }
-    Ok(Json(state.jobs.page(limit, cursor)))
+    match &state.cluster {
+        Some(cluster) => Ok(Json(shared::list(cluster, limit, cursor).await?)),
+        None => Ok(Json(state.jobs.page(limit, cursor))),
+    }
 }
 
 /// `GET /jobs/{id}`.
@@ -174,7 +193,10 @@ pub async fn get(
     State(state): State<Arc<AppState>>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Json<JobView>, ApiError> {
-    Ok(Json(state.jobs.get(&id)?.view()))
+    match &state.cluster {
+        Some(cluster) => Ok(Json(shared::get(cluster, &id).await?)),
+        None => Ok(Json(state.jobs.get(&id)?.view())),
+    }
 }
 
 /// Streams one of a finished job's files.
@@ -221,6 +243,9 @@ pub async fn output(
     State(state): State<Arc<AppState>>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Response, ApiError> {
+    if let Some(cluster) = &state.cluster {
+        return shared::file(cluster, &id, JobFile::Output).await;
+    }
     file_of(&state, &id, |job| {
         let ext = job.format.extension();
         (
@@ -237,6 +262,9 @@ pub async fn telemetry(
     State(state): State<Arc<AppState>>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Response, ApiError> {
+    if let Some(cluster) = &state.cluster {
+        return shared::file(cluster, &id, JobFile::Telemetry).await;
+    }
     file_of(&state, &id, |job| {
         (
             "telemetry.csv".into(),
@@ -254,6 +282,9 @@ pub async fn delete(
     State(state): State<Arc<AppState>>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Response, ApiError> {
+    if let Some(cluster) = &state.cluster {
+        return shared::delete(cluster, &id).await;
+    }
     let job = state.jobs.get(&id)?;
     if job.cancel() {
         let mut settled = job.settled.subscribe();

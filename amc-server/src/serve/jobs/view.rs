@@ -1,0 +1,187 @@
+//! What the job endpoints answer: a job's state, its view (`GET
+//! /jobs/{id}`), its summary in a listing (`GET /jobs`), and what a finished
+//! job measured. The same shapes whether jobs live in this process or in
+//! the shared job table (`--queue`).
+
+use crate::engine::RunSummary;
+use serde::{Deserialize, Serialize};
+use std::time::SystemTime;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum JobState {
+    Queued,
+    Running,
+    Done,
+    Failed,
+    Cancelled,
+}
+
+impl JobState {
+    pub const ALL: [JobState; 5] = [
+        JobState::Queued,
+        JobState::Running,
+        JobState::Done,
+        JobState::Failed,
+        JobState::Cancelled,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            JobState::Queued => "queued",
+            JobState::Running => "running",
+            JobState::Done => "done",
+            JobState::Failed => "failed",
+            JobState::Cancelled => "cancelled",
+        }
+    }
+
+    /// The state of a name (as [`JobState::name`] gives it).
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|s| s.name() == name)
+    }
+
+    pub fn finished(self) -> bool {
+        matches!(
+            self,
+            JobState::Done | JobState::Failed | JobState::Cancelled
+        )
+    }
+}
+
+/// A job as `GET /jobs/{id}` shows it.
+#[derive(Serialize)]
+pub struct JobView {
+    pub id: String,
+    pub state: JobState,
+    /// When the job was accepted, RFC 3339 UTC.
+    pub created: String,
+    pub frames_done: u64,
+    pub frames_total: Option<u64>,
+    /// `frames_done / frames_total` in [0, 1], when the total is known.
+    pub progress: Option<f64>,
+    pub format: &'static str,
+    pub error: Option<String>,
+    /// The clip's measurements, when done.
+    pub metrics: Option<JobMetrics>,
+    /// The camera's and the view's motion, when done.
+    pub motion: Option<JobMotion>,
+    pub output: Option<String>,
+    pub telemetry: Option<String>,
+}
+
+/// What a finished job measured: one flat object, each value once.
+#[derive(Serialize, Deserialize)]
+pub struct JobMetrics {
+    /// Output frames.
+    pub frames: u64,
+    pub input_size: (usize, usize),
+    pub output_size: (usize, usize),
+    /// Processing time and rate.
+    pub seconds: f64,
+    pub frames_per_second: f64,
+    /// The paper's image metrics of the output; null with `metrics=false`.
+    pub rms_normal_flow: Option<f64>,
+    pub rms_frame_change: Option<f64>,
+    pub sharpness: Option<f64>,
+    /// Share of pixels covered by every averaged frame: mean and lowest.
+    pub valid_fraction: f64,
+    pub min_valid_fraction: f64,
+}
+
+/// The motion a finished job's telemetry shows.
+#[derive(Serialize, Deserialize)]
+pub struct JobMotion {
+    /// RMS angular speed of the camera (estimated) and of the view, deg/s.
+    pub rms_speed_est_dps: f64,
+    pub rms_speed_view_dps: f64,
+    /// Saccades made (saccade mode).
+    pub saccades: u64,
+}
+
+impl JobMetrics {
+    pub fn of(s: &RunSummary) -> Self {
+        let image = s.metrics.as_ref();
+        Self {
+            frames: s.frames,
+            input_size: s.input_size,
+            output_size: s.output_size,
+            seconds: s.seconds,
+            frames_per_second: s.frames_per_second,
+            rms_normal_flow: image.map(|m| m.rms_normal_flow),
+            rms_frame_change: image.map(|m| m.rms_change),
+            sharpness: image.map(|m| m.sharpness),
+            valid_fraction: s.motion.valid_fraction,
+            min_valid_fraction: s.motion.min_valid_fraction,
+        }
+    }
+}
+
+impl JobMotion {
+    pub fn of(s: &RunSummary) -> Self {
+        Self {
+            rms_speed_est_dps: s.motion.rms_speed_est_dps,
+            rms_speed_view_dps: s.motion.rms_speed_view_dps,
+            saccades: s.motion.saccades,
+        }
+    }
+}
+
+/// A job as `GET /jobs` lists it.
+#[derive(Serialize)]
+pub struct JobSummary {
+    pub id: String,
+    pub state: JobState,
+    pub created: String,
+    pub frames_done: u64,
+    pub frames_total: Option<u64>,
+    pub progress: Option<f64>,
+}
+
+/// One page of `GET /jobs`, newest first.
+#[derive(Serialize)]
+pub struct JobPage {
+    pub jobs: Vec<JobSummary>,
+    /// Pass as `cursor` for the next (older) page; null on the last page.
+    pub next_cursor: Option<String>,
+}
+
+/// Whether `id` can name a job: 32 lowercase or uppercase hex digits (128
+/// random bits). Anything else is an unknown job, so an id never names a
+/// path or reaches a query.
+pub fn valid_id(id: &str) -> bool {
+    id.len() == 32 && id.bytes().all(|b| b.is_ascii_hexdigit())
+}
+
+/// `frames_done / frames_total` in [0, 1] (1 once done), when the total is known.
+pub fn progress(state: JobState, frames_done: u64, frames_total: Option<u64>) -> Option<f64> {
+    match (state == JobState::Done, frames_total) {
+        (true, _) => Some(1.0),
+        (false, Some(n)) if n > 0 => Some((frames_done as f64 / n as f64).min(1.0)),
+        _ => None,
+    }
+}
+
+/// Seconds since the Unix epoch as RFC 3339 UTC (`2026-11-29T21:04:05Z`).
+pub fn rfc3339(t: SystemTime) -> String {
+    let secs = t
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let (days, rem) = (secs / 86_400, secs % 86_400);
+    // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
+    let z = days as i64 + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}Z",
+        rem / 3600,
+        rem / 60 % 60,
+        rem % 60
+    )
+}

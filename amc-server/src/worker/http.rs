@@ -1,0 +1,83 @@
+//! The worker's operations endpoints: `GET /healthz` (ffmpeg, the
+//! database and the bucket) and `GET /metrics` (the job table's counts and
+//! this worker's runs, in the Prometheus text format). Anything else is a
+//! problem+json 404.
+
+use super::WorkerState;
+use crate::serve::jobs::JobState;
+use crate::serve::metrics::StateLabel;
+use crate::serve::problem::ApiError;
+use axum::extract::State;
+use axum::http::{header, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use axum::{Json, Router};
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+
+pub(super) fn app(state: Arc<WorkerState>) -> Router {
+    Router::new()
+        .route("/healthz", get(healthz))
+        .route("/metrics", get(metrics))
+        .fallback(|uri: axum::http::Uri| async move {
+            ApiError::NoRoute(format!(
+                "no such endpoint: {} (a worker serves /healthz and /metrics)",
+                uri.path()
+            ))
+        })
+        .with_state(state)
+}
+
+/// 200 while the worker can run jobs; 503 naming what is down.
+async fn healthz(State(state): State<Arc<WorkerState>>) -> Response {
+    let check = match tokio::task::spawn_blocking(amc_video::ffmpeg_available).await {
+        Ok(Ok(())) => state.cluster.ping().await.map_err(|e| e.to_string()),
+        Ok(Err(e)) => Err(e.to_string()),
+        Err(e) => Err(e.to_string()),
+    };
+    let body = |status: &str, detail: Option<String>| {
+        Json(serde_json::json!({
+            "status": status,
+            "detail": detail,
+            "version": env!("CARGO_PKG_VERSION"),
+            "role": "worker",
+            "worker": state.name,
+            "threads": state.limits.threads,
+            "busy": state.busy.load(Ordering::SeqCst),
+        }))
+    };
+    match check {
+        Ok(()) => body("ok", None).into_response(),
+        Err(e) => (
+            StatusCode::SERVICE_UNAVAILABLE,
+            body("unavailable", Some(e)),
+        )
+            .into_response(),
+    }
+}
+
+async fn metrics(State(state): State<Arc<WorkerState>>) -> Response {
+    let counts = match state.cluster.queue.counts().await {
+        Ok(c) => c,
+        Err(e) => return ApiError::from(e).into_response(),
+    };
+    let m = &state.metrics;
+    for s in JobState::ALL {
+        let n = counts
+            .by_state
+            .iter()
+            .find(|(name, _)| name == s.name())
+            .map_or(0, |(_, n)| *n);
+        m.jobs.get_or_create(&StateLabel { state: s.name() }).set(n);
+        if s == JobState::Queued {
+            m.queue_depth.set(n);
+        }
+    }
+    m.job_retries.set(counts.retries);
+    let mut res = m.encode().into_response();
+    res.headers_mut().insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("text/plain; version=0.0.4; charset=utf-8"),
+    );
+    res
+}
