@@ -6,6 +6,10 @@
 #   docker run --rm -p 8080:8080 amc
 #   docker run --rm -p 8080:8080 -v "$PWD/clips:/clips:ro" amc serve --addr 0.0.0.0:8080 \
 #       --web-dir /srv/amc/web --live-source /clips/flight.mp4 --live-loop
+#
+# The same image runs either role of a scaled-out service (compose.yaml):
+#   amc serve  --addr 0.0.0.0:8080 ... --queue postgres://... --store s3://BUCKET
+#   amc worker --addr 0.0.0.0:9090 ... --queue postgres://... --store s3://BUCKET
 
 FROM rust:1-bookworm AS build
 WORKDIR /src
@@ -42,9 +46,11 @@ COPY --from=build /usr/local/bin/amc /usr/local/bin/amc
 COPY --from=build /src/web/dist /srv/amc/web
 USER amc
 WORKDIR /srv/amc
-EXPOSE 8080
+# 8080: amc serve; 9090: amc worker's /healthz and /metrics.
+EXPOSE 8080 9090
 # tini forwards SIGTERM so `docker stop` shuts the service down gracefully
-# (running jobs cancelled, ffmpeg children killed, scratch files removed).
+# (running jobs cancelled, ffmpeg children killed, scratch files removed; a
+# worker hands its running job back to the queue).
 ENTRYPOINT ["/usr/bin/tini", "--", "amc"]
 # One JSON object per log line (for log collectors; never coloured).
 CMD ["serve", "--addr", "0.0.0.0:8080", "--web-dir", "/srv/amc/web", "--log-json"]

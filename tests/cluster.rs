@@ -73,10 +73,26 @@ fn two_replicas_and_two_workers_share_twenty_jobs() {
             (std::fs::read(&p).unwrap(), frames)
         })
         .collect();
-    let a = infra.replica(&[]);
-    let b = infra.replica(&[]);
-    let w1 = infra.worker(&[]);
-    let w2 = infra.worker(&[]);
+    // All four start at once on an empty database: the schema's migration
+    // runs once (sqlx holds an advisory lock), and every one of them starts.
+    let (a, b, w1, w2) = std::thread::scope(|s| {
+        let a = s.spawn(|| infra.replica(&[]));
+        let b = s.spawn(|| infra.replica(&[]));
+        let w1 = s.spawn(|| infra.worker(&[]));
+        let w2 = s.spawn(|| infra.worker(&[]));
+        (
+            a.join().unwrap(),
+            b.join().unwrap(),
+            w1.join().unwrap(),
+            w2.join().unwrap(),
+        )
+    });
+    assert_eq!(
+        infra
+            .pg
+            .psql("SELECT count(*) FROM _sqlx_migrations WHERE success"),
+        "1"
+    );
     let mut expected = HashMap::new();
     for i in 0..20 {
         let (clip, frames) = &clips[i % clips.len()];

@@ -51,6 +51,12 @@ impl Infra {
         Server::worker(&args.iter().map(String::as_str).collect::<Vec<_>>())
     }
 
+    /// A single-threaded worker confined to one CPU core (with its ffmpeg children).
+    pub fn worker_on_core(&self, core: usize) -> Server {
+        let args = self.args(&["--threads", "1"]);
+        Server::worker_on_core(core, &args.iter().map(String::as_str).collect::<Vec<_>>())
+    }
+
     pub fn rows(&self) -> usize {
         self.pg
             .psql("SELECT count(*) FROM amc_jobs")

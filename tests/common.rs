@@ -67,8 +67,32 @@ static BUILD: Once = Once::new();
 pub fn amc() -> PathBuf {
     BUILD.call_once(|| {
         let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-        let status = Command::new(cargo)
-            .args(["build", "--release", "-p", "amc-server", "--bin", "amc"])
+        let mut build = Command::new(cargo);
+        build.args(["build", "--release", "-p", "amc-server", "--bin", "amc"]);
+        // The variables the cargo running this test set for it (this
+        // package's name, version, folder...): a build script that watches
+        // them (ring's does) would otherwise see them change, and its crate
+        // and every dependant would be rebuilt at each switch between `cargo
+        // test` and this build.
+        for (key, _) in std::env::vars_os() {
+            let key = key.to_string_lossy();
+            let set_by_cargo = key.starts_with("CARGO_PKG_")
+                || key.starts_with("CARGO_BIN_")
+                || [
+                    "CARGO_MANIFEST_DIR",
+                    "CARGO_MANIFEST_PATH",
+                    "CARGO_MANIFEST_LINKS",
+                    "CARGO_CRATE_NAME",
+                    "CARGO_PRIMARY_PACKAGE",
+                    "CARGO_TARGET_TMPDIR",
+                    "OUT_DIR",
+                ]
+                .contains(&key.as_ref());
+            if set_by_cargo {
+                build.env_remove(key.as_ref());
+            }
+        }
+        let status = build
             .current_dir(workspace_root())
             .stdout(Stdio::inherit())
             .stderr(Stdio::inherit())

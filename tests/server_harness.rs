@@ -22,20 +22,34 @@ pub struct Server {
 impl Server {
     /// Starts `amc serve --addr 127.0.0.1:0 --work-dir TMP ARGS...` and waits until it listens.
     pub fn start(args: &[&str]) -> Server {
-        Self::launch("serve", args)
+        Self::launch("serve", args, None)
     }
 
     /// Starts `amc worker --addr 127.0.0.1:0 --work-dir TMP ARGS...` (its
     /// `/healthz` and `/metrics`) and waits until it listens.
     pub fn worker(args: &[&str]) -> Server {
-        Self::launch("worker", args)
+        Self::launch("worker", args, None)
     }
 
-    fn launch(command: &str, args: &[&str]) -> Server {
+    /// [`Server::worker`] confined to one CPU core (`taskset -c CORE`), its
+    /// ffmpeg children included.
+    pub fn worker_on_core(core: usize, args: &[&str]) -> Server {
+        Self::launch("worker", args, Some(core))
+    }
+
+    fn launch(command: &str, args: &[&str], core: Option<usize>) -> Server {
         let work_parent = tempfile::tempdir().expect("temp dir");
         let stderr_log = work_parent.path().with_extension("log");
         let log = std::fs::File::create(&stderr_log).expect("log file");
-        let mut child = Command::new(amc())
+        let mut cmd = match core {
+            Some(core) => {
+                let mut c = Command::new("taskset");
+                c.args(["-c", &core.to_string()]).arg(amc());
+                c
+            }
+            None => Command::new(amc()),
+        };
+        let mut child = cmd
             .arg(command)
             .args(["--addr", "127.0.0.1:0", "--work-dir"])
             .arg(work_parent.path())

@@ -172,6 +172,10 @@ impl FfmpegSource {
         if opts.looped {
             args.extend(os_args(&["-stream_loop", "-1"]));
         }
+        if let Some(n) = opts.ffmpeg_threads {
+            let n = n.to_string();
+            args.extend(os_args(&["-filter_threads", &n, "-threads", &n]));
+        }
         if let Some(f) = format {
             args.extend(os_args(&["-f", f]));
         }
@@ -528,6 +532,10 @@ impl FfmpegSink {
             more.extend(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2"].map(String::from));
         }
         more.extend(container.video_args(spec.crf));
+        if let Some(n) = spec.ffmpeg_threads {
+            more.extend(["-threads".into(), n.to_string()]);
+            more.extend(["-filter_threads".into(), n.to_string()]);
+        }
         // Timestamps pass through unchanged (no frame dropped or duplicated to
         // a constant rate), on a 90 kHz clock: exact for 24/25/30/50/60 and the
         // NTSC /1001 rates.

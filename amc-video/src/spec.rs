@@ -59,6 +59,10 @@ pub struct InputOptions {
     /// `.y4m` and image folders here. [`PixelFormat::Rgba8`] is refused with
     /// [`VideoError::UnsupportedPixelFormat`](crate::VideoError::UnsupportedPixelFormat).
     pub pixel_format: PixelFormat,
+    /// Threads the ffmpeg decoder and its filters may use (`-threads N
+    /// -filter_threads N`); `None`: ffmpeg's own choice (about every core).
+    /// A run limited to N threads sets it so that it stays within N cores.
+    pub ffmpeg_threads: Option<usize>,
 }
 
 impl Default for InputOptions {
@@ -69,6 +73,7 @@ impl Default for InputOptions {
             realtime: false,
             looped: false,
             pixel_format: PixelFormat::Rgb8,
+            ffmpeg_threads: None,
         }
     }
 }
@@ -118,6 +123,9 @@ pub struct OutputSpec {
     /// as RGB24. A frame of another format is still accepted, converted. `.y4m`
     /// and PNG outputs ignore it (they convert each frame as needed).
     pub pixel_format: PixelFormat,
+    /// Threads the ffmpeg encoder and its filters may use (`-threads N
+    /// -filter_threads N`); `None`: ffmpeg's own choice.
+    pub ffmpeg_threads: Option<usize>,
 }
 
 impl OutputSpec {
@@ -131,6 +139,7 @@ impl OutputSpec {
             timeout: InputOptions::default().timeout,
             crf: None,
             pixel_format: PixelFormat::Rgb8,
+            ffmpeg_threads: None,
         }
     }
 }

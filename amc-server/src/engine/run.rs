@@ -131,8 +131,13 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         (PixelFormat::Yuv420p, None | Some(PixelFormat::Yuv420p)) => PixelFormat::Yuv420p,
         _ => PixelFormat::Rgb8,
     };
+    // A run limited to fewer threads than the machine has keeps its ffmpeg
+    // children within the same number (a worker of `--threads 1` then uses
+    // about one core, so workers scale with cores).
+    let ffmpeg_threads = (cfg.threads < super::default_threads()).then_some(cfg.threads);
     let opts = InputOptions {
         pixel_format: format,
+        ffmpeg_threads,
         ..super::input_options(cfg.fps, cfg.timeout)
     };
     let src: Box<dyn FrameSource> = video::open_input(cfg.input, &opts)?;
@@ -150,6 +155,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
             spec.timeout = cfg.timeout;
             spec.crf = cfg.crf;
             spec.pixel_format = format;
+            spec.ffmpeg_threads = ffmpeg_threads;
             Some(Writer::new(video::create_output(path, &spec)?, threaded))
         }
         None => None,

@@ -3,7 +3,7 @@
 //! this worker's runs, in the Prometheus text format). Anything else is a
 //! problem+json 404.
 
-use super::WorkerState;
+use super::state::WorkerState;
 use crate::serve::jobs::JobState;
 use crate::serve::metrics::StateLabel;
 use crate::serve::problem::ApiError;

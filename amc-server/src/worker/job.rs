@@ -11,7 +11,7 @@
 //!   presumed dead and claimed by another worker): the run is stopped and
 //!   nothing is written; objects this claim uploaded are removed.
 
-use super::WorkerState;
+use super::state::WorkerState;
 use crate::cluster::queue::{Claim, Outcome};
 use crate::engine::{RunControl, RunSummary};
 use crate::serve::jobs::{JobMetrics, JobMotion};
@@ -30,7 +30,7 @@ const HEARTBEAT: Duration = Duration::from_millis(500);
 /// How a run ended, as far as the job table is concerned.
 enum Ending {
     Done {
-        summary: RunSummary,
+        summary: Box<RunSummary>,
         output_key: String,
         telemetry_key: String,
     },
@@ -161,7 +161,7 @@ async fn run_in(
         }
     }
     Ending::Done {
-        summary,
+        summary: Box::new(summary),
         output_key,
         telemetry_key,
     }

@@ -667,6 +667,84 @@ mod tests {
     }
 
     #[test]
+    fn the_job_table_and_bucket_go_together_and_are_checked() {
+        // Without them, serve keeps its jobs in memory.
+        let Command::Serve(a) = parse(&["serve"]).unwrap().command else {
+            panic!("not serve")
+        };
+        assert!(a.config().unwrap().cluster.is_none());
+        // One without the other is a usage error.
+        for argv in [
+            &["serve", "--queue", "postgres://h/db"][..],
+            &["serve", "--store", "s3://amc"][..],
+            &["worker", "--queue", "postgres://h/db"][..],
+        ] {
+            let e = parse(argv).err().unwrap().to_string();
+            assert!(
+                e.contains("--store") || e.contains("--queue"),
+                "{argv:?}: {e}"
+            );
+        }
+        // A worker needs both.
+        let Command::Worker(a) = parse(&["worker"]).unwrap().command else {
+            panic!("not worker")
+        };
+        let e = a.config().err().unwrap().to_string();
+        assert!(e.contains("--queue") && e.contains("--store"), "{e}");
+        // Both, with the flags beside them.
+        let argv = [
+            "worker",
+            "--queue",
+            "postgres://amc:pw@db:5432/amc",
+            "--store",
+            "s3://amc-videos/team",
+            "--s3-endpoint",
+            "http://127.0.0.1:8333",
+            "--lease-secs",
+            "10",
+            "--threads",
+            "1",
+        ];
+        let Command::Worker(a) = parse(&argv).unwrap().command else {
+            panic!("not worker")
+        };
+        let c = a.config().unwrap();
+        assert_eq!(c.cluster.store.bucket, "amc-videos");
+        assert_eq!(c.cluster.store.prefix, "team");
+        assert_eq!(
+            c.cluster.store.endpoint.as_deref(),
+            Some("http://127.0.0.1:8333")
+        );
+        assert_eq!(c.cluster.lease, std::time::Duration::from_secs(10));
+        assert_eq!(c.threads, 1);
+        // Bad values name their flag and range.
+        for (queue, store, extra, expect) in [
+            ("postgres://h/db", "s3://Bad_Bucket", None, "--store"),
+            ("mysql://u:secret@h/db", "s3://amc", None, "--queue"),
+            (
+                "postgres://h/db",
+                "s3://amc",
+                Some(["--lease-secs", "1"]),
+                "2..=3600",
+            ),
+            (
+                "postgres://h/db",
+                "s3://amc",
+                Some(["--max-attempts", "0"]),
+                "1..=100",
+            ),
+        ] {
+            let mut argv = vec!["serve", "--queue", queue, "--store", store];
+            argv.extend(extra.into_iter().flatten());
+            let Command::Serve(a) = parse(&argv).unwrap().command else {
+                panic!("not serve")
+            };
+            let e = a.config().err().unwrap().to_string();
+            assert!(e.contains(expect) && !e.contains("secret"), "{argv:?}: {e}");
+        }
+    }
+
+    #[test]
     fn live_roll_reaches_the_live_feeds_view() {
         let roll = |argv: &[&str]| {
             let Command::Serve(a) = parse(argv).unwrap().command else {
