@@ -180,7 +180,10 @@ fn a_killed_workers_job_is_finished_by_another_once() {
     let seen = wait_running(&api, &id);
     w1.kill();
     let killed = Instant::now();
-    let w2 = infra.worker(&["--lease-secs", "3"]);
+    // The killed worker could not remove its job's folder.
+    assert_eq!(std::fs::read_dir(w1.work_parent.path()).unwrap().count(), 1);
+    // A worker started in the same work dir removes it (its process is gone).
+    let w2 = infra.worker_in(w1.work_parent.path(), &["--lease-secs", "3"]);
     let v = wait_finished(&api, &id, Duration::from_secs(120));
     assert_eq!(v["state"], "done", "{v}");
     // Not before the dead worker's lease ran out.
@@ -213,7 +216,7 @@ fn a_killed_workers_job_is_finished_by_another_once() {
     assert_eq!(ffprobe_frames(&out), frames);
     let m = get(&w2.url("/metrics")).text();
     assert_eq!(metric(&m, "amc_job_retries"), 1.0, "{m}");
-    assert_empty(w2.work_parent.path(), "the second worker");
+    assert_empty(w1.work_parent.path(), "the shared work dir");
 }
 
 #[test]

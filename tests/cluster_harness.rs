@@ -51,6 +51,13 @@ impl Infra {
         Server::worker(&args.iter().map(String::as_str).collect::<Vec<_>>())
     }
 
+    /// A single-threaded worker in another worker's `--work-dir`.
+    pub fn worker_in(&self, dir: &std::path::Path, extra: &[&str]) -> Server {
+        let mut args = self.args(&["--threads", "1"]);
+        args.extend(extra.iter().map(|s| s.to_string()));
+        Server::worker_in(dir, &args.iter().map(String::as_str).collect::<Vec<_>>())
+    }
+
     /// A single-threaded worker confined to one CPU core (with its ffmpeg children).
     pub fn worker_on_core(&self, core: usize) -> Server {
         let args = self.args(&["--threads", "1"]);

@@ -31,6 +31,13 @@ impl Server {
         Self::launch("worker", args, None)
     }
 
+    /// [`Server::worker`] with `--work-dir DIR` (another worker's, say).
+    pub fn worker_in(dir: &Path, args: &[&str]) -> Server {
+        let mut all = vec!["--work-dir", dir.to_str().expect("UTF-8 path")];
+        all.extend_from_slice(args);
+        Self::launch("worker", &all, None)
+    }
+
     /// [`Server::worker`] confined to one CPU core (`taskset -c CORE`), its
     /// ffmpeg children included.
     pub fn worker_on_core(core: usize, args: &[&str]) -> Server {
@@ -49,10 +56,12 @@ impl Server {
             }
             None => Command::new(amc()),
         };
+        cmd.arg(command).args(["--addr", "127.0.0.1:0"]);
+        // A `--work-dir` in `args` (see `worker_in`) replaces the fresh one.
+        if !args.contains(&"--work-dir") {
+            cmd.arg("--work-dir").arg(work_parent.path());
+        }
         let mut child = cmd
-            .arg(command)
-            .args(["--addr", "127.0.0.1:0", "--work-dir"])
-            .arg(work_parent.path())
             .args(args)
             .current_dir(super::workspace_root())
             .stdin(Stdio::null())

@@ -106,13 +106,8 @@ impl WorkerConfig {
 }
 
 /// A name no other worker has: host, process id, random suffix.
-pub(super) fn default_name() -> String {
+pub(super) fn default_name(host: &str) -> String {
     use rand::Rng;
-    let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
-        .ok()
-        .map(|h| h.trim().to_string())
-        .filter(|h| !h.is_empty())
-        .unwrap_or_else(|| "worker".into());
     let suffix: u32 = rand::rngs::OsRng.gen();
     format!("{host}-{}-{:08x}", std::process::id(), suffix)
 }

@@ -55,10 +55,7 @@ pub(super) async fn run(
         tracing::warn!(job = %claim.id, attempt = claim.attempt, "retrying a job whose worker stopped answering");
     }
     tracing::info!(job = %claim.id, attempt = claim.attempt, worker = %state.name, "job running");
-    let ending = match tempfile::Builder::new()
-        .prefix("amc-job-")
-        .tempdir_in(&state.work_dir)
-    {
+    let ending = match super::scratch::create(&state.work_dir, &state.host) {
         Ok(scratch) => {
             let ending = run_in(state, &claim, scratch.path(), stop).await;
             drop(scratch);

@@ -17,6 +17,7 @@ mod config;
 mod http;
 mod job;
 mod run;
+mod scratch;
 mod state;
 
 pub use config::{WorkerConfig, WorkerError};

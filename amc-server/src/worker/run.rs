@@ -3,7 +3,7 @@
 
 use super::config::{default_name, WorkerConfig, WorkerError};
 use super::state::WorkerState;
-use super::{http, job};
+use super::{http, job, scratch};
 use crate::cluster::{redact, Cluster};
 use crate::serve::metrics::Metrics;
 use std::sync::Arc;
@@ -36,11 +36,17 @@ pub fn run(config: &WorkerConfig) -> Result<(), WorkerError> {
     runtime.block_on(async {
         let cluster =
             Cluster::connect(config.cluster.clone(), crate::serve::CONNECT_PATIENCE).await?;
-        let name = config.name.clone().unwrap_or_else(default_name);
+        let host = scratch::host();
+        let name = config.name.clone().unwrap_or_else(|| default_name(&host));
+        // Folders left by workers of this host that were killed (SIGKILL).
+        for stale in scratch::remove_stale(&work_dir, &host) {
+            tracing::info!(folder = %stale.display(), "removed the job folder of a worker that is gone");
+        }
         let state = Arc::new(WorkerState {
             cluster,
             limits,
             name,
+            host,
             work_dir,
             metrics: Arc::new(Metrics::new()),
             busy: false.into(),

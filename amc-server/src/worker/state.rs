@@ -12,6 +12,8 @@ pub(crate) struct WorkerState {
     pub cluster: Cluster,
     pub limits: Limits,
     pub name: String,
+    /// This host's name (in job folder names).
+    pub host: String,
     pub work_dir: PathBuf,
     pub metrics: Arc<Metrics>,
     /// A job being run (for `/healthz`'s `busy`).
