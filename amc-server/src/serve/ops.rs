@@ -64,7 +64,8 @@ pub async fn prometheus(State(state): State<Arc<AppState>>) -> Response {
                     .filter_map(|(s, n)| Some((JobState::parse(s)?, *n as usize)))
                     .collect()
             }
-            // The scrape still answers, with the last known counts.
+            // Stale counts would look like a healthy, idle queue: the scrape
+            // fails (503) instead, and the scraper marks the target down.
             Err(e) => {
                 tracing::warn!(error = %e, "cannot count jobs for /metrics");
                 return state.refuse(e.into());
