@@ -4,6 +4,7 @@
 //! killed and its partial files removed when the pipeline unwinds).
 
 use super::config::Limits;
+use super::jobs::JobFile;
 use super::options::JobOptions;
 use super::problem::{count, ApiError};
 use crate::engine::{self, RunConfig, RunControl, RunError, RunSummary};
@@ -33,8 +34,9 @@ impl WorkSpec {
     ) -> Self {
         Self {
             input: upload.video,
-            output: scratch.file(&format!("output.{}", options.format.extension())),
-            telemetry: with_telemetry.then(|| scratch.file("telemetry.csv")),
+            output: scratch.file(&JobFile::Output.name(options.format)),
+            telemetry: with_telemetry
+                .then(|| scratch.file(&JobFile::Telemetry.name(options.format))),
             lens_text: upload.lens,
             options,
             input_size: (inspection.info.width, inspection.info.height),

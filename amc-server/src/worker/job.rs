@@ -14,7 +14,7 @@
 use super::state::WorkerState;
 use crate::cluster::queue::{Claim, Outcome};
 use crate::engine::{RunControl, RunSummary};
-use crate::serve::jobs::{JobMetrics, JobMotion};
+use crate::serve::jobs::{JobFile, JobMetrics, JobMotion};
 use crate::serve::options::JobOptions;
 use crate::serve::panics::PANICKED;
 use crate::serve::work::{self, WorkSpec};
@@ -95,10 +95,10 @@ async fn run_in(
         Err(e) => return Ending::Failed(e.to_string()),
     };
     let extension = options.format.extension();
-    let telemetry = scratch.join("telemetry.csv");
+    let telemetry = scratch.join(JobFile::Telemetry.name(options.format));
     let spec = WorkSpec {
         input,
-        output: scratch.join(format!("output.{extension}")),
+        output: scratch.join(JobFile::Output.name(options.format)),
         telemetry: Some(telemetry.clone()),
         lens_text: claim.lens.clone(),
         options,

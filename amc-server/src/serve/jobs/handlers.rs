@@ -3,9 +3,9 @@
 //! output and telemetry are fetched when done; `DELETE /jobs/{id}` cancels
 //! or removes. A job's task waits for a worker, stabilizes, settles.
 
-use super::shared::{self, JobFile};
+use super::shared;
 use super::store::{lock, Job};
-use super::view::{JobPage, JobState, JobView};
+use super::view::{JobFile, JobPage, JobState, JobView};
 use crate::serve::intake::{self, Intake};
 use crate::serve::panics::PANICKED;
 use crate::serve::problem::ApiError;
@@ -199,14 +199,13 @@ pub async fn get(
     }
 }
 
-/// Streams one of a finished job's files.
-async fn file_of(
-    state: &AppState,
-    id: &str,
-    name: impl Fn(&Job) -> (String, &'static str, String),
-) -> Result<Response, ApiError> {
+/// Streams one of a finished job's files, from this process's scratch
+/// folder or from the shared bucket.
+async fn file(state: &AppState, id: &str, which: JobFile) -> Result<Response, ApiError> {
+    if let Some(cluster) = &state.cluster {
+        return shared::file(cluster, id, which).await;
+    }
     let job = state.jobs.get(id)?;
-    let (file, content_type, download) = name(&job);
     let path = {
         let inner = lock(&job.inner);
         if inner.state != JobState::Done {
@@ -216,7 +215,7 @@ async fn file_of(
             )));
         }
         match &inner.scratch {
-            Some(s) => s.file(&file),
+            Some(s) => s.file(&which.name(job.format)),
             None => return Err(ApiError::JobNotFound(id.to_string())),
         }
     };
@@ -226,16 +225,8 @@ async fn file_of(
         .await
         .map_err(|_| ApiError::JobNotFound(id.to_string()))?;
     let len = f.metadata().await.map(|m| m.len()).ok();
-    let mut res = Response::new(Body::from_stream(tokio_util::io::ReaderStream::new(f)));
-    let h = res.headers_mut();
-    h.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
-    if let Some(len) = len {
-        h.insert(header::CONTENT_LENGTH, HeaderValue::from(len));
-    }
-    if let Ok(v) = HeaderValue::from_str(&format!("attachment; filename=\"{download}\"")) {
-        h.insert(header::CONTENT_DISPOSITION, v);
-    }
-    Ok(res)
+    let body = Body::from_stream(tokio_util::io::ReaderStream::new(f));
+    Ok(which.response(&job.id, job.format, body, len))
 }
 
 /// `GET /jobs/{id}/output`.
@@ -243,18 +234,7 @@ pub async fn output(
     State(state): State<Arc<AppState>>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Response, ApiError> {
-    if let Some(cluster) = &state.cluster {
-        return shared::file(cluster, &id, JobFile::Output).await;
-    }
-    file_of(&state, &id, |job| {
-        let ext = job.format.extension();
-        (
-            format!("output.{ext}"),
-            job.format.content_type(),
-            format!("stabilized-{}.{ext}", &job.id[..8]),
-        )
-    })
-    .await
+    file(&state, &id, JobFile::Output).await
 }
 
 /// `GET /jobs/{id}/telemetry.csv`.
@@ -262,17 +242,7 @@ pub async fn telemetry(
     State(state): State<Arc<AppState>>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Response, ApiError> {
-    if let Some(cluster) = &state.cluster {
-        return shared::file(cluster, &id, JobFile::Telemetry).await;
-    }
-    file_of(&state, &id, |job| {
-        (
-            "telemetry.csv".into(),
-            "text/csv",
-            format!("telemetry-{}.csv", &job.id[..8]),
-        )
-    })
-    .await
+    file(&state, &id, JobFile::Telemetry).await
 }
 
 /// `DELETE /jobs/{id}`: cancels a queued or running job (200 with its state,

@@ -11,4 +11,4 @@ pub use handlers::{create, delete, get, list, output, telemetry};
 pub use store::JobStore;
 #[cfg(test)]
 pub use view::rfc3339;
-pub use view::{JobMetrics, JobMotion, JobState};
+pub use view::{JobFile, JobMetrics, JobMotion, JobState};

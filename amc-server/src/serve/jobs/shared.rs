@@ -8,15 +8,15 @@
 //! bucket. A database or bucket that is down answers 503 with
 //! `Retry-After`.
 
-use super::view::{progress, rfc3339, valid_id, JobMetrics, JobMotion, JobPage, JobState};
-use super::view::{JobSummary, JobView};
+use super::view::{progress, rfc3339, valid_id, JobFile, JobMetrics, JobMotion, JobPage};
+use super::view::{JobState, JobSummary, JobView};
 use crate::cluster::queue::{JobRow, NewJob};
 use crate::cluster::Cluster;
 use crate::serve::intake::Intake;
 use crate::serve::options::OutputFormat;
 use crate::serve::problem::ApiError;
 use axum::body::Body;
-use axum::http::{header, HeaderValue, StatusCode};
+use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use std::time::{Duration, Instant, SystemTime};
@@ -143,13 +143,6 @@ pub async fn list(
     })
 }
 
-/// Which of a finished job's files.
-#[derive(Clone, Copy)]
-pub enum JobFile {
-    Output,
-    Telemetry,
-}
-
 /// Streams a finished job's output or telemetry from the bucket.
 pub async fn file(cluster: &Cluster, id: &str, which: JobFile) -> Result<Response, ApiError> {
     let row = row(cluster, id).await?;
@@ -160,33 +153,18 @@ pub async fn file(cluster: &Cluster, id: &str, which: JobFile) -> Result<Respons
         )));
     }
     let format = OutputFormat::from_extension(&row.format).unwrap_or(OutputFormat::Mp4);
-    let (key, content_type, download) = match which {
-        JobFile::Output => (
-            row.output_key.clone(),
-            format.content_type(),
-            format!("stabilized-{}.{}", &row.id[..8], format.extension()),
-        ),
-        JobFile::Telemetry => (
-            row.telemetry_key.clone(),
-            "text/csv",
-            format!("telemetry-{}.csv", &row.id[..8]),
-        ),
+    let key = match which {
+        JobFile::Output => row.output_key.as_deref(),
+        JobFile::Telemetry => row.telemetry_key.as_deref(),
     };
     let key = key.ok_or_else(|| ApiError::JobNotFound(id.to_string()))?;
-    let (len, stream) = match cluster.store.open(&key).await {
+    let (len, stream) = match cluster.store.open(key).await {
         Ok(found) => found,
         // Expired (or removed) between the row's read and this one.
         Err(e) if e.not_found() => return Err(ApiError::JobNotFound(id.to_string())),
         Err(e) => return Err(e.into()),
     };
-    let mut res = Response::new(Body::from_stream(stream));
-    let h = res.headers_mut();
-    h.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
-    h.insert(header::CONTENT_LENGTH, HeaderValue::from(len));
-    if let Ok(v) = HeaderValue::from_str(&format!("attachment; filename=\"{download}\"")) {
-        h.insert(header::CONTENT_DISPOSITION, v);
-    }
-    Ok(res)
+    Ok(which.response(&row.id, format, Body::from_stream(stream), Some(len)))
 }
 
 /// `DELETE /jobs/{id}`: cancels a queued or running job (200 with its

@@ -4,8 +4,67 @@
 //! the shared job table (`--queue`).
 
 use crate::engine::RunSummary;
+use crate::serve::options::OutputFormat;
+use axum::body::Body;
+use axum::http::{header, HeaderValue};
+use axum::response::Response;
 use serde::{Deserialize, Serialize};
 use std::time::SystemTime;
+
+/// Which of a finished job's files.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum JobFile {
+    /// The stabilized video.
+    Output,
+    /// The per-frame telemetry CSV.
+    Telemetry,
+}
+
+impl JobFile {
+    /// Its name among the job's files (`output.mp4`, `telemetry.csv`).
+    pub fn name(self, format: OutputFormat) -> String {
+        match self {
+            JobFile::Output => format!("output.{}", format.extension()),
+            JobFile::Telemetry => "telemetry.csv".into(),
+        }
+    }
+
+    fn content_type(self, format: OutputFormat) -> &'static str {
+        match self {
+            JobFile::Output => format.content_type(),
+            JobFile::Telemetry => "text/csv",
+        }
+    }
+
+    /// The file of job `id` as a download: its type, its length when known,
+    /// and a name that says what it is (`stabilized-1a2b3c4d.mp4`).
+    pub fn response(
+        self,
+        id: &str,
+        format: OutputFormat,
+        body: Body,
+        len: Option<u64>,
+    ) -> Response {
+        let short = &id[..id.len().min(8)];
+        let download = match self {
+            JobFile::Output => format!("stabilized-{short}.{}", format.extension()),
+            JobFile::Telemetry => format!("telemetry-{short}.csv"),
+        };
+        let mut res = Response::new(body);
+        let h = res.headers_mut();
+        h.insert(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static(self.content_type(format)),
+        );
+        if let Some(len) = len {
+            h.insert(header::CONTENT_LENGTH, HeaderValue::from(len));
+        }
+        if let Ok(v) = HeaderValue::from_str(&format!("attachment; filename=\"{download}\"")) {
+            h.insert(header::CONTENT_DISPOSITION, v);
+        }
+        res
+    }
+}
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "lowercase")]
