@@ -87,10 +87,19 @@ fn compare_short_synthetic_clip() {
         let stab = json_f64(m, "/measured/stability/score");
         assert!((0.0..=1.0).contains(&stab), "{name}: stability {stab}");
     }
-    // Our "none" keeps the centre 75% (margin 0.125 each side) without zoom or stretch.
+    // Our "none" is the whole undistorted input (zoom 1) without zoom or stretch.
     let none = method(c, "none");
     let crop = json_f64(none, "/measured/cropping");
-    assert!((crop - 0.75).abs() < 0.01, "none cropping {crop}");
+    assert!((crop - 1.0).abs() < 0.01, "none cropping {crop}");
+    // The default framing (zoom auto) never shows a border, and the report says so.
+    for m in ["none", "stabilize", "saccade", "stabilize-lookahead"] {
+        assert_eq!(method(c, m)["frames_with_border"], 0, "{m}");
+    }
+    assert!(
+        md.contains("stabilize: no output frame with an uncovered pixel")
+            && md.contains("stabilize-lookahead >= vidstab-s30 on cropping"),
+        "{md}"
+    );
     assert!(json_f64(none, "/measured/distortion") > 0.98);
     // The estimate is checked against the ground truth.
     let gt = json_f64(

@@ -28,6 +28,10 @@ fn run_mode(input: &Path, out_dir: &Path, mode: &str, ext: &str, extra: &[String
         s(&metrics),
         "--telemetry".into(),
         s(&telemetry),
+        // The paper's framing (a fixed 12.5% margin): its bars, valid share included,
+        // are defined for it; the default zoom is tested in tests/framing.rs.
+        "--zoom".into(),
+        "none".into(),
         "-q".into(),
     ];
     args.extend(extra.iter().cloned());

@@ -527,7 +527,7 @@ fn ingest_publisher_feeds_viewers() {
     assert!(
         metas
             .iter()
-            .all(|m| m["width"] == 480 && m["height"] == 360),
+            .all(|m| m["width"] == 640 && m["height"] == 480),
         "{}",
         metas[0]
     );

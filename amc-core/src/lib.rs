@@ -11,6 +11,7 @@ pub mod camera;
 pub mod color;
 pub mod error;
 pub mod format;
+pub mod framing;
 pub mod image;
 pub mod lens;
 pub mod so3;
@@ -28,6 +29,7 @@ pub mod tracker;
 pub mod view;
 
 pub use camera::CameraModel;
+pub use framing::Zoom;
 pub use image::{Frame, FrameRef, PixelFormat};
 pub use options::{LensSpec, StabilizerOptions};
 pub use stabilizer::{Stabilizer, StabilizerParams, Telemetry};

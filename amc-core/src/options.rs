@@ -105,10 +105,29 @@ pub const OPTIONS: &[OptionSpec] = &[
         name: "margin",
         flag: "margin",
         value_name: "FRAC",
-        help: "share cropped from each side of the output, 0..=0.45 (default 0.125)",
+        help: "with --zoom none: share cropped from each side of the output, 0..=0.45 (default 0.125)",
         allowed: Allowed::Number {
             min: 0.0,
             max: 0.45,
+            above_min: false,
+            words: &[],
+        },
+    },
+    OptionSpec {
+        name: "zoom",
+        flag: "zoom",
+        value_name: "auto|static|none",
+        help: "framing: auto (per frame, the least zoom that shows no border, smoothed, within --max-crop), static (one zoom for the whole clip; files only) or none (crop --margin from each side) (default auto)",
+        allowed: Allowed::Words(&["auto", "static", "none"]),
+    },
+    OptionSpec {
+        name: "max_crop",
+        flag: "max-crop",
+        value_name: "FRAC",
+        help: "crop budget of --zoom auto|static: the largest share of the width cropped, 0..=0.5 (default 0.15: keeps at least 85%); the view is pulled toward the camera where it would need more",
+        allowed: Allowed::Number {
+            min: 0.0,
+            max: 0.5,
             above_min: false,
             words: &[],
         },
@@ -155,7 +174,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         name: "output_width",
         flag: "output-width",
         value_name: "PX",
-        help: "output width, 16..=16384 pixels (default: the cropped input width)",
+        help: "output width, 16..=16384 pixels (default: the input width; with --zoom none the cropped input width)",
         allowed: Allowed::Integer { min: 16, max: 16384 },
     },
     OptionSpec {
@@ -240,6 +259,8 @@ impl StabilizerOptions {
             "n_avg" => p.render.n_avg = parse_value(spec, value)?,
             "n_track" => p.tracker.n_track = parse_value(spec, value)?,
             "margin" => p.render.margin = parse_value(spec, value)?,
+            "zoom" => p.framing.zoom = value.trim().parse()?,
+            "max_crop" => p.framing.max_crop = parse_value(spec, value)?,
             "track_width" => p.track_width = parse_value(spec, value)?,
             "lookahead" => p.view.lookahead = parse_value(spec, value)?,
             "rate_a" => p.view.rate_a = parse_value(spec, value)?,
@@ -333,6 +354,8 @@ mod tests {
             let value = match spec.name {
                 "mode" => "saccade",
                 "roll" => "lock",
+                "zoom" => "static",
+                "max_crop" => "0.3",
                 "fov" => "90",
                 _ => "20",
             };

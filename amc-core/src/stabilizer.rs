@@ -4,7 +4,9 @@
 //! Per frame `j` (paper, Algorithm 1):
 //! 1. track: `R_hat_{0,j} = R_hat_{0,k} R_hat_{k,j}` (template `k` reset every `N_track` frames);
 //! 2. view: `R^view_{0,j}` from the SO(3) low-pass filter (or fixed, in saccade mode);
-//! 3. render: warp frames `i = j - N_avg + 1 ..= j` by `R_hat_{0,i}^T R^view_{0,j}` and average.
+//! 3. frame: the zoom `z_j` that shows no border within the crop budget, the
+//!    view pulled toward the camera where it would need more (`framing`);
+//! 4. render: warp frames `i = j - N_avg + 1 ..= j` by `R_hat_{0,i}^T R^view_{0,j} Z_j^-1` and average.
 //!
 //! Memory is bounded by the averaging window (plus `lookahead` frames): the
 //! frame ring, the accumulator and (saccade) the warped slots are allocated once
@@ -12,6 +14,7 @@
 
 use crate::camera::CameraModel;
 use crate::error::AmcError;
+use crate::framing::{needed_zoom, pull_view, zoom_matrix, Border, Framer, FramingParams, Zoom};
 use crate::frontend::TrackingFrontend;
 use crate::image::{Frame, FrameRef, PixelFormat};
 use crate::pyramid::Pyramid;
@@ -34,8 +37,10 @@ pub struct StabilizerParams {
     pub tracker: TrackerParams,
     /// View path (smoothing, lookahead, saccades).
     pub view: ViewParams,
-    /// Output rendering (averaging, crop, output size).
+    /// Output rendering (averaging, fixed margin, output size).
     pub render: RenderParams,
+    /// Framing (zoom and crop budget).
+    pub framing: FramingParams,
 }
 
 impl Default for StabilizerParams {
@@ -45,6 +50,7 @@ impl Default for StabilizerParams {
             tracker: TrackerParams::default(),
             view: ViewParams::default(),
             render: RenderParams::default(),
+            framing: FramingParams::default(),
         }
     }
 }
@@ -61,6 +67,7 @@ impl StabilizerParams {
         }
         self.tracker.validate()?;
         self.view.validate()?;
+        self.framing.validate()?;
         self.render.validate()
     }
 }
@@ -86,6 +93,12 @@ pub struct Telemetry {
     pub frames_averaged: usize,
     /// True when the saccade view was re-centred at this frame.
     pub saccade: bool,
+    /// Zoom of the output: `1 / zoom` is the share of the source's width it
+    /// keeps (with `zoom = none`, `1 / (1 - 2 margin)`).
+    pub zoom: f64,
+    /// Output pixels no averaged frame covers (shown black; 0 with `zoom`
+    /// `auto` or `static`); for planar frames, luma pixels.
+    pub uncovered: u64,
     /// Tracking quality.
     pub track: TrackInfo,
 }
@@ -138,6 +151,20 @@ struct Rendering {
     next_out: u64,
     last_shown: Option<(f64, Rot, Rot)>,
     last_saccade: Option<u64>,
+    /// The source camera (the one the frames were taken with).
+    src_cam: CameraModel,
+    /// The zoom over time.
+    framer: Framer,
+    /// The output's border, for the framing's coverage test.
+    border: Border,
+    /// Orientations of the averaged frames (reused).
+    window_rots: Vec<Rot>,
+    /// Rotations of the framing's coverage test (reused).
+    need_rots: Vec<nalgebra::Matrix3<f64>>,
+    /// Whether pixels are rendered (off: views and zoom needs only).
+    render: bool,
+    /// Highest need of a smoothed view so far.
+    max_need: f64,
 }
 
 /// The streaming stabilizer (one per clip).
@@ -194,7 +221,16 @@ impl Stabilizer {
         };
         let frontend = TrackingFrontend::new(&cam, params.track_width)?;
         let tracker = Tracker::new(frontend.camera(), params.tracker.clone())?;
-        let out_cam = params.render.output_camera(&cam)?;
+        let zoomed = params.framing.zoom != Zoom::None;
+        let margin = if zoomed { 0.0 } else { params.render.margin };
+        let out_cam = params.render.output_camera_with_margin(&cam, margin)?;
+        let mut framer = Framer::new(params.framing.clone());
+        if zoomed && params.view.mode == Mode::Saccade {
+            // A fixed view: the zoom may not change within a saccade, so it is
+            // the budget's, and a saccade comes before any border would show.
+            framer.set_fixed(params.framing.max_zoom());
+        }
+        let border = Border::new(&out_cam);
         let warper = Warper::new(&cam, &out_cam);
         let chroma = Warper::new(&chroma_camera(&cam), &chroma_camera(&out_cam));
         Ok(Self {
@@ -221,6 +257,13 @@ impl Stabilizer {
                 next_out: 0,
                 last_shown: None,
                 last_saccade: None,
+                src_cam: cam.clone(),
+                framer,
+                border,
+                window_rots: Vec::new(),
+                need_rots: Vec::new(),
+                render: true,
+                max_need: 1.0,
             },
             ring: VecDeque::new(),
             spare: Vec::new(),
@@ -257,6 +300,30 @@ impl Stabilizer {
         if self.received == 0 {
             self.pipelined = on;
         }
+    }
+
+    /// Rendering: off, [`Stabilizer::push`] and [`Stabilizer::finish`] still
+    /// track, filter and frame every output (telemetry, [`Stabilizer::max_zoom_need`])
+    /// but leave the output's pixels alone: the first pass of `zoom = static`.
+    /// On by default.
+    pub fn set_rendering(&mut self, on: bool) {
+        self.rendering.render = on;
+    }
+
+    /// `zoom = static`: holds the zoom at `zoom` (clamped to the budget) for
+    /// every output; the view is pulled toward the camera where it needs more.
+    /// Ignored with `zoom = none` and in saccade mode (whose zoom is fixed anyway).
+    pub fn set_static_zoom(&mut self, zoom: f64) {
+        if self.params.framing.zoom != Zoom::None && self.params.view.mode == Mode::Stabilize {
+            self.rendering.framer.set_fixed(zoom);
+        }
+    }
+
+    /// The highest zoom any smoothed view needed so far to show no border
+    /// (before pulls, at least 1): after a pass without rendering, the zoom
+    /// `static` holds, once clamped to the budget.
+    pub fn max_zoom_need(&self) -> f64 {
+        self.rendering.max_need
     }
 
     /// Parameters in use.
@@ -431,7 +498,10 @@ impl Rendering {
         };
         let first = pos + 1 - window.min(pos + 1);
         let mut saccade = false;
-        let r_view = match mode {
+        self.window_rots.clear();
+        self.window_rots
+            .extend(ring.range(first..=pos).map(|b| b.r_est));
+        let mut r_view = match mode {
             Mode::None => r_est,
             Mode::Stabilize => {
                 let filtered = if params.view.lookahead == 0 {
@@ -447,12 +517,49 @@ impl Rendering {
             Mode::Saccade => *self.saccade_view.get_or_insert(r_est),
         };
 
+        // Framing: the zoom of this output, and the view within it.
+        let zoomed = params.framing.zoom != Zoom::None;
+        let zoom = if !zoomed || mode == Mode::None {
+            1.0
+        } else {
+            let need = self.need(&r_view);
+            self.max_need = self.max_need.max(need);
+            let z = self.framer.next(t, need);
+            if need > z {
+                if mode == Mode::Saccade && j > 0 {
+                    // A border would show: re-centre now, whatever the refractory period.
+                    saccade = true;
+                } else {
+                    let (pulled, _) = pull_view(
+                        &self.src_cam,
+                        &self.border,
+                        &self.window_rots,
+                        &r_view,
+                        &r_est,
+                        z,
+                        &mut self.need_rots,
+                    );
+                    r_view = pulled;
+                }
+            }
+            z
+        };
+        let zinv = zoom_matrix(zoom);
+
         let format = self.output.format;
         let channels = format.channels();
         let (ow, oh) = (self.out_cam.width, self.out_cam.height);
-        let valid_fraction;
-        if mode == Mode::Saccade {
-            self.saccade_update(ring, src, first, pos, &r_view);
+        let mut valid_fraction = 0.0;
+        if !self.render {
+            // First pass of `zoom = static`: views and needs only.
+        } else if mode == Mode::Saccade {
+            if saccade {
+                self.last_saccade = Some(j);
+                self.saccade_view = Some(r_est);
+                self.slots.drain(..).for_each(|s| self.spare_slots.push(s));
+                r_view = r_est;
+            }
+            self.saccade_update(ring, src, first, pos, &r_view, &zinv);
             let full = self.slots.len() as u8;
             let mut vf = self.finish_saccade(full);
             // After a saccade the older frames of the window cannot cover the new
@@ -468,7 +575,7 @@ impl Rendering {
                 saccade = true;
                 self.saccade_view = Some(r_est);
                 self.slots.drain(..).for_each(|s| self.spare_slots.push(s));
-                self.saccade_update(ring, src, first, pos, &r_est);
+                self.saccade_update(ring, src, first, pos, &r_est, &zinv);
                 let full = self.slots.len() as u8;
                 vf = self.finish_saccade(full);
             }
@@ -477,7 +584,7 @@ impl Rendering {
             self.rotations.clear();
             self.rotations.extend(
                 ring.range(first..=pos)
-                    .map(|b| b.r_est.matrix().transpose() * r_view.matrix()),
+                    .map(|b| b.r_est.matrix().transpose() * r_view.matrix() * zinv),
             );
             valid_fraction = if format.is_planar() {
                 // One geometry, three planes: Y through the luma cameras, U and V
@@ -521,6 +628,12 @@ impl Rendering {
             };
         }
         let r_view = if saccade { r_est } else { r_view };
+        let uncovered = if self.render {
+            let n = (ow * oh).min(self.acc.count.len());
+            self.acc.count[..n].iter().filter(|&&c| c == 0).count() as u64
+        } else {
+            0
+        };
 
         let (rate_est, rate_view) = match self.last_shown {
             Some((tp, rp, vp)) if t > tp => (
@@ -540,8 +653,26 @@ impl Rendering {
             valid_fraction,
             frames_averaged: pos + 1 - first,
             saccade,
+            zoom: if zoomed {
+                zoom
+            } else {
+                1.0 / (1.0 - 2.0 * params.render.margin)
+            },
+            uncovered,
             track: info,
         }
+    }
+
+    /// The zoom at which `view` shows no border with the averaged frames
+    /// `self.window_rots`.
+    fn need(&mut self, view: &Rot) -> f64 {
+        self.need_rots.clear();
+        self.need_rots.extend(
+            self.window_rots
+                .iter()
+                .map(|r| r.matrix().transpose() * view.matrix()),
+        );
+        needed_zoom(&self.src_cam, &self.border, &self.need_rots)
     }
 
     /// Writes the saccade sums into the output frame; returns the share of
@@ -567,6 +698,7 @@ impl Rendering {
         first: usize,
         pos: usize,
         view: &Rot,
+        zinv: &nalgebra::Matrix3<f64>,
     ) {
         let (ow, oh) = (self.out_cam.width, self.out_cam.height);
         let n_px = ow * oh;
@@ -596,7 +728,7 @@ impl Rendering {
             if b.index < have_until {
                 continue;
             }
-            let m = b.r_est.matrix().transpose() * view.matrix();
+            let m = b.r_est.matrix().transpose() * view.matrix() * zinv;
             let mut slot = self.spare_slots.pop().unwrap_or_default();
             if planar {
                 let (w, h) = (src.0, src.1);

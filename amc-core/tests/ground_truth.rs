@@ -130,12 +130,6 @@ fn stabilize(
     pano_full: &Frame,
     params: StabilizerParams,
 ) -> (Vec<amc_core::Telemetry>, Shake) {
-    let cam = &case.camera;
-    let pano = downsample_pano(
-        &pano_full.as_ref(),
-        pano_downsample_factor(pano_full.width, cam),
-    );
-    let renderer = EquirectRenderer::new(cam, SUPERSAMPLE).expect("valid renderer");
     let shake = Shake::new(&ShakeParams {
         shake_dps: case.shake_dps,
         band_hz: (12.0, 20.0),
@@ -143,6 +137,24 @@ fn stabilize(
         ..ShakeParams::default()
     })
     .expect("valid shake");
+    let telemetry = stabilize_motion(case, pano_full, params, &|t| shake.orientation_at(t));
+    (telemetry, shake)
+}
+
+/// Renders `case`'s camera following `motion` (`R_{0}(t)`) and pushes it through a
+/// stabilizer with `params`; returns every output's telemetry, in frame order.
+fn stabilize_motion(
+    case: &Case,
+    pano_full: &Frame,
+    params: StabilizerParams,
+    motion: &dyn Fn(f64) -> Rot,
+) -> Vec<amc_core::Telemetry> {
+    let cam = &case.camera;
+    let pano = downsample_pano(
+        &pano_full.as_ref(),
+        pano_downsample_factor(pano_full.width, cam),
+    );
+    let renderer = EquirectRenderer::new(cam, SUPERSAMPLE).expect("valid renderer");
     let mut stab = Stabilizer::new(cam, cam.width, cam.height, params).expect("valid stabilizer");
 
     let n = (SECONDS * FPS).round() as usize;
@@ -157,7 +169,7 @@ fn stabilize(
     for j in 0..n {
         let t = j as f64 / FPS;
         renderer
-            .render_into(&pano.as_ref(), &shake.orientation_at(t), &mut frame)
+            .render_into(&pano.as_ref(), &motion(t), &mut frame)
             .expect("frame renders");
         let pushed = if case.format == PixelFormat::Yuv420p {
             let (w, h) = (cam.width, cam.height);
@@ -173,12 +185,10 @@ fn stabilize(
     while let Some(tel) = stab.finish() {
         record(tel);
     }
-    let telemetry = out
-        .into_iter()
+    out.into_iter()
         .enumerate()
         .map(|(j, t)| t.unwrap_or_else(|| panic!("[{}] no telemetry for frame {j}", case.name)))
-        .collect();
-    (telemetry, shake)
+        .collect()
 }
 
 fn run(case: &Case, pano_full: &Frame) -> Errors {
@@ -377,4 +387,162 @@ fn roll_lock_holds_the_horizon_and_follow_keeps_the_cameras_roll() {
             Roll::Smooth => assert!(cam_roll > 0.5, "the shake has no roll to remove"),
         }
     }
+}
+
+/// Framing (`zoom = auto`, the default): on shake of 100 and 300 deg/s through a
+/// pinhole and a fisheye, online and with lookahead, and in saccade mode, no output
+/// pixel is left uncovered (counted from the renderer's coverage), the zoom stays
+/// within the crop budget, and its frame-to-frame change within the documented bound.
+#[test]
+fn auto_zoom_never_shows_a_border() {
+    use amc_core::framing::{FramingParams, ZOOM_RISE_PER_S};
+    use amc_core::Mode;
+    let (w, h) = SIZE;
+    let pano = panorama();
+    let fisheye = CameraModel::fisheye_hfov(w, h, 150.0, [0.05, -0.01, 0.002, -0.0005]).unwrap();
+    let cases = [
+        (
+            "pinhole 90, 100 deg/s",
+            CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
+            100.0,
+        ),
+        (
+            "pinhole 90, 300 deg/s",
+            CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
+            300.0,
+        ),
+        ("fisheye 150, 300 deg/s", fisheye, 300.0),
+    ];
+    let z_max = FramingParams::default().max_zoom();
+    for (name, camera, dps) in cases {
+        let case = Case {
+            name,
+            camera,
+            shake_dps: dps,
+            seed: 7,
+            format: PixelFormat::Yuv420p,
+            max_median_frame_deg: 0.0,
+            max_final_deg: 0.0,
+            max_orientation_deg: 0.0,
+        };
+        for (mode, lookahead) in [
+            (Mode::Stabilize, 0),
+            (Mode::Stabilize, 30),
+            (Mode::Saccade, 0),
+        ] {
+            let mut params = StabilizerParams::default();
+            params.view.mode = mode;
+            params.view.lookahead = lookahead;
+            let (tel, _) = stabilize(&case, &pano, params);
+            let borders = tel.iter().filter(|t| t.uncovered > 0).count();
+            let zooms: Vec<f64> = tel.iter().map(|t| t.zoom).collect();
+            let mean_kept = zooms.iter().map(|z| 1.0 / z).sum::<f64>() / zooms.len() as f64;
+            let max_step = zooms
+                .windows(2)
+                .map(|p| (p[1] - p[0]).abs())
+                .fold(0.0, f64::max);
+            eprintln!(
+                "[{name}] {mode} lookahead {lookahead}: {borders} frames with a border, \
+                 kept {mean_kept:.3} of the width, largest zoom step {max_step:.4}"
+            );
+            assert_eq!(borders, 0, "[{name}] {mode} lookahead {lookahead}");
+            assert!(zooms.iter().all(|z| (1.0..=z_max + 1e-9).contains(z)));
+            assert!(max_step <= ZOOM_RISE_PER_S / FPS + 1e-9, "{max_step}");
+        }
+    }
+}
+
+/// A sudden 90 degree turn (in 0.4 s, on top of 100 deg/s shake): the zoom does not
+/// pump (its change per frame stays within `ZOOM_RISE_PER_S / fps`, it holds at
+/// least a second before easing out, and it never leaves the budget), no border
+/// shows, and the view follows the turn.
+#[test]
+fn a_sudden_turn_does_not_pump_the_zoom() {
+    use amc_core::framing::{FramingParams, ZOOM_FALL_PER_S, ZOOM_RISE_PER_S};
+    let (w, h) = SIZE;
+    let pano = panorama();
+    let case = Case {
+        name: "turn",
+        camera: CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
+        shake_dps: 100.0,
+        seed: 9,
+        format: PixelFormat::Rgb8,
+        max_median_frame_deg: 0.0,
+        max_final_deg: 0.0,
+        max_orientation_deg: 0.0,
+    };
+    let shake = Shake::new(&ShakeParams {
+        shake_dps: 100.0,
+        band_hz: (12.0, 20.0),
+        seed: 9,
+        ..ShakeParams::default()
+    })
+    .unwrap();
+    // Yaw 0 -> 90 deg between 1.5 s and 1.9 s (smoothstep: 340 deg/s at its peak).
+    let turn = |t: f64| {
+        let u = ((t - 1.5) / 0.4).clamp(0.0, 1.0);
+        let yaw = std::f64::consts::FRAC_PI_2 * u * u * (3.0 - 2.0 * u);
+        so3::exp(&Tangent::new(0.0, yaw, 0.0)) * shake.orientation_at(t)
+    };
+    let tel = stabilize_motion(&case, &pano, StabilizerParams::default(), &turn);
+    let z_max = FramingParams::default().max_zoom();
+    let zooms: Vec<f64> = tel.iter().map(|t| t.zoom).collect();
+    let steps: Vec<f64> = zooms.windows(2).map(|p| p[1] - p[0]).collect();
+    let (rise, fall) = (
+        steps.iter().fold(0.0f64, |a, &d| a.max(d)),
+        steps.iter().fold(0.0f64, |a, &d| a.min(d)),
+    );
+    eprintln!(
+        "turn: zoom {:.3}..{:.3}, largest step up {rise:.4}, down {fall:.4}",
+        zooms.iter().cloned().fold(f64::INFINITY, f64::min),
+        zooms.iter().cloned().fold(0.0, f64::max)
+    );
+    assert!(tel.iter().all(|t| t.uncovered == 0), "a border showed");
+    assert!(rise <= ZOOM_RISE_PER_S / FPS + 1e-9);
+    assert!(-fall <= ZOOM_FALL_PER_S / FPS + 1e-9);
+    assert!(zooms.iter().all(|z| *z <= z_max + 1e-9));
+    // No pumping: after the turn the zoom never goes down and then up again by
+    // more than the shake's own need changes (a single rise-hold-fall).
+    let after: Vec<f64> = zooms[(1.5 * FPS) as usize..].to_vec();
+    let reversals = after
+        .windows(3)
+        .filter(|p| (p[1] - p[0]) < -1e-4 && (p[2] - p[1]) > 1e-4)
+        .count();
+    assert!(reversals <= 2, "zoom pumped: {reversals} reversals");
+    // The view turned with the camera.
+    let yaw_end = so3::log(&so3::exp(&Tangent::from(tel.last().unwrap().r_view))).y;
+    assert!(
+        (yaw_end.to_degrees() - 90.0).abs() < 10.0,
+        "{}",
+        yaw_end.to_degrees()
+    );
+}
+
+/// `zoom = none` is the paper's framing: the output is the central `1 - 2 margin`
+/// of the input at the input's scale, and telemetry reports its zoom.
+#[test]
+fn zoom_none_keeps_the_fixed_margin() {
+    use amc_core::Zoom;
+    let (w, h) = SIZE;
+    let cam = CameraModel::pinhole_hfov(w, h, 90.0).unwrap();
+    let mut params = StabilizerParams::default();
+    params.framing.zoom = Zoom::None;
+    let stab = Stabilizer::new(&cam, w, h, params.clone()).unwrap();
+    assert_eq!(stab.output_size(), (240, 136));
+    assert_eq!(stab.output_camera().fx, cam.fx);
+    let auto = Stabilizer::new(&cam, w, h, StabilizerParams::default()).unwrap();
+    assert_eq!(auto.output_size(), (w, h), "auto keeps the input's size");
+    let pano = panorama();
+    let case = Case {
+        name: "none",
+        camera: cam,
+        shake_dps: 100.0,
+        seed: 3,
+        format: PixelFormat::Rgb8,
+        max_median_frame_deg: 0.0,
+        max_final_deg: 0.0,
+        max_orientation_deg: 0.0,
+    };
+    let (tel, _) = stabilize(&case, &pano, params);
+    assert!(tel.iter().all(|t| (t.zoom - 1.0 / 0.75).abs() < 1e-12));
 }

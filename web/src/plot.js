@@ -51,7 +51,9 @@ export function drawChart(canvas, spec) {
   canvas.dataset.series = series.map((s) => s.key).join(',');
   const axes = spec.axes.map((a, i) => ({ ...a, used: series.some((s) => s.axis === i) }));
   const left = axes.find((a) => a.side === 'left' && a.used), right = axes.find((a) => a.side === 'right' && a.used);
-  const m = { l: 58, r: right ? 58 : 16, t: 12, b: 40 };
+  // A second right axis (e.g. the zoom) sits outside the first.
+  const right2 = axes.find((a) => a.side === 'right2' && a.used);
+  const m = { l: 58, r: (right ? 58 : 16) + (right2 ? 58 : 0), t: 12, b: 40 };
   const W = w - m.l - m.r, H = h - m.t - m.b;
   if (W < 20 || H < 20) return;
   g.font = FONT;
@@ -78,17 +80,18 @@ export function drawChart(canvas, spec) {
   }
   g.fillText(spec.x.label, m.l + W / 2, m.t + H + 22);
   g.textBaseline = 'middle';
-  for (const a of [left, right]) {
+  for (const a of [left, right, right2]) {
     if (!a) continue;
     const isLeft = a === left;
+    const shift = a === right2 && right ? 58 : 0;
     g.textAlign = isLeft ? 'right' : 'left';
     for (const v of a.t.ticks) {
-      const y = Math.round(py(a, v)) + 0.5, xe = isLeft ? m.l : m.l + W;
+      const y = Math.round(py(a, v)) + 0.5, xe = isLeft ? m.l : m.l + W + shift;
       g.strokeStyle = '#555'; g.beginPath(); g.moveTo(xe, y); g.lineTo(xe + (isLeft ? -4 : 4), y); g.stroke();
       g.fillText(tickText(v, a.t.step), xe + (isLeft ? -6 : 6), y);
     }
     g.save();
-    g.translate(isLeft ? 12 : w - 10, m.t + H / 2);
+    g.translate(isLeft ? 12 : (a === right2 || !right2 ? w - 10 : w - 68), m.t + H / 2);
     g.rotate(isLeft ? -Math.PI / 2 : Math.PI / 2);
     g.textAlign = 'center'; g.fillText(a.label, 0, 0);
     g.restore();
@@ -119,7 +122,8 @@ const hasData = (s) => s.points.some((p) => p[1] != null && Number.isFinite(p[1]
 /** The legend of the series that have data, as HTML in `el` (outside the canvas). */
 export function legend(el, spec, extra = []) {
   el.replaceChildren();
-  const items = spec.series.filter(hasData).map((s) => ({ color: s.color, text: `${s.label} (${spec.axes[s.axis].side} axis)` }));
+  const side = (a) => (a.side === 'right2' ? 'outer right' : a.side);
+  const items = spec.series.filter(hasData).map((s) => ({ color: s.color, text: `${s.label} (${side(spec.axes[s.axis])} axis)` }));
   if ((spec.marks || []).length) items.push({ color: '#d4a017', text: spec.markLabel || 'marks', mark: true });
   for (const it of [...items, ...extra]) {
     const k = document.createElement('span');
@@ -131,21 +135,26 @@ export function legend(el, spec, extra = []) {
 }
 
 /**
- * The clip's per-frame plot from rows `{ t, est, view, nfIn, nfOut, saccade }`
+ * The clip's per-frame plot from rows `{ t, est, view, nfIn, nfOut, saccade, zoom }`
  * (telemetry.js): angular speed of the estimate and of the view (deg/s, left),
- * RMS normal flow of input and output (px/frame, right); only what was measured.
+ * RMS normal flow of input and output (px/frame, right), the output's zoom
+ * (outer right; 1 / zoom is the kept share of the width); only what was measured.
  */
 export function clipPlotSpec(rows, cursor = null) {
   const t0 = rows.length ? rows[0].t : 0, t1 = rows.length ? rows[rows.length - 1].t : 1;
   const pts = (k) => rows.map((r) => [r.t - t0, r[k]]);
   return {
     x: { min: 0, max: t1 - t0, label: 'time (s)' },
-    axes: [{ label: 'angular speed (deg/s)', side: 'left' }, { label: 'RMS normal flow (px/frame)', side: 'right' }],
+    axes: [
+      { label: 'angular speed (deg/s)', side: 'left' }, { label: 'RMS normal flow (px/frame)', side: 'right' },
+      { label: 'zoom (x)', side: 'right2', min: 1 },
+    ],
     series: [
       { key: 'est', label: 'camera (estimate) speed', color: '#ff7043', axis: 0, points: pts('est') },
       { key: 'view', label: 'view speed', color: '#42a5f5', axis: 0, points: pts('view') },
       { key: 'nf_in', label: 'normal flow, input', color: '#9e9e9e', axis: 1, points: pts('nfIn') },
       { key: 'nf_out', label: 'normal flow, output', color: '#66bb6a', axis: 1, points: pts('nfOut') },
+      { key: 'zoom', label: 'zoom', color: '#ab47bc', axis: 2, points: pts('zoom') },
     ],
     marks: rows.filter((r) => r.saccade).map((r) => r.t - t0),
     markLabel: 'saccade',

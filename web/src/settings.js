@@ -9,11 +9,12 @@ import { $, showError, setPageState } from './state.js';
  * The number fields: input id, label, the parameter's name in amc-core, its
  * default, range (inclusive, except the minimum when `openMin`), whole numbers
  * only, unit. Ranges: amc-core's option table (amc-core/src/options.rs) and the
- * params' validate(): n_avg, margin, rate_a, rate_b, lookahead, and fov (0 < DEG <= 179).
+ * params' validate(): n_avg, margin, max_crop, rate_a, rate_b, lookahead, and fov (0 < DEG <= 179).
  */
 export const FIELDS = [
   { id: 'n_avg', label: 'Averaging window', def: 6, min: 1, max: 64, int: true, unit: 'frames' },
   { id: 'margin', label: 'Margin', def: 0.125, min: 0, max: 0.45, unit: 'share of each side' },
+  { id: 'max_crop', label: 'Max crop', def: 0.15, min: 0, max: 0.5, unit: 'share of the width' },
   { id: 'rate_a', label: 'Smoothing a', def: 2, min: 0, max: 1000, unit: 'per second' },
   { id: 'rate_b', label: 'Smoothing b', def: 40, min: 0, max: 10000, unit: 'per second per radian' },
   { id: 'lookahead', label: 'Lookahead', def: 0, min: 0, max: 600, int: true, unit: 'frames' },
@@ -56,6 +57,7 @@ export function settings() {
         rate_a: values.rate_a, rate_b: values.rate_b, lookahead: values.lookahead,
       },
       render: { n_avg: values.n_avg, margin: values.margin },
+      framing: { zoom: $('zoom').value, max_crop: values.max_crop },
     },
     fov: values.fov,
     format: $('format').value,
@@ -122,5 +124,9 @@ export function serverQuery(s) {
   // Sent only when set, like the rates (older servers do not know it).
   const roll = s.params.view.roll;
   if (roll && roll !== 'smooth') q.set('roll', roll);
+  // Sent only when not the defaults, like the rates (older servers do not know them).
+  const { zoom, max_crop: maxCrop } = s.params.framing || {};
+  if (zoom && zoom !== 'auto') q.set('zoom', zoom);
+  if (maxCrop != null && maxCrop !== def.max_crop) q.set('max_crop', maxCrop);
   return q;
 }

@@ -5,7 +5,7 @@
 
 /** amc-server/src/engine/telemetry.rs TELEMETRY_HEADER. */
 export const TELEMETRY_HEADER = 'frame,t,rx,ry,rz,vx,vy,vz,est_speed_dps,view_speed_dps,valid_fraction,' +
-  'frames_averaged,saccade,iterations,rms_residual,track_valid_fraction,lost,template_reset';
+  'frames_averaged,saccade,iterations,rms_residual,track_valid_fraction,lost,template_reset,zoom,uncovered';
 /** Columns only the page has (its per-frame image metrics), after the CLI's; empty where undefined. */
 export const PAGE_COLUMNS = 'input_rms_normal_flow_px,output_rms_normal_flow_px,input_rms_change,output_rms_change';
 
@@ -16,7 +16,7 @@ const opt = (m, k) => (m && m[k] != null && Number.isFinite(m[k]) ? String(m[k])
 const b01 = (v) => (v ? '1' : '0');
 
 /**
- * The telemetry CSV of an in-browser run: the CLI's 18 columns (rotation
+ * The telemetry CSV of an in-browser run: the CLI's 20 columns (rotation
  * vectors of the estimate `rx,ry,rz` and of the view `vx,vy,vz`, radians),
  * then the page's image metrics.
  */
@@ -29,6 +29,7 @@ export function telemetryCsv(telemetry) {
       fixed(r.speed_est_dps, 4), fixed(r.speed_view_dps, 4), fixed(r.valid_fraction, 5), r.frames_averaged,
       b01(r.saccade), tr.iterations ?? '', tr.rms_residual != null ? fixed(tr.rms_residual, 6) : '',
       tr.valid_fraction != null ? fixed(tr.valid_fraction, 4) : '', b01(tr.lost), b01(tr.template_reset),
+      r.zoom != null ? fixed(r.zoom, 5) : '', r.uncovered ?? '',
       opt(r.input_metrics, 'rms_normal_flow'), opt(r.metrics, 'rms_normal_flow'),
       opt(r.input_metrics, 'rms_change'), opt(r.metrics, 'rms_change'),
     ].join(','));
@@ -37,14 +38,14 @@ export function telemetryCsv(telemetry) {
 }
 
 /**
- * Plot rows `{ t, est, view, nfIn, nfOut, saccade, valid }` (angular speeds in
+ * Plot rows `{ t, est, view, nfIn, nfOut, saccade, valid, zoom }` (angular speeds in
  * deg/s, normal flow in px/frame; `null` where not measured) of the worker's telemetry.
  */
 export function rowsFromWorker(telemetry) {
   const nf = (m) => (m && m.rms_normal_flow != null ? m.rms_normal_flow : null);
   return telemetry.map((r) => ({
     t: r.t, est: r.speed_est_dps, view: r.speed_view_dps, nfIn: nf(r.input_metrics), nfOut: nf(r.metrics),
-    saccade: !!r.saccade, valid: r.valid_fraction,
+    saccade: !!r.saccade, valid: r.valid_fraction, zoom: r.zoom ?? null,
   }));
 }
 
@@ -56,14 +57,14 @@ export function rowsFromCsv(text) {
   const col = (name) => head.indexOf(name);
   const idx = {
     t: col('t'), est: col('est_speed_dps'), view: col('view_speed_dps'), valid: col('valid_fraction'), saccade: col('saccade'),
-    nfIn: col('input_rms_normal_flow_px'), nfOut: col('output_rms_normal_flow_px'),
+    nfIn: col('input_rms_normal_flow_px'), nfOut: col('output_rms_normal_flow_px'), zoom: col('zoom'),
   };
   const num = (cells, i) => (i >= 0 && cells[i] !== undefined && cells[i] !== '' ? Number(cells[i]) : null);
   return lines.slice(1).map((l) => {
     const c = l.split(',');
     return {
       t: num(c, idx.t), est: num(c, idx.est), view: num(c, idx.view), nfIn: num(c, idx.nfIn), nfOut: num(c, idx.nfOut),
-      saccade: num(c, idx.saccade) === 1, valid: num(c, idx.valid),
+      saccade: num(c, idx.saccade) === 1, valid: num(c, idx.valid), zoom: num(c, idx.zoom),
     };
   }).filter((r) => r.t != null && Number.isFinite(r.t));
 }

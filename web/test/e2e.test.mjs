@@ -113,14 +113,14 @@ test('drop cup.mp4: every frame stabilized in the browser; the MP4 download has 
   const out = ffprobeFrames(file);
   assert.equal(out.codec, 'h264');
   assert.equal(out.frames, input.frames, 'the download has every input frame');
-  assert.deepEqual([out.width, out.height], [480, 360]);
+  assert.deepEqual([out.width, out.height], [640, 480], 'zoom auto keeps the input size');
   assert.deepEqual(streamTypes(file).sort(), ['audio', 'video'], "the original's AAC audio is copied");
-  // The same central 75% of the input (margin 0.125) vs the stabilized output.
-  const rin = rmsFrameChange(cup, 0.125), rout = rmsFrameChange(file);
+  // The whole input vs the stabilized output (zoom auto: about the same picture).
+  const rin = rmsFrameChange(cup, 0), rout = rmsFrameChange(file);
   writeFileSync(join(artifacts, 'clip-rms.json'), JSON.stringify({ input: rin, output: rout }, null, 1));
   assert.ok(rout.rms < rin.rms, `RMS frame change: output ${rout.rms.toFixed(4)} vs input ${rin.rms.toFixed(4)}`);
   // Colours kept through the planar path (planes in order, same range): mean R, G, B of the clip.
-  const cin = meanRgb(cup, 0.125), cout = meanRgb(file);
+  const cin = meanRgb(cup, 0.025), cout = meanRgb(file);
   assert.ok(cin.every((v, i) => Math.abs(v - cout[i]) < 8), `mean RGB: output ${cout.map((v) => v.toFixed(1))} vs input ${cin.map((v) => v.toFixed(1))}`);
   // The plot and the side-by-side players are there, both players the same size.
   assert.equal(await page.isVisible('#plot'), true);
@@ -129,10 +129,10 @@ test('drop cup.mp4: every frame stabilized in the browser; the MP4 download has 
   const [bo, bs] = [await page.locator('#orig').boundingBox(), await page.locator('#stab').boundingBox()];
   assert.ok(Math.abs(bo.width - bs.width) < 1 && Math.abs(bo.height - bs.height) < 1, `original ${bo.width}x${bo.height}, stabilized ${bs.width}x${bs.height}`);
   assert.ok(bo.width > 300, `players ${bo.width} px wide`);
-  // The plot: all four series, axes, a legend outside the canvas naming each.
-  assert.equal(await page.getAttribute('#plot', 'data-series'), 'est,view,nf_in,nf_out');
+  // The plot: all five series (the zoom on its own axis), a legend outside the canvas naming each.
+  assert.equal(await page.getAttribute('#plot', 'data-series'), 'est,view,nf_in,nf_out,zoom');
   const legendText = await page.textContent('[data-testid=plot-legend]');
-  for (const k of ['camera (estimate) speed', 'view speed', 'normal flow, input', 'normal flow, output']) assert.ok(legendText.includes(k), legendText);
+  for (const k of ['camera (estimate) speed', 'view speed', 'normal flow, input', 'normal flow, output', 'zoom (outer right axis)']) assert.ok(legendText.includes(k), legendText);
   // The summary: a table with units and short numbers; the input's angular speed is the camera's (not 0).
   const sum = await summaryTable(page);
   assert.ok(!(await page.textContent('#summary')).includes('{'), 'no JSON dump');
@@ -142,7 +142,7 @@ test('drop cup.mp4: every frame stabilized in the browser; the MP4 download has 
   assert.ok(Number(speed[1][1]) < Number(speed[1][0]), 'the view turns slower than the camera');
   const nf = sum['RMS normal flow (px/frame)'];
   assert.ok(Number(nf[1]) < Number(nf[0]), JSON.stringify(nf));
-  assert.match(sum['Size (pixels)'][1], /480 × 360 \(central crop, 1\.33× zoom\)/);
+  assert.match(sum['Size (pixels)'][1], /^640 × 480$/);
   assert.match(Object.entries(sum).find(([k]) => k.startsWith('Pixels covered'))[1][1], /^\d+\.\d % \(\d+\.\d %\)$/);
   // The telemetry CSV: the CLI's columns in the CLI's order, one row per frame.
   const csv = readFileSync(await download(page, 'cup-telemetry.csv', 'telemetry-download'), 'utf8').trim().split('\n');
@@ -157,7 +157,7 @@ test('drop cup.mp4: every frame stabilized in the browser; the MP4 download has 
   await compareMode(page, 'compare-wipe');
   assert.equal(await page.isVisible('[data-testid=compare-canvas]'), true);
   assert.equal(await page.isVisible('#players'), false);
-  assert.deepEqual(await page.evaluate(() => { const c = document.getElementById('compare-canvas'); return [c.width, c.height]; }), [480, 360]);
+  assert.deepEqual(await page.evaluate(() => { const c = document.getElementById('compare-canvas'); return [c.width, c.height]; }), [640, 480]);
   const wipeMean = await canvasMean(page, '#compare-canvas');
   assert.ok(wipeMean > 20, `wipe mean ${wipeMean}`);
   await shot(page, 'clip-4-wipe');
@@ -237,6 +237,7 @@ test('WebM download (VP9) with the same frame count', async () => {
   await page.selectOption('#format', 'webm');
   await page.fill('#n_avg', '3');
   await page.selectOption('#mode', 'saccade');
+  await page.selectOption('#zoom', 'none'); // the paper's fixed margin
   await page.fill('#margin', ''); // empty: the default, 0.125
   await page.setInputFiles('[data-testid=file-input]', cup);
   await waitState(page, ['done', 'error']);
@@ -315,7 +316,7 @@ test('HEVC clip: the browser cannot decode it; the page offers the server and ge
   assert.deepEqual([q.get('mode'), q.get('n_avg'), q.get('margin'), q.get('lookahead'), q.get('fov')], ['stabilize', '6', '0.125', '0', '70']);
   assert.equal(q.has('rate_a') || q.has('rate_b'), false);
   // The plot (speeds from the job's telemetry.csv), its CSV and the summary.
-  await page.waitForSelector('#plot[data-series="est,view"]', { timeout: 10000 });
+  await page.waitForSelector('#plot[data-series="est,view,zoom"]', { timeout: 10000 });
   const csv = readFileSync(await download(page, 'cup-hevc-telemetry.csv', 'telemetry-download'), 'utf8').trim().split('\n');
   assert.ok(csv[0].startsWith('frame,t,rx,ry,rz,vx,vy,vz,est_speed_dps,view_speed_dps,valid_fraction'), csv[0]);
   assert.equal(csv.length - 1, 48);

@@ -34,11 +34,17 @@ test('module is built with the simd128 kernel, bit-exact with the scalar path', 
   }
 });
 
-test('stabilizes a stream: telemetry per frame, RGBA output of the cropped size', () => {
+test('stabilizes a stream: telemetry per frame, RGBA output of the input size (zoom auto)', () => {
+  // zoom none: the paper's fixed margin, 0.125 each side: 75% of 160.
+  const fixed = new Stabilizer(W, H, '{"framing":{"zoom":"none"}}', 70);
+  assert.deepEqual([fixed.outputWidth, fixed.outputHeight], [120, 68]);
+  fixed.free();
+  // zoom static needs a first pass over the whole clip: the server's, not the browser's.
+  throwsMsg(() => new Stabilizer(W, H, '{"framing":{"zoom":"static"}}', 70), /invalid zoom: static \(allowed: auto or none in the browser/);
   const s = new Stabilizer(W, H, '{}', 70);
   assert.equal(s.width, W);
-  assert.equal(s.outputWidth, 120); // margin 0.125 each side: 75% of 160
-  assert.equal(s.outputHeight, 68);
+  assert.equal(s.outputWidth, W);
+  assert.equal(s.outputHeight, H);
   s.setMetrics(true);
   const tels = [];
   for (let i = 0; i < 12; i++) {
@@ -57,6 +63,7 @@ test('stabilizes a stream: telemetry per frame, RGBA output of the cropped size'
   }
   assert.deepEqual(tels.map((t) => t.frame), [...Array(12).keys()]);
   assert.ok(tels.every((t) => Number.isFinite(t.speed_est_dps) && t.valid_fraction > 0));
+  assert.ok(tels.every((t) => t.uncovered === 0 && t.zoom >= 1 && t.zoom <= 1 / 0.85 + 1e-9), 'zoom auto: no border, within the budget');
   assert.equal(tels[0].metrics.rms_change, null); // no previous frame
   assert.ok(tels[5].metrics && typeof tels[5].metrics.rms_change === 'number');
   assert.ok(tels[5].input_metrics && typeof tels[5].input_metrics.rms_change === 'number');
@@ -341,6 +348,10 @@ test("the page's telemetry CSV has the CLI's header, column order and number for
     }
     assert.equal(Number(c[8]), Number(tel.speed_est_dps.toFixed(4)));
     assert.equal(c[12], tel.saccade ? '1' : '0');
+    // The framing columns after the tracking diagnostics, as the CLI writes them.
+    assert.equal(head[18], 'zoom');
+    assert.equal(c[18], tel.zoom.toFixed(5));
+    assert.equal(Number(c[19]), tel.uncovered);
   }
   assert.equal(lines[1].split(',').at(-3), '', 'no normal flow on the first frame');
   // Read back as the plot reads the job API's CSV.
@@ -359,7 +370,11 @@ test("the page's telemetry CSV has the CLI's header, column order and number for
   const speed = table.find((r) => r[0].startsWith('Angular speed'));
   assert.equal(speed[1], sum.output.rms_speed_est_dps.toFixed(1));
   assert.ok(Number(speed[1]) > 0);
-  assert.deepEqual(table.find((r) => r[0] === 'Size (pixels)').slice(1, 3), ['160 × 90', '120 × 68 (central crop, 1.33× zoom)']);
+  // zoom auto keeps the input's size; zoom none's fixed margin is named as a crop.
+  assert.deepEqual(table.find((r) => r[0] === 'Size (pixels)').slice(1, 3), ['160 × 90', '160 × 90']);
+  const cropped = summaryRows(localSummary({ width: W, height: H, outWidth: 120, outHeight: 68 },
+    { frames: 6, fps: 100, summary: sum }, 'stabilize'));
+  assert.deepEqual(cropped.find((r) => r[0] === 'Size (pixels)').slice(1, 3), ['160 × 90', '120 × 68 (central crop, 1.33× zoom)']);
   assert.ok(!table.some((r) => r[0] === 'Saccades'), 'no saccade row outside saccade mode');
   s.free();
 });
@@ -367,15 +382,16 @@ test("the page's telemetry CSV has the CLI's header, column order and number for
 test("the page's form ranges are the core's, and the server query sends smoothing only when changed", () => {
   // Each field's range, as the WASM API (amc-core's validate) enforces it.
   const field = Object.fromEntries(FIELDS.map((f) => [f.id, f]));
-  const params = (id, v) => (id === 'n_avg' || id === 'margin' ? { render: { [id]: v } } : { view: { [id]: v } });
-  for (const id of ['n_avg', 'margin', 'rate_a', 'rate_b', 'lookahead']) {
+  const stage = (id) => (id === 'n_avg' || id === 'margin' ? 'render' : id === 'max_crop' ? 'framing' : 'view');
+  const params = (id, v) => ({ [stage(id)]: { [id]: v } });
+  for (const id of ['n_avg', 'margin', 'max_crop', 'rate_a', 'rate_b', 'lookahead']) {
     const f = field[id];
     const step = f.int ? 1 : 1e-6;
     for (const ok of [f.min, f.max]) assert.doesNotThrow(() => new Stabilizer(64, 48, JSON.stringify(params(id, ok)), 70).free(), `${id} ${ok}`);
     for (const bad of [f.min - step, f.max + step]) throwsMsg(() => new Stabilizer(64, 48, JSON.stringify(params(id, bad)), 70), new RegExp(`invalid ${id}|expected usize`));
     const def = new Stabilizer(64, 48, '{}', 70);
     const p = JSON.parse(def.paramsJson());
-    assert.equal((p.render[id] ?? p.view[id]), f.def, `default of ${id}`);
+    assert.equal(p[stage(id)][id], f.def, `default of ${id}`);
     def.free();
   }
   // fov: 0 < DEG <= 179, the minimum excluded.

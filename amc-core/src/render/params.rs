@@ -11,7 +11,8 @@ pub struct RenderParams {
     /// Frames averaged into each output frame (`N_avg`; paper: 6). Range 1..=64.
     pub n_avg: usize,
     /// Share of the source width/height cropped from each side of the output
-    /// (paper: 0.125, i.e. the central 75%). Range 0..=0.45.
+    /// with `zoom = none` (paper: 0.125, i.e. the central 75%); `auto` and
+    /// `static` zoom instead. Range 0..=0.45.
     pub margin: f64,
     /// Output width in pixels; default: the cropped source width, rounded to even.
     /// Range 16..=16384.
@@ -58,10 +59,21 @@ impl RenderParams {
     }
 
     /// The output camera for a source camera: a pinhole with the source's focal
-    /// length (scaled when an explicit output size is asked for), centred.
+    /// length (scaled when an explicit output size is asked for), centred,
+    /// cropped by `margin`.
     pub fn output_camera(&self, src: &CameraModel) -> Result<CameraModel, AmcError> {
+        self.output_camera_with_margin(src, self.margin)
+    }
+
+    /// [`RenderParams::output_camera`] cropped by `margin` (0..=0.45) instead
+    /// of `self.margin`: the zoomed framings size the output at margin 0.
+    pub fn output_camera_with_margin(
+        &self,
+        src: &CameraModel,
+        margin: f64,
+    ) -> Result<CameraModel, AmcError> {
         self.validate()?;
-        let keep = 1.0 - 2.0 * self.margin;
+        let keep = 1.0 - 2.0 * margin.clamp(0.0, 0.45);
         let crop_w = src.width as f64 * keep;
         let crop_h = src.height as f64 * keep;
         let even = |x: f64| ((x / 2.0).round() as usize * 2).max(16);

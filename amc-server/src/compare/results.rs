@@ -40,6 +40,10 @@ pub struct MethodResult {
     pub middle: Option<Frame>,
     #[serde(skip)]
     pub saccades: Vec<bool>,
+    /// Ours: output frames with a pixel no averaged frame covers (a border),
+    /// counted from the renderer's coverage. Peers fill theirs: not counted.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frames_with_border: Option<usize>,
 }
 
 /// All methods on one clip.

@@ -96,6 +96,7 @@ struct OursMeasured {
     ground_truth: Option<GtReport>,
     middle: Option<Frame>,
     saccades: Vec<bool>,
+    frames_with_border: usize,
 }
 
 /// Measures one of our modes in-process (same output as the timed child).
@@ -114,8 +115,11 @@ fn measure_ours(
     let mut est = Vec::new();
     let mut saccades = Vec::new();
     let mut middle = None;
+    let mut frames_with_border = 0usize;
     let mid = input.times.len() / 2;
     let mut handle = |stab: &Stabilizer, tel: amc_core::Telemetry| {
+        // From the renderer's coverage: pixels no averaged frame covers.
+        frames_with_border += (tel.uncovered > 0) as usize;
         let j = tel.frame as usize;
         let Some(pyr) = input.pyramids.get(j) else {
             return;
@@ -151,6 +155,7 @@ fn measure_ours(
         ground_truth,
         middle,
         saccades,
+        frames_with_border,
     })
 }
 
@@ -236,6 +241,7 @@ fn compare_clip(
                 ground_truth,
                 middle,
                 saccades,
+                frames_with_border,
             } = measure_ours(method, clip, &input, args)?;
             MethodResult {
                 method: method.label(),
@@ -246,6 +252,7 @@ fn compare_clip(
                 ground_truth,
                 middle,
                 saccades,
+                frames_with_border: Some(frames_with_border),
             }
         } else {
             let (usage, outs) =
@@ -264,6 +271,7 @@ fn compare_clip(
                 ground_truth: None,
                 middle,
                 saccades: Vec::new(),
+                frames_with_border: None,
             }
         };
         if r.frames == 0 {

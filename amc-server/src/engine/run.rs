@@ -8,7 +8,9 @@ use super::measure::MetricsWorker;
 use super::stages::{Reader, Writer};
 use super::{paths, telemetry, RunError};
 use amc_core::metrics::{ClipMetrics, FrameMetrics, MotionAccumulator, MotionSummary};
-use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams, Telemetry};
+use amc_core::{
+    CameraModel, Frame, Mode, PixelFormat, Stabilizer, StabilizerParams, Telemetry, Zoom,
+};
 use amc_video::{self as video, AtomicFile, FrameSource, InputOptions, OutputSpec};
 use serde::Serialize;
 use std::io::{BufWriter, Write};
@@ -140,11 +142,20 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         ffmpeg_threads,
         ..super::input_options(cfg.fps, cfg.timeout)
     };
+    let pool = render_pool(cfg.threads)?;
+    let static_zoom =
+        if cfg.params.framing.zoom == Zoom::Static && cfg.params.view.mode == Mode::Stabilize {
+            Some(static_zoom(cfg, &opts, &pool)?)
+        } else {
+            None
+        };
     let src: Box<dyn FrameSource> = video::open_input(cfg.input, &opts)?;
     let info = src.info().clone();
     let threaded = cfg.threads > 1;
-    let pool = render_pool(cfg.threads)?;
     let mut stab = Stabilizer::new(&cfg.lens, info.width, info.height, cfg.params.clone())?;
+    if let Some(z) = static_zoom {
+        stab.set_static_zoom(z);
+    }
     // With threads to spare, track each frame while the previous output renders.
     stab.set_pipelined(cfg.threads > 1);
     let (ow, oh) = stab.output_size();
@@ -263,4 +274,28 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         motion: motion.summary(),
         per_frame,
     })
+}
+
+/// `zoom = static`'s first pass: tracks and smooths the whole clip without
+/// rendering and returns the highest zoom any output needs (the second pass
+/// clamps it to the crop budget and pulls the view where it needs more).
+fn static_zoom(
+    cfg: &RunConfig<'_>,
+    opts: &InputOptions,
+    pool: &rayon::ThreadPool,
+) -> Result<f64, RunError> {
+    let mut src = video::open_input(cfg.input, opts)?;
+    let info = src.info().clone();
+    let mut stab = Stabilizer::new(&cfg.lens, info.width, info.height, cfg.params.clone())?;
+    stab.set_rendering(false);
+    let mut frame = Frame::new(info.width, info.height, opts.pixel_format);
+    let check = || cfg.control.map_or(Ok(()), RunControl::check);
+    while let Some(t) = src.next_frame(&mut frame)? {
+        check()?;
+        pool.install(|| stab.push(frame.as_ref(), t))?;
+    }
+    while pool.install(|| stab.finish()).is_some() {
+        check()?;
+    }
+    Ok(stab.max_zoom_need())
 }

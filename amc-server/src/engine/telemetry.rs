@@ -4,7 +4,7 @@ use amc_core::Telemetry;
 
 /// Header of the telemetry CSV. The first eight columns are a stable contract:
 /// the rotation vectors (radians) of the estimated `R_{0,j}` and of the view.
-pub const TELEMETRY_HEADER: &str = "frame,t,rx,ry,rz,vx,vy,vz,est_speed_dps,view_speed_dps,valid_fraction,frames_averaged,saccade,iterations,rms_residual,track_valid_fraction,lost,template_reset";
+pub const TELEMETRY_HEADER: &str = "frame,t,rx,ry,rz,vx,vy,vz,est_speed_dps,view_speed_dps,valid_fraction,frames_averaged,saccade,iterations,rms_residual,track_valid_fraction,lost,template_reset,zoom,uncovered";
 
 /// One row of the CSV, with its newline.
 pub(crate) fn row(t: &Telemetry) -> String {
@@ -14,7 +14,7 @@ pub(crate) fn row(t: &Telemetry) -> String {
             .to_degrees()
     };
     format!(
-        "{},{:.6},{:e},{:e},{:e},{:e},{:e},{:e},{:.4},{:.4},{:.5},{},{},{},{:.6},{:.4},{},{}\n",
+        "{},{:.6},{:e},{:e},{:e},{:e},{:e},{:e},{:.4},{:.4},{:.5},{},{},{},{:.6},{:.4},{},{},{:.5},{}\n",
         t.frame,
         t.t,
         t.r_est[0],
@@ -33,5 +33,7 @@ pub(crate) fn row(t: &Telemetry) -> String {
         t.track.valid_fraction,
         t.track.lost as u8,
         t.track.template_reset as u8,
+        t.zoom,
+        t.uncovered,
     )
 }

@@ -56,7 +56,11 @@ pub struct ServeConfig {
     pub live_lens: Option<PathBuf>,
     /// Frames averaged into each live output frame (1..=64).
     pub live_n_avg: usize,
-    /// Share cropped from each side of the live output (0..=0.45).
+    /// Framing of the live output: auto or none (static needs the whole clip: refused).
+    pub live_zoom: amc_core::Zoom,
+    /// Crop budget of `live_zoom` auto (0..=0.5).
+    pub live_max_crop: f64,
+    /// With `live_zoom` none: share cropped from each side of the live output (0..=0.45).
     pub live_margin: f64,
     /// Width of the live output in pixels (default: the cropped input width).
     pub live_width: Option<usize>,
@@ -216,6 +220,16 @@ impl ServeConfig {
         params.view.roll = self.live_roll;
         params.render.n_avg = self.live_n_avg;
         params.render.margin = self.live_margin;
+        if self.live_zoom == amc_core::Zoom::Static {
+            return Err(ServeError::Invalid {
+                flag: "live-zoom",
+                detail:
+                    "static (one zoom for a whole clip needs the clip first; allowed: auto or none)"
+                        .into(),
+            });
+        }
+        params.framing.zoom = self.live_zoom;
+        params.framing.max_crop = self.live_max_crop;
         params.render.output_width = self.live_width;
         params.validate()?;
         let lens = match &self.live_lens {

@@ -187,6 +187,10 @@ pub fn parse_mode(s: &str) -> Result<Mode, String> {
     s.parse::<Mode>().map_err(|e| e.to_string())
 }
 
+fn parse_zoom(s: &str) -> Result<amc_core::Zoom, String> {
+    s.parse::<amc_core::Zoom>().map_err(|e| e.to_string())
+}
+
 fn parse_roll(s: &str) -> Result<amc_core::Roll, String> {
     s.parse::<amc_core::Roll>().map_err(|e| e.to_string())
 }
@@ -304,7 +308,15 @@ pub struct ServeArgs {
     /// Frames averaged into each live output frame (1..=64).
     #[arg(long, default_value_t = 6)]
     pub live_n_avg: usize,
-    /// Share cropped from each side of the live output (0..=0.45).
+    /// Framing of the live output: auto (the least zoom that shows no border,
+    /// within --live-max-crop) or none (crop --live-margin). `static` needs the
+    /// whole clip and is refused.
+    #[arg(long, default_value = "auto", value_name = "auto|none", value_parser = parse_zoom)]
+    pub live_zoom: amc_core::Zoom,
+    /// Crop budget of --live-zoom auto: the largest share of the width cropped (0..=0.5).
+    #[arg(long, default_value_t = 0.15)]
+    pub live_max_crop: f64,
+    /// With --live-zoom none: share cropped from each side of the live output (0..=0.45).
     #[arg(long, default_value_t = 0.125)]
     pub live_margin: f64,
     /// Width of the live output in pixels (default: the cropped input width).
@@ -476,6 +488,8 @@ impl ServeArgs {
             live_fov: self.live_fov,
             live_lens: self.live_lens,
             live_n_avg: self.live_n_avg,
+            live_zoom: self.live_zoom,
+            live_max_crop: self.live_max_crop,
             live_margin: self.live_margin,
             live_width: self.live_width,
             live_jpeg_quality: self.live_jpeg_quality,
