@@ -163,6 +163,8 @@ struct Rendering {
     need_rots: Vec<nalgebra::Matrix3<f64>>,
     /// Whether pixels are rendered (off: views and zoom needs only).
     render: bool,
+    /// Lock mode's view: the first frame's orientation.
+    locked_view: Option<Rot>,
     /// Highest need of a smoothed view so far.
     max_need: f64,
 }
@@ -263,6 +265,7 @@ impl Stabilizer {
                 window_rots: Vec::new(),
                 need_rots: Vec::new(),
                 render: true,
+                locked_view: None,
                 max_need: 1.0,
             },
             ring: VecDeque::new(),
@@ -312,9 +315,10 @@ impl Stabilizer {
 
     /// `zoom = static`: holds the zoom at `zoom` (clamped to the budget) for
     /// every output; the view is pulled toward the camera where it needs more.
-    /// Ignored with `zoom = none` and in saccade mode (whose zoom is fixed anyway).
+    /// Used in stabilize and lock modes; ignored with `zoom = none`, in saccade mode (whose zoom is fixed anyway) and in mode none.
     pub fn set_static_zoom(&mut self, zoom: f64) {
-        if self.params.framing.zoom != Zoom::None && self.params.view.mode == Mode::Stabilize {
+        let mode = self.params.view.mode;
+        if self.params.framing.zoom != Zoom::None && matches!(mode, Mode::Stabilize | Mode::Lock) {
             self.rendering.framer.set_fixed(zoom);
         }
     }
@@ -515,6 +519,7 @@ impl Rendering {
                 params.view.roll.apply(&filtered, &r_est)
             }
             Mode::Saccade => *self.saccade_view.get_or_insert(r_est),
+            Mode::Lock => *self.locked_view.get_or_insert(r_est),
         };
 
         // Framing: the zoom of this output, and the view within it.

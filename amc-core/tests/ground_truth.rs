@@ -546,3 +546,46 @@ fn zoom_none_keeps_the_fixed_margin() {
     let (tel, _) = stabilize(&case, &pano, params);
     assert!(tel.iter().all(|t| (t.zoom - 1.0 / 0.75).abs() < 1e-12));
 }
+
+/// `mode = lock` (a tripod): with `zoom = none` the view is the first frame's
+/// orientation on every frame; with the default `zoom = auto` it is pulled toward
+/// the camera only as far as the crop budget needs, so no border shows and the view
+/// moves far less than the camera.
+#[test]
+fn lock_holds_every_axis_within_the_budget() {
+    use amc_core::{Mode, Zoom};
+    let (w, h) = SIZE;
+    let pano = panorama();
+    let case = Case {
+        name: "lock",
+        camera: CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
+        shake_dps: 100.0,
+        seed: 11,
+        format: PixelFormat::Rgb8,
+        max_median_frame_deg: 0.0,
+        max_final_deg: 0.0,
+        max_orientation_deg: 0.0,
+    };
+    let rot = |v: [f64; 3]| so3::exp(&Tangent::from(v));
+    let motion = |rs: &[Rot]| {
+        let d: Vec<f64> = rs
+            .windows(2)
+            .map(|p| so3::angle_between(&p[0], &p[1]).to_degrees())
+            .collect();
+        (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt()
+    };
+    let mut params = StabilizerParams::default();
+    params.view.mode = Mode::Lock;
+    params.framing.zoom = Zoom::None;
+    let (tel, _) = stabilize(&case, &pano, params.clone());
+    let first = rot(tel[0].r_est);
+    assert!(tel.iter().all(|t| rot(t.r_view) == first));
+    params.framing.zoom = Zoom::Auto;
+    let (tel, _) = stabilize(&case, &pano, params);
+    let views: Vec<Rot> = tel.iter().map(|t| rot(t.r_view)).collect();
+    let cams: Vec<Rot> = tel.iter().map(|t| rot(t.r_est)).collect();
+    let (view_motion, cam_motion) = (motion(&views), motion(&cams));
+    eprintln!("lock: view turns {view_motion:.4} deg/frame RMS, camera {cam_motion:.4}");
+    assert!(tel.iter().all(|t| t.uncovered == 0), "a border showed");
+    assert!(view_motion < 0.3 * cam_motion);
+}

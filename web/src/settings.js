@@ -16,7 +16,7 @@ export const FIELDS = [
   { id: 'margin', label: 'Margin', def: 0.125, min: 0, max: 0.45, unit: 'share of each side' },
   { id: 'max_crop', label: 'Max crop', def: 0.15, min: 0, max: 0.5, unit: 'share of the width' },
   { id: 'rate_a', label: 'Smoothing a', def: 2, min: 0, max: 1000, unit: 'per second' },
-  { id: 'rate_b', label: 'Smoothing b', def: 40, min: 0, max: 10000, unit: 'per second per radian' },
+  { id: 'rate_b', label: 'Smoothing b', def: 20, min: 0, max: 10000, unit: 'per second per radian' },
   { id: 'lookahead', label: 'Lookahead', def: 0, min: 0, max: 600, int: true, unit: 'frames' },
   { id: 'fov', label: 'Field of view', def: 70, min: 0, max: 179, openMin: true, unit: 'degrees' },
 ];

@@ -143,12 +143,13 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         ..super::input_options(cfg.fps, cfg.timeout)
     };
     let pool = render_pool(cfg.threads)?;
-    let static_zoom =
-        if cfg.params.framing.zoom == Zoom::Static && cfg.params.view.mode == Mode::Stabilize {
-            Some(static_zoom(cfg, &opts, &pool)?)
-        } else {
-            None
-        };
+    let static_zoom = if cfg.params.framing.zoom == Zoom::Static
+        && matches!(cfg.params.view.mode, Mode::Stabilize | Mode::Lock)
+    {
+        Some(static_zoom(cfg, &opts, &pool)?)
+    } else {
+        None
+    };
     let src: Box<dyn FrameSource> = video::open_input(cfg.input, &opts)?;
     let info = src.info().clone();
     let threaded = cfg.threads > 1;

@@ -627,8 +627,9 @@ pub struct CompareArgs {
     /// Lens of clips without a `lens.json` (default: --fov auto).
     #[command(flatten)]
     pub lens: LensFlags,
-    /// Future frames of the `stabilize --lookahead` method (1..=300).
-    #[arg(long, default_value_t = 15)]
+    /// Future frames of the `stabilize --lookahead` method (1..=300; default 30,
+    /// as many as vid.stab's `smoothing=30` looks at on each side).
+    #[arg(long, default_value_t = 30)]
     pub lookahead: usize,
     /// Frame rate of image folders without `gt.csv` timestamps (default 30).
     #[arg(long)]
