@@ -59,6 +59,18 @@ pub enum Allowed {
     },
 }
 
+impl Allowed {
+    /// A number in `min..=max`, no words.
+    pub const fn range(min: f64, max: f64) -> Self {
+        Allowed::Number {
+            min,
+            max,
+            above_min: false,
+            words: &[],
+        }
+    }
+}
+
 /// Every option a user can set on a run, in the order help texts list them.
 pub const OPTIONS: &[OptionSpec] = &[
     OptionSpec {
@@ -106,12 +118,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         flag: "margin",
         value_name: "FRAC",
         help: "with --zoom none: share cropped from each side of the output, 0..=0.45 (default 0.125)",
-        allowed: Allowed::Number {
-            min: 0.0,
-            max: 0.45,
-            above_min: false,
-            words: &[],
-        },
+        allowed: Allowed::range(0.0, 0.45),
     },
     OptionSpec {
         name: "zoom",
@@ -125,12 +132,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         flag: "max-crop",
         value_name: "FRAC",
         help: "crop budget of --zoom auto|static: the largest share of the width cropped, 0..=0.5 (default 0.15: keeps at least 85%); the view is pulled toward the camera where it would need more",
-        allowed: Allowed::Number {
-            min: 0.0,
-            max: 0.5,
-            above_min: false,
-            words: &[],
-        },
+        allowed: Allowed::range(0.0, 0.5),
     },
     OptionSpec {
         name: "track_width",
@@ -151,48 +153,28 @@ pub const OPTIONS: &[OptionSpec] = &[
         flag: "rate-a",
         value_name: "PER_S",
         help: "smoothing: constant part of the view filter's gain, 0..=1000 per second (default 2; lower is smoother)",
-        allowed: Allowed::Number {
-            min: 0.0,
-            max: 1000.0,
-            above_min: false,
-            words: &[],
-        },
+        allowed: Allowed::range(0.0, 1000.0),
     },
     OptionSpec {
         name: "rate_b",
         flag: "rate-b",
         value_name: "PER_S_RAD",
         help: "smoothing: gain growing with the view's lag behind the camera, 0..=10000 per second per radian (default 20; the paper's 40 suits --zoom none)",
-        allowed: Allowed::Number {
-            min: 0.0,
-            max: 10000.0,
-            above_min: false,
-            words: &[],
-        },
+        allowed: Allowed::range(0.0, 10000.0),
     },
     OptionSpec {
         name: "roll_rate_a",
         flag: "roll-rate-a",
         value_name: "PER_S",
         help: "smoothing of roll alone: constant gain, 0..=1000 per second (default: --rate-a, as pan and tilt)",
-        allowed: Allowed::Number {
-            min: 0.0,
-            max: 1000.0,
-            above_min: false,
-            words: &[],
-        },
+        allowed: Allowed::range(0.0, 1000.0),
     },
     OptionSpec {
         name: "roll_rate_b",
         flag: "roll-rate-b",
         value_name: "PER_S_RAD",
         help: "smoothing of roll alone: gain growing with the view's lag, 0..=10000 per second per radian (default: --rate-b)",
-        allowed: Allowed::Number {
-            min: 0.0,
-            max: 10000.0,
-            above_min: false,
-            words: &[],
-        },
+        allowed: Allowed::range(0.0, 10000.0),
     },
     OptionSpec {
         name: "output_width",
@@ -382,6 +364,7 @@ mod tests {
                 "roll" => "lock",
                 "zoom" => "static",
                 "max_crop" => "0.3",
+                "rate_b" => "30",
                 "fov" => "90",
                 _ => "20",
             };

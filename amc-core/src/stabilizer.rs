@@ -323,6 +323,15 @@ impl Stabilizer {
         }
     }
 
+    /// Whether this stabilizer renders with `zoom = static` but was not told
+    /// the zoom yet ([`Stabilizer::set_static_zoom`]).
+    fn needs_static_zoom(&self) -> bool {
+        self.params.framing.zoom == Zoom::Static
+            && matches!(self.params.view.mode, Mode::Stabilize | Mode::Lock)
+            && self.rendering.render
+            && self.rendering.framer.fixed().is_none()
+    }
+
     /// The highest zoom any smoothed view needed so far to show no border
     /// (before pulls, at least 1): after a pass without rendering, the zoom
     /// `static` holds, once clamped to the budget.
@@ -382,6 +391,15 @@ impl Stabilizer {
         }
         if !t.is_finite() {
             return Err(AmcError::NonFiniteTimestamp(t));
+        }
+        if self.needs_static_zoom() {
+            return Err(AmcError::invalid(
+                "zoom",
+                "static",
+                "static only once its zoom is known: make a first pass with \
+                 set_rendering(false), then set_static_zoom(max_zoom_need()) on the \
+                 stabilizer that renders; or auto or none",
+            ));
         }
         if let Some(prev) = self.last_t {
             if t <= prev {

@@ -338,7 +338,8 @@ mod tests {
     fn alpha_is_clamped_and_uses_dt() {
         let p = ViewParams::default();
         assert!((p.alpha(0.0, 1.0 / 60.0) - 2.0 / 60.0).abs() < 1e-12);
-        assert!((p.alpha(0.1, 1.0 / 30.0) - 6.0 / 30.0).abs() < 1e-12);
+        // (2 + 20 * 0.1) / 30
+        assert!((p.alpha(0.1, 1.0 / 30.0) - 4.0 / 30.0).abs() < 1e-12);
         assert_eq!(p.alpha(100.0, 1.0), 1.0);
         assert_eq!(p.alpha(0.0, -1.0), 0.0);
     }

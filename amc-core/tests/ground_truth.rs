@@ -547,6 +547,28 @@ fn zoom_none_keeps_the_fixed_margin() {
     assert!(tel.iter().all(|t| (t.zoom - 1.0 / 0.75).abs() < 1e-12));
 }
 
+/// `zoom = static` in the core: a rendering stabilizer refuses frames until it is
+/// told the zoom (a first pass without rendering finds it), then holds it.
+#[test]
+fn static_zoom_needs_its_first_pass() {
+    use amc_core::Zoom;
+    let (w, h) = SIZE;
+    let cam = CameraModel::pinhole_hfov(w, h, 90.0).unwrap();
+    let mut params = StabilizerParams::default();
+    params.framing.zoom = Zoom::Static;
+    let frame = Frame::new(w, h, PixelFormat::Rgb8);
+    let mut first = Stabilizer::new(&cam, w, h, params.clone()).unwrap();
+    first.set_rendering(false);
+    assert!(first.push(frame.as_ref(), 0.0).unwrap().is_some());
+    assert!(first.max_zoom_need() >= 1.0);
+    let mut second = Stabilizer::new(&cam, w, h, params).unwrap();
+    let e = second.push(frame.as_ref(), 0.0).unwrap_err();
+    assert!(e.to_string().contains("invalid zoom: static"), "{e}");
+    second.set_static_zoom(1.05);
+    let tel = second.push(frame.as_ref(), 0.0).unwrap().unwrap();
+    assert_eq!(tel.zoom, 1.05);
+}
+
 /// `mode = lock` (a tripod): with `zoom = none` the view is the first frame's
 /// orientation on every frame; with the default `zoom = auto` it is pulled toward
 /// the camera only as far as the crop budget needs, so no border shows and the view

@@ -222,16 +222,6 @@ pub fn open(
     let width = dimension("width", width)?;
     let height = dimension("height", height)?;
     let params = parse_params(params_json)?;
-    if params.framing.zoom == amc_core::Zoom::Static {
-        // One zoom for the whole clip needs a first pass over it, which the
-        // streaming binding does not make; the service (`POST /jobs`) does.
-        return Err(amc_core::AmcError::invalid(
-            "zoom",
-            "static",
-            "auto or none in the browser (static runs on the server)",
-        )
-        .into());
-    }
     check_memory(width, height, format, &params)?;
     let cam = parse_camera(lens, width, height)?;
     let stabilizer = amc_core::Stabilizer::new(&cam, width, height, params)?;

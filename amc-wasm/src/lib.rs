@@ -175,6 +175,30 @@ impl Stabilizer {
         self.inner.output_size().1
     }
 
+    /// Rendering on (the default) or off. Off, frames are still tracked,
+    /// smoothed and framed (telemetry, [`Stabilizer::max_zoom_need`]) but no
+    /// pixels are produced: the first pass of `zoom: "static"`.
+    #[wasm_bindgen(js_name = setRendering)]
+    pub fn set_rendering(&mut self, on: bool) {
+        self.inner.set_rendering(on);
+    }
+
+    /// The highest zoom any output needed so far to show no border (at least
+    /// 1): after a first pass without rendering, the zoom to pass to
+    /// [`Stabilizer::set_static_zoom`].
+    #[wasm_bindgen(js_name = maxZoomNeed)]
+    pub fn max_zoom_need(&self) -> f64 {
+        self.inner.max_zoom_need()
+    }
+
+    /// `zoom: "static"`: holds this zoom (clamped to the crop budget) for the
+    /// whole clip; call before the first frame. Without it a static stabilizer
+    /// that renders refuses frames.
+    #[wasm_bindgen(js_name = setStaticZoom)]
+    pub fn set_static_zoom(&mut self, zoom: f64) {
+        self.inner.set_static_zoom(zoom);
+    }
+
     /// Turns per-frame image metrics on (fresh accumulators) or off; off by
     /// default. Measuring is separate from stabilizing ([`Stabilizer::measure_input`],
     /// [`Stabilizer::measure_output`]) so callers can time and skip it.

@@ -34,6 +34,12 @@ export async function runLocal(file) {
       $('status-text').textContent = `${m.width}x${m.height} ${m.codec} → ${m.outWidth}x${m.outHeight} ${m.outCodec}` +
         ` (${m.pixelFormat}${m.simd ? ', WASM SIMD' : ''})` + (m.audioNote ? ` · ${m.audioNote}` : '');
       if (m.total) $('progress').max = m.total;
+    } else if (m.type === 'zoom-pass') {
+      // zoom static: the first pass (tracking only) that finds the clip's zoom.
+      if (m.total) { $('progress').max = m.total; $('progress').value = m.done; }
+      $('status-text').textContent = m.zoom
+        ? `Static zoom ${m.zoom.toFixed(3)}x (keeps ${(100 / m.zoom).toFixed(1)}% of the width); stabilizing…`
+        : `Finding the static zoom (first pass): frame ${m.done}${m.total ? ' / ' + m.total : ''}`;
     } else if (m.type === 'progress') {
       if (m.total) { $('progress').max = m.total; $('progress').value = m.done; }
       $('status-text').textContent = `Frame ${m.done}${m.total ? ' / ' + m.total : ''} · ${m.fps.toFixed(0)} frames/s ` +

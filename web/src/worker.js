@@ -37,6 +37,37 @@ async function pickVideoCodec(format, width, height) {
   throw new Error(`this browser cannot encode ${format === 'webm' ? 'VP9, VP8 or AV1' : 'H.264, VP9 or AV1'} video`);
 }
 
+/**
+ * zoom static's first pass: every frame of `video` through a stabilizer that
+ * does not render; returns the largest zoom its outputs needed.
+ */
+async function staticZoom(video, width, height, paramsJson, lens, path, copyOpts, total) {
+  const pre = new Stabilizer(width, height, paramsJson, lens, path);
+  try {
+    pre.setRendering(false);
+    let n = 0, lastT = -Infinity, lastPost = 0;
+    for await (const sample of new VideoSampleSink(video).samples()) {
+      if (cancelled) { sample.close(); throw new Error('cancelled'); }
+      let t = sample.timestamp;
+      if (!(t > lastT)) t = lastT + 1e-6; // as the main pass does
+      lastT = t;
+      await sample.copyTo(pre.inputBuffer(), copyOpts);
+      sample.close();
+      pre.pushInput(t);
+      n++;
+      const now = performance.now();
+      if (now - lastPost > 100) {
+        lastPost = now;
+        post('zoom-pass', { done: n, total });
+      }
+    }
+    while (pre.finish()) { /* the outputs the lookahead held back */ }
+    return pre.maxZoomNeed();
+  } finally {
+    pre.free();
+  }
+}
+
 async function processClip({ file, params, lens, format }) {
   const input = new Input({ source: new BlobSource(file), formats: ALL_FORMATS });
   let video;
@@ -67,8 +98,16 @@ async function processClip({ file, params, lens, format }) {
   let stab;
   try {
     stab = new Stabilizer(width, height, JSON.stringify(params), lens, path);
+    if (params.framing && params.framing.zoom === 'static') {
+      // One zoom for the whole clip: a first pass (decode, track, smooth, no
+      // rendering) finds the largest zoom any frame needs.
+      const zoom = await staticZoom(video, width, height, JSON.stringify(params), lens, path, copyOpts, total);
+      stab.setStaticZoom(zoom);
+      post('zoom-pass', { done: total || 0, total, zoom });
+    }
   } catch (e) {
     first.value.close();
+    if (stab) stab.free();
     throw e;
   }
   stab.setMetrics(true);

@@ -251,6 +251,21 @@ test('WebM download (VP9) with the same frame count', async () => {
   await page.close();
 });
 
+test('zoom static: a first pass finds one zoom for the clip, held on every frame, no border', async () => {
+  const { page } = await newPage();
+  await page.selectOption('#zoom', 'static');
+  await page.setInputFiles('[data-testid=file-input]', cup);
+  await waitState(page, ['done', 'error']);
+  assert.equal(await state(page), 'done', await page.textContent('#error'));
+  const csv = readFileSync(await download(page, 'cup-static-telemetry.csv', 'telemetry-download'), 'utf8').trim().split('\n');
+  const head = csv[0].split(',');
+  const col = (name) => csv.slice(1).map((l) => Number(l.split(',')[head.indexOf(name)]));
+  const zoom = col('zoom');
+  assert.ok(zoom.every((z) => z === zoom[0] && z >= 1 && z <= 1 / 0.85 + 1e-6), `zoom ${zoom[0]}..${Math.max(...zoom)}`);
+  assert.ok(col('uncovered').every((u) => u === 0), 'no uncovered pixel');
+  await page.close();
+});
+
 test('bad settings and a file that is not a video end in the error state with a message', async () => {
   const { page } = await newPage();
   await page.fill('#n_avg', '0');

@@ -39,8 +39,21 @@ test('stabilizes a stream: telemetry per frame, RGBA output of the input size (z
   const fixed = new Stabilizer(W, H, '{"framing":{"zoom":"none"}}', 70);
   assert.deepEqual([fixed.outputWidth, fixed.outputHeight], [120, 68]);
   fixed.free();
-  // zoom static needs a first pass over the whole clip: the server's, not the browser's.
-  throwsMsg(() => new Stabilizer(W, H, '{"framing":{"zoom":"static"}}', 70), /invalid zoom: static \(allowed: auto or none in the browser/);
+  // zoom static: a first pass without rendering finds the zoom; a rendering
+  // stabilizer refuses frames until it is told.
+  const pre = new Stabilizer(W, H, '{"framing":{"zoom":"static"}}', 70);
+  pre.setRendering(false);
+  for (let i = 0; i < 8; i++) pre.push(frame(W, H, 2 * i, i % 3), i / 30);
+  while (pre.finish()) { /* drain */ }
+  const need = pre.maxZoomNeed();
+  assert.ok(need >= 1 && need < 3, `need ${need}`);
+  pre.free();
+  const fixedZoom = new Stabilizer(W, H, '{"framing":{"zoom":"static"}}', 70);
+  throwsMsg(() => fixedZoom.push(frame(W, H, 0, 0), 0), /invalid zoom: static/);
+  fixedZoom.setStaticZoom(need);
+  const tel0 = fixedZoom.push(frame(W, H, 0, 0), 0);
+  assert.equal(tel0.zoom, Math.min(need, 1 / 0.85));
+  fixedZoom.free();
   const s = new Stabilizer(W, H, '{}', 70);
   assert.equal(s.width, W);
   assert.equal(s.outputWidth, W);

@@ -170,7 +170,11 @@ async fn the_schema_states_what_is_accepted() {
     );
     assert_eq!(
         param("mode")["enum"],
-        serde_json::json!(["stabilize", "saccade", "none"])
+        serde_json::json!(["stabilize", "saccade", "lock", "none"])
+    );
+    assert_eq!(
+        param("zoom")["enum"],
+        serde_json::json!(["auto", "static", "none"])
     );
     assert_eq!(param("format")["enum"], serde_json::json!(["mp4", "webm"]));
     assert_eq!(
