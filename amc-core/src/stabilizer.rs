@@ -315,7 +315,8 @@ impl Stabilizer {
 
     /// `zoom = static`: holds the zoom at `zoom` (clamped to the budget) for
     /// every output; the view is pulled toward the camera where it needs more.
-    /// Used in stabilize and lock modes; ignored with `zoom = none`, in saccade mode (whose zoom is fixed anyway) and in mode none.
+    /// Used in stabilize and lock modes; ignored with `zoom = none`, in saccade
+    /// mode (whose zoom is fixed anyway) and in mode none.
     pub fn set_static_zoom(&mut self, zoom: f64) {
         let mode = self.params.view.mode;
         if self.params.framing.zoom != Zoom::None && matches!(mode, Mode::Stabilize | Mode::Lock) {
