@@ -87,7 +87,7 @@ fn compare_short_synthetic_clip() {
         let stab = json_f64(m, "/measured/stability/score");
         assert!((0.0..=1.0).contains(&stab), "{name}: stability {stab}");
     }
-    // Our "none" is the whole undistorted input (zoom 1) without zoom or stretch.
+    // Our "none" is the whole input (a pinhole: zoom 1) without zoom or stretch.
     let none = method(c, "none");
     let crop = json_f64(none, "/measured/cropping");
     assert!((crop - 1.0).abs() < 0.01, "none cropping {crop}");

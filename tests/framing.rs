@@ -53,6 +53,7 @@ fn no_border_on_real_footage() {
             ("offline", vec!["--lookahead", "30"]),
             ("saccade", vec!["--mode", "saccade"]),
             ("static", vec!["--zoom", "static"]),
+            ("none", vec!["--mode", "none"]),
         ] {
             let telemetry = dir.path().join(format!("{}-{label}.csv", clip.name));
             let output = dir.path().join(format!("{}-{label}.y4m", clip.name));

@@ -543,8 +543,23 @@ impl Rendering {
 
         // Framing: the zoom of this output, and the view within it.
         let zoomed = params.framing.zoom != Zoom::None;
-        let zoom = if !zoomed || mode == Mode::None {
+        let zoom = if !zoomed {
             1.0
+        } else if mode == Mode::None {
+            // The camera itself: only its lens can leave pixels uncovered (the
+            // corners of an undistorted barrel lens), and it needs the same zoom
+            // on every frame, with no smoothing and no budget. A centred pinhole
+            // of the output's size maps onto itself exactly: zoom 1, the input
+            // unchanged (an off-centre principal point or skew needs a little).
+            let identity = self.src_cam.is_pinhole()
+                && (self.src_cam.width, self.src_cam.height)
+                    == (self.out_cam.width, self.out_cam.height)
+                && self.src_cam.k_matrix() == self.out_cam.k_matrix();
+            if identity {
+                1.0
+            } else {
+                self.need(&r_view)
+            }
         } else {
             let need = self.need(&r_view);
             self.max_need = self.max_need.max(need);

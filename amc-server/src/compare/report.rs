@@ -198,13 +198,11 @@ pub fn framing_bars(c: &ClipResult) -> Vec<Bar> {
     let mut out = Vec::new();
     for m in &c.methods {
         if let Some(n) = m.frames_with_border {
-            if m.method != "none" {
-                out.push(Bar {
-                    what: format!("{}: no output frame with an uncovered pixel", m.method),
-                    cleared: n == 0,
-                    detail: format!("{n} of {} frames", m.frames),
-                });
-            }
+            out.push(Bar {
+                what: format!("{}: no output frame with an uncovered pixel", m.method),
+                cleared: n == 0,
+                detail: format!("{n} of {} frames", m.frames),
+            });
         }
     }
     for (ours, peer) in [
@@ -559,7 +557,7 @@ pub fn write(dir: &Path, results: &[ClipResult], args: &CompareConfig) -> Result
 const METHODS_TEXT: &str = r#"## How it is measured
 
 - **Methods**, all run on the same input in the same run: ours (`amc stabilize`) in modes
-  `none` (undistorted input at zoom 1: the baseline), `stabilize`, `saccade` and `stabilize
+  `none` (the undistorted input, zoomed only as far as its lens needs: the baseline), `stabilize`, `saccade` and `stabilize
   --lookahead N` (default 30, the frames vid.stab `smoothing=30` uses on each side); ffmpeg's vid.stab in two passes (`vidstabdetect`, then `vidstabtransform`
   with `smoothing=10`, `smoothing=30`, and `tripod=1` (detect and transform), the peer of
   our saccade mode), all other options at their defaults (so vid.stab zooms to hide most
