@@ -14,7 +14,9 @@
 
 use crate::camera::CameraModel;
 use crate::error::AmcError;
-use crate::framing::{needed_zoom, pull_view, zoom_matrix, Border, Framer, FramingParams, Zoom};
+use crate::framing::{
+    needed_zoom, pull_view, view_need, zoom_matrix, Border, Framer, FramingParams, Zoom,
+};
 use crate::frontend::TrackingFrontend;
 use crate::image::{Frame, FrameRef, PixelFormat};
 use crate::pyramid::Pyramid;
@@ -165,6 +167,8 @@ struct Rendering {
     render: bool,
     /// Lock mode's view: the first frame's orientation.
     locked_view: Option<Rot>,
+    /// The zoom of mode none (the camera's own view, the same on every frame).
+    camera_zoom: f64,
     /// Highest need of a smoothed view so far.
     max_need: f64,
 }
@@ -233,6 +237,19 @@ impl Stabilizer {
             framer.set_fixed(params.framing.max_zoom());
         }
         let border = Border::new(&out_cam);
+        // Mode none shows the camera's own view (`M = I` on every frame): only
+        // its lens can leave pixels uncovered (an off-centre principal point, the
+        // corners of an undistorted barrel lens), so it needs one zoom, with no
+        // smoothing and no budget. A centred pinhole of the output's size maps
+        // onto itself exactly: zoom 1, the input unchanged.
+        let identity = cam.is_pinhole()
+            && (cam.width, cam.height) == (out_cam.width, out_cam.height)
+            && cam.k_matrix() == out_cam.k_matrix();
+        let camera_zoom = if identity {
+            1.0
+        } else {
+            needed_zoom(&cam, &border, &[nalgebra::Matrix3::identity()])
+        };
         let warper = Warper::new(&cam, &out_cam);
         let chroma = Warper::new(&chroma_camera(&cam), &chroma_camera(&out_cam));
         Ok(Self {
@@ -266,6 +283,7 @@ impl Stabilizer {
                 need_rots: Vec::new(),
                 render: true,
                 locked_view: None,
+                camera_zoom,
                 max_need: 1.0,
             },
             ring: VecDeque::new(),
@@ -546,20 +564,7 @@ impl Rendering {
         let zoom = if !zoomed {
             1.0
         } else if mode == Mode::None {
-            // The camera itself: only its lens can leave pixels uncovered (the
-            // corners of an undistorted barrel lens), and it needs the same zoom
-            // on every frame, with no smoothing and no budget. A centred pinhole
-            // of the output's size maps onto itself exactly: zoom 1, the input
-            // unchanged (an off-centre principal point or skew needs a little).
-            let identity = self.src_cam.is_pinhole()
-                && (self.src_cam.width, self.src_cam.height)
-                    == (self.out_cam.width, self.out_cam.height)
-                && self.src_cam.k_matrix() == self.out_cam.k_matrix();
-            if identity {
-                1.0
-            } else {
-                self.need(&r_view)
-            }
+            self.camera_zoom
         } else {
             let need = self.need(&r_view);
             self.max_need = self.max_need.max(need);
@@ -705,13 +710,13 @@ impl Rendering {
     /// The zoom at which `view` shows no border with the averaged frames
     /// `self.window_rots`.
     fn need(&mut self, view: &Rot) -> f64 {
-        self.need_rots.clear();
-        self.need_rots.extend(
-            self.window_rots
-                .iter()
-                .map(|r| r.matrix().transpose() * view.matrix()),
-        );
-        needed_zoom(&self.src_cam, &self.border, &self.need_rots)
+        view_need(
+            &self.src_cam,
+            &self.border,
+            &self.window_rots,
+            view,
+            &mut self.need_rots,
+        )
     }
 
     /// Writes the saccade sums into the output frame; returns the share of

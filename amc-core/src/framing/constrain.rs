@@ -8,7 +8,7 @@
 //! the view is the camera's own, which its frame covers at zoom 1, so a
 //! feasible view always exists for a zoom of at least 1 (up to `EDGE_PX`).
 
-use super::coverage::{needed_zoom, Border};
+use super::coverage::{view_need, Border};
 use crate::camera::CameraModel;
 use crate::so3::{self, Rot};
 use nalgebra::Matrix3;
@@ -29,11 +29,7 @@ pub fn pull_view(
     zoom: f64,
     scratch: &mut Vec<Matrix3<f64>>,
 ) -> (Rot, f64) {
-    let mut need_of = |v: &Rot| {
-        scratch.clear();
-        scratch.extend(window.iter().map(|r| r.matrix().transpose() * v.matrix()));
-        needed_zoom(src, border, scratch)
-    };
+    let mut need_of = |v: &Rot| view_need(src, border, window, v, scratch);
     let need = need_of(view);
     if need <= zoom {
         return (*view, need);

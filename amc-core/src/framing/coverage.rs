@@ -17,6 +17,7 @@
 //! of a pixel at the output's scale.
 
 use crate::camera::CameraModel;
+use crate::so3::Rot;
 use nalgebra::{Matrix3, Vector2, Vector3};
 
 /// How far inside a source frame a covered point must land, source pixels:
@@ -117,6 +118,25 @@ fn reach(src: &CameraModel, m: &Matrix3<f64>, b: &Vector2<f64>, at_least: f64) -
         }
     }
     lo
+}
+
+/// [`needed_zoom`] of the view `view` for averaged frames of orientations
+/// `window` (`R_hat_{0,i}`): the maps `M_i = R_hat_{0,i}^T view`, built in
+/// `scratch` (reused).
+pub fn view_need(
+    src: &CameraModel,
+    border: &Border,
+    window: &[Rot],
+    view: &Rot,
+    scratch: &mut Vec<Matrix3<f64>>,
+) -> f64 {
+    scratch.clear();
+    scratch.extend(
+        window
+            .iter()
+            .map(|r| r.matrix().transpose() * view.matrix()),
+    );
+    needed_zoom(src, border, scratch)
 }
 
 /// The least zoom, at least 1, at which every pixel of the output whose

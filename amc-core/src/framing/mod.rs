@@ -34,6 +34,6 @@ mod params;
 mod tests;
 
 pub use constrain::pull_view;
-pub use coverage::{needed_zoom, zoom_matrix, Border};
+pub use coverage::{needed_zoom, view_need, zoom_matrix, Border};
 pub use envelope::{Framer, ZOOM_FALL_PER_S, ZOOM_HOLD_S, ZOOM_RISE_PER_S};
 pub use params::{FramingParams, Zoom};
