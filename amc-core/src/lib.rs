@@ -24,6 +24,7 @@ pub mod options;
 pub mod pyramid;
 pub mod render;
 pub mod selfcal;
+pub mod shutter;
 pub mod stabilizer;
 pub mod tracker;
 pub mod view;

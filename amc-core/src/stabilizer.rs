@@ -20,6 +20,7 @@ use crate::framing::{
 use crate::frontend::TrackingFrontend;
 use crate::image::{Frame, FrameRef, PixelFormat};
 use crate::pyramid::Pyramid;
+use crate::shutter::{IntraFrame, ShutterParams};
 use crate::render::{chroma_camera, Accumulator, RenderParams, WarpedFrame, Warper};
 use crate::so3::{self, Rot};
 use crate::tracker::{TrackInfo, Tracker, TrackerParams};
@@ -43,6 +44,8 @@ pub struct StabilizerParams {
     pub render: RenderParams,
     /// Framing (zoom and crop budget).
     pub framing: FramingParams,
+    /// The camera's shutter (rolling-shutter readout).
+    pub shutter: ShutterParams,
 }
 
 impl Default for StabilizerParams {
@@ -53,6 +56,7 @@ impl Default for StabilizerParams {
             view: ViewParams::default(),
             render: RenderParams::default(),
             framing: FramingParams::default(),
+            shutter: ShutterParams::default(),
         }
     }
 }
@@ -70,6 +74,7 @@ impl StabilizerParams {
         self.tracker.validate()?;
         self.view.validate()?;
         self.framing.validate()?;
+        self.shutter.validate()?;
         self.render.validate()
     }
 }
@@ -101,6 +106,10 @@ pub struct Telemetry {
     /// Output pixels no averaged frame covers (shown black; 0 with `zoom`
     /// `auto` or `static`); for planar frames, luma pixels.
     pub uncovered: u64,
+    /// Rotation vector (radians, this frame's camera axes) of the camera's
+    /// rotation across its readout, `phi` of [`IntraFrame`]: the readout time
+    /// times the angular velocity at mid-readout. Zero with a global shutter.
+    pub readout_rotation: [f64; 3],
     /// Tracking quality.
     pub track: TrackInfo,
 }
@@ -110,6 +119,8 @@ struct Buffered {
     index: u64,
     t: f64,
     r_est: Rot,
+    /// Its motion during the readout (zero with a global shutter).
+    intra: IntraFrame,
     info: TrackInfo,
     /// Forward-filtered view at this frame.
     view_fwd: Rot,
@@ -124,10 +135,11 @@ struct Tracking {
 
 impl Tracking {
     /// Estimates the orientation of `frame`, taken at `t`.
-    fn track(&mut self, frame: &FrameRef<'_>, t: f64) -> (Rot, TrackInfo) {
+    fn track(&mut self, frame: &FrameRef<'_>, t: f64) -> (Rot, IntraFrame, TrackInfo) {
         let levels = self.tracker.levels();
         self.frontend.prepare(frame, &mut self.pyr, levels);
-        self.tracker.track(&self.pyr, t)
+        let (r, info) = self.tracker.track(&self.pyr, t);
+        (r, self.tracker.intra(), info)
     }
 }
 
@@ -439,7 +451,7 @@ impl Stabilizer {
         // holds every frame it needs: this one is added after).
         let pending = self.pipelined && self.received > lookahead + self.rendering.next_out;
         let src = (self.width, self.height);
-        let ((r_est, info), rendered) = if pending {
+        let ((r_est, intra, info), rendered) = if pending {
             let (tracking, rendering) = (&mut self.tracking, &mut self.rendering);
             let (ring, params) = (&self.ring, &self.params);
             join(
@@ -474,6 +486,7 @@ impl Stabilizer {
             index: self.received,
             t,
             r_est,
+            intra,
             info,
             view_fwd: self.view_fwd,
         });
@@ -703,6 +716,7 @@ impl Rendering {
                 1.0 / (1.0 - 2.0 * params.render.margin)
             },
             uncovered,
+            readout_rotation: cur.intra.phi.into(),
             track: info,
         }
     }

@@ -59,6 +59,7 @@ use crate::camera::CameraModel;
 use crate::error::{check_range, AmcError};
 use crate::image::GrayImage;
 use crate::pyramid::Pyramid;
+use crate::shutter::IntraFrame;
 use crate::so3::{self, Rot, Tangent};
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -303,6 +304,8 @@ pub struct Tracker {
     static_votes: Vec<f32>,
     /// Moving average of the RMS residual of well-tracked frames.
     typical_residual: Option<f32>,
+    /// The last frame's motion during its readout.
+    intra: IntraFrame,
 }
 
 impl Tracker {
@@ -331,6 +334,7 @@ impl Tracker {
             grad: Vec::new(),
             static_votes: vec![0.0; camera.width * camera.height],
             typical_residual: None,
+            intra: IntraFrame::ZERO,
             params,
         })
     }
@@ -348,6 +352,12 @@ impl Tracker {
     /// Parameters in use.
     pub fn params(&self) -> &TrackerParams {
         &self.params
+    }
+
+    /// The last tracked frame's motion during its readout (zero with a
+    /// global shutter).
+    pub fn intra(&self) -> IntraFrame {
+        self.intra
     }
 
     /// Tracks the next frame (its pyramid and timestamp in seconds) and returns

@@ -1,0 +1,39 @@
+//! Rolling shutter: a camera model with time.
+//!
+//! A rolling-shutter sensor reads its rows out one after another. Row `y` of
+//! frame `j` (sensor rows, `0..H`) is exposed at
+//! ```text
+//! t_j + tau s(y),        s(y) = y / H - 1/2
+//! ```
+//! (`tau` the readout time; `s` the row's readout fraction, `0` at the middle
+//! row). The frame's pose `R_{0,j}` is its mid-readout pose, and within the
+//! frame the orientation follows a quadratic in `s` on SO(3):
+//! ```text
+//! R_{0,j}(s) = R_{0,j} exp(s phi_j + s^2 psi_j)
+//! ```
+//! `phi_j` (radians, camera-j frame) is the rotation across the readout
+//! (`tau` times the angular velocity at mid-readout) and `psi_j` its change
+//! (`tau^2 / 2` times the angular acceleration). At 12-20 Hz shake a readout
+//! can span half a shake period: a constant velocity per frame leaves a
+//! bend that biases the mid-readout pose, so the tracker estimates both
+//! (see `tracker.rs`), from the intensities, per frame ([`IntraFrame`]).
+//!
+//! A ray seen at sensor row `y` is rotated by `exp(-(s phi + s^2 psi))` from
+//! the mid-readout camera; which row it lands on depends on that rotation, so
+//! projection is a fixed point, solved from the mid-readout guess
+//! ([`project_rolling`]).
+//!
+//! The readout time itself is given (`readout_ms`, [`ShutterParams`]) or
+//! estimated from the footage ([`ReadoutEstimator`]).
+
+mod auto;
+mod motion;
+mod params;
+mod project;
+#[cfg(test)]
+mod tests;
+
+pub use auto::{fit_readout, ReadoutEstimate, ReadoutEstimator, READOUT_FRAMES};
+pub use motion::{row_fraction, IntraFrame};
+pub use params::{ShutterParams, MAX_READOUT_MS};
+pub use project::{project_rolling, FIXED_POINT_STEPS};
