@@ -20,7 +20,7 @@ use crate::framing::{
 use crate::frontend::TrackingFrontend;
 use crate::image::{Frame, FrameRef, PixelFormat};
 use crate::pyramid::Pyramid;
-use crate::shutter::{IntraFrame, ShutterParams};
+use crate::shutter::{IntraFrame, RowTime, ShutterParams};
 use crate::render::{chroma_camera, Accumulator, RenderParams, WarpedFrame, Warper};
 use crate::so3::{self, Rot};
 use crate::tracker::{TrackInfo, Tracker, TrackerParams};
@@ -238,7 +238,13 @@ impl Stabilizer {
             lens.rescaled(width, height)
         };
         let frontend = TrackingFrontend::new(&cam, params.track_width)?;
-        let tracker = Tracker::new(frontend.camera(), params.tracker.clone())?;
+        let mut tracker = Tracker::new(frontend.camera(), params.tracker.clone())?;
+        if params.shutter.is_rolling() {
+            tracker.set_rolling(
+                RowTime::new(&cam, frontend.camera()),
+                params.shutter.readout_s(),
+            );
+        }
         let zoomed = params.framing.zoom != Zoom::None;
         let margin = if zoomed { 0.0 } else { params.render.margin };
         let out_cam = params.render.output_camera_with_margin(&cam, margin)?;

@@ -61,7 +61,8 @@ use crate::image::GrayImage;
 use crate::pyramid::Pyramid;
 use crate::shutter::IntraFrame;
 use crate::so3::{self, Rot, Tangent};
-use nalgebra::{Matrix3, Vector3};
+use crate::shutter::RowTime;
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use serde::{Deserialize, Serialize};
 
 /// Parameters of the rotation tracker.
@@ -174,6 +175,11 @@ const RECOVERY_STEP_PX: f64 = 1.5;
 const MAX_RESET_DELAY: usize = 10;
 /// Convergence threshold of coarse levels relative to the finest level's.
 const COARSE_TOLERANCE_FACTOR: f64 = 20.0;
+/// Pyramid levels (finest first) on which a rolling shutter's readout motion
+/// is estimated; coarser levels keep the last frame's.
+const INTRA_LEVELS: usize = 2;
+/// Fixed-point steps of the rolling-shutter projection in the tracker.
+const TRACK_FIXED_POINT_STEPS: usize = 2;
 /// Fewer valid template pixels than this share means the frame is lost at that level.
 const MIN_VALID_SHARE: f32 = 0.15;
 /// A pixel votes on being camera-fixed only if the rotation moved it this far
@@ -225,6 +231,9 @@ struct LevelTemplate {
     /// Normalized ray coordinates `(x, y)` of each selected template pixel.
     xs: Vec<f32>,
     ys: Vec<f32>,
+    /// Rolling shutter: `xs`, `ys` and these are the ray rectified into the
+    /// template's mid-readout camera (empty with a global shutter).
+    zs: Vec<f32>,
     /// Template intensity.
     tv: Vec<f32>,
     /// Steepest-descent images (3 per pixel).
@@ -244,6 +253,49 @@ struct Eval {
     g: [f64; 3],
     /// Upper triangle of H: xx, xy, xz, yy, yz, zz.
     h: [f64; 6],
+    /// Rolling shutter: `sum w s^k SD SD^T` for `k = 1..=4` (upper triangles)
+    /// and `sum w s^k SD e` for `k = 1, 2`, `s` the readout fraction of the
+    /// row each point landed on (zero with a global shutter).
+    hs: [[f64; 6]; 4],
+    gs: [[f64; 3]; 2],
+}
+
+/// A frame's pose relative to the template: the mid-readout rotation
+/// `R_{k,j}` and the motion during the readout.
+#[derive(Clone, Copy, Debug)]
+struct Pose {
+    r: Rot,
+    intra: IntraFrame,
+}
+
+/// One Gauss-Newton step: the rotation's (inverse compositional) and the
+/// intra-frame motion's (additive; zero when it is not estimated).
+#[derive(Clone, Copy, Debug)]
+struct Step {
+    delta: Tangent,
+    dphi: Tangent,
+    dpsi: Tangent,
+}
+
+impl Step {
+    /// The largest angle the step moves a ray by (the intra-frame terms act
+    /// at most at `s = 1/2`).
+    fn angle(&self) -> f64 {
+        self.delta
+            .norm()
+            .max(0.5 * self.dphi.norm() + 0.25 * self.dpsi.norm())
+    }
+
+    /// `pose` moved by `scale` times this step.
+    fn apply(&self, pose: &Pose, scale: f64) -> Pose {
+        Pose {
+            r: so3::exp(&(self.delta * scale)) * pose.r,
+            intra: IntraFrame {
+                phi: pose.intra.phi + self.dphi * scale,
+                psi: pose.intra.psi + self.dpsi * scale,
+            },
+        }
+    }
 }
 
 impl Eval {
@@ -265,6 +317,66 @@ impl Eval {
             .cholesky()?
             .solve(&Vector3::new(self.g[0], self.g[1], self.g[2]));
         d.iter().all(|v| v.is_finite()).then_some(d)
+    }
+
+    /// The step of `pose`'s parameters: the rotation only, or with the
+    /// intra-frame motion (`intra`).
+    ///
+    /// With `P = R_{k,j}^T`, the residual's Jacobian at a point that landed
+    /// on readout fraction `s` is `[SD, s P SD, s^2 P SD]`: moving `phi` by
+    /// `d` turns the ray by `s d` in the current camera, which is the
+    /// template-side rotation `s R d` (to first order), so
+    /// ```text
+    /// H = [[S0, S1 P^T, S2 P^T], [., P S2 P^T, P S3 P^T], [., ., P S4 P^T]]
+    /// g = [G0, P G1, P G2]
+    /// ```
+    /// with `Sk = sum w s^k SD SD^T`, `Gk = sum w s^k SD e`.
+    fn pose_step(&self, pose: &Pose, intra: bool) -> Option<Step> {
+        if !intra {
+            return self.step().map(|delta| Step {
+                delta,
+                dphi: Tangent::zeros(),
+                dpsi: Tangent::zeros(),
+            });
+        }
+        let sym = |h: &[f64; 6]| Matrix3::new(h[0], h[1], h[2], h[1], h[3], h[4], h[2], h[4], h[5]);
+        let p = *pose.r.matrix();
+        let pt = p.transpose();
+        let s0 = sym(&self.h);
+        let [s1, s2, s3, s4] = self.hs.each_ref().map(sym);
+        let blocks = [
+            [s0, s1 * pt, s2 * pt],
+            [p * s1, p * s2 * pt, p * s3 * pt],
+            [p * s2, p * s3 * pt, p * s4 * pt],
+        ];
+        let mut h = SMatrix::<f64, 9, 9>::zeros();
+        for (a, row) in blocks.iter().enumerate() {
+            for (b, m) in row.iter().enumerate() {
+                h.fixed_view_mut::<3, 3>(3 * a, 3 * b).copy_from(m);
+            }
+        }
+        let g0 = Vector3::from(self.g);
+        let g1 = p * Vector3::from(self.gs[0]);
+        let g2 = p * Vector3::from(self.gs[1]);
+        let mut g = SVector::<f64, 9>::zeros();
+        g.fixed_rows_mut::<3>(0).copy_from(&g0);
+        g.fixed_rows_mut::<3>(3).copy_from(&g1);
+        g.fixed_rows_mut::<3>(6).copy_from(&g2);
+        // Levenberg damping, a little stronger than the rotation's: the bend
+        // of the readout path is weakly seen where texture is sparse.
+        let damp = 1e-6 * h.trace() / 9.0 + 1e-18;
+        for i in 0..9 {
+            h[(i, i)] += damp * if i < 3 { 1e-3 } else { 1.0 };
+        }
+        let d = h.cholesky()?.solve(&g);
+        if !d.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        Some(Step {
+            delta: d.fixed_rows::<3>(0).into_owned(),
+            dphi: d.fixed_rows::<3>(3).into_owned(),
+            dpsi: d.fixed_rows::<3>(6).into_owned(),
+        })
     }
 }
 
@@ -306,7 +418,49 @@ pub struct Tracker {
     typical_residual: Option<f32>,
     /// The last frame's motion during its readout.
     intra: IntraFrame,
+    /// Rolling shutter: the readout fraction of each tracked pixel.
+    rolling: Option<RowTime>,
+    /// Rolling shutter: the readout time, seconds.
+    readout_s: f64,
+    /// Rolling shutter: what the current template's readout motion is off by
+    /// (its gauge, see [`Gauge`]); subtracted from the estimates made against it.
+    gauge_tpl: IntraFrame,
+    /// Rolling shutter: the running check of the gauge.
+    gauge: Gauge,
 }
+
+/// The gauge of the readout motion.
+///
+/// Aligning frame `j` to template `k` sees the *difference* of their readout
+/// motions: if both frames turn alike during their readouts, their rows are
+/// displaced alike and the two images still differ by a pure rotation (to
+/// first order). So the estimates inherit the template's error, template after
+/// template, from the first frame's (unknown, taken as zero). What pins the
+/// absolute value down is time: the rotation across a readout is the readout
+/// time times the angular velocity, and summed over many frames the
+/// velocities at the frames' mid-readouts and the pose-to-pose rates
+/// `log(R_{j-1}^T R_j) / dt` agree (the latter sum to the net rotation; the
+/// former sample the same motion), up to a bounded difference. So over a
+/// block of `K` frames
+/// ```text
+/// c_phi = mean_j (phi_j - tau omega_j),     c_psi = mean_j psi_j
+/// ```
+/// is the gauge error (to `tau |theta| / (K dt)`: 0.02 deg for 15 ms, 1.5 deg
+/// of shake and a 1 s block), and is removed. Blocks start short
+/// ([`GAUGE_FIRST_BLOCK`] frames) so the first frames' error goes early, and
+/// double up to [`GAUGE_BLOCK`].
+#[derive(Clone, Copy, Debug, Default)]
+struct Gauge {
+    sum_phi: Tangent,
+    sum_psi: Tangent,
+    count: usize,
+    block: usize,
+}
+
+/// First block of the gauge check, frames.
+const GAUGE_FIRST_BLOCK: usize = 8;
+/// Longest block of the gauge check, frames.
+const GAUGE_BLOCK: usize = 64;
 
 impl Tracker {
     /// A tracker for frames of `camera` (a pinhole: undistort first).
@@ -335,6 +489,10 @@ impl Tracker {
             static_votes: vec![0.0; camera.width * camera.height],
             typical_residual: None,
             intra: IntraFrame::ZERO,
+            rolling: None,
+            readout_s: 0.0,
+            gauge_tpl: IntraFrame::ZERO,
+            gauge: Gauge::default(),
             params,
         })
     }
@@ -354,6 +512,15 @@ impl Tracker {
         &self.params
     }
 
+    /// Turns the rolling-shutter model on: `rows` gives the readout fraction
+    /// of each pixel of the tracked images. Each frame's motion during its
+    /// readout is then estimated with its rotation ([`Tracker::intra`]).
+    /// Set it before the first frame.
+    pub fn set_rolling(&mut self, rows: RowTime, readout_s: f64) {
+        self.rolling = Some(rows);
+        self.readout_s = readout_s;
+    }
+
     /// The last tracked frame's motion during its readout (zero with a
     /// global shutter).
     pub fn intra(&self) -> IntraFrame {
@@ -365,7 +532,7 @@ impl Tracker {
     pub fn track(&mut self, pyr: &Pyramid, t: f64) -> (Rot, TrackInfo) {
         let Some((t_prev, r_prev)) = self.last else {
             // First frame: it is the reference orientation and the first template.
-            self.set_template(pyr);
+self.set_template(pyr);
             self.r_0k = Rot::identity();
             self.r_kj = Rot::identity();
             self.last = Some((t, Rot::identity()));
@@ -380,17 +547,23 @@ impl Tracker {
 
         // Warm-start candidates, as rotations relative to the template.
         // At most three candidates; a fixed array keeps `track` allocation-free.
-        let mut candidates = [self.r_kj, Rot::identity(), Rot::identity()];
+        // With a rolling shutter each starts from the last frame's readout motion.
+        let intra = IntraFrame {
+            phi: self.intra.phi + self.gauge_tpl.phi,
+            psi: self.intra.psi + self.gauge_tpl.psi,
+        };
+        let pose = |r| Pose { r, intra };
+        let mut candidates = [pose(self.r_kj), pose(Rot::identity()), pose(Rot::identity())];
         let mut n_cand = 1;
         if self.params.predict && dt.is_finite() && dt > 0.0 {
             let predicted = r_prev * so3::exp(&(self.rate * dt));
-            candidates[n_cand] = self.r_0k.transpose() * predicted;
+            candidates[n_cand] = pose(self.r_0k.transpose() * predicted);
             n_cand += 1;
         }
-        candidates[n_cand] = Rot::identity();
+        candidates[n_cand] = pose(Rot::identity());
         n_cand += 1;
         let coarsest = self.n_levels - 1;
-        let mut r = candidates[0];
+        let mut start = candidates[0];
         let mut best = f64::INFINITY;
         for c in &candidates[..n_cand] {
             let e = self
@@ -398,19 +571,19 @@ impl Tracker {
                 .mean_loss();
             if e < best {
                 best = e;
-                r = *c;
+                start = *c;
             }
         }
 
-        let (mut r, mut info) = self.coarse_to_fine(pyr, r);
+        let (mut pose, mut info) = self.coarse_to_fine(pyr, start);
         let suspect = |info: &TrackInfo, typical: Option<f32>| {
             let limit = typical.map_or(f32::INFINITY, |t| (SUSPECT_RATIO * t).max(SUSPECT_FLOOR));
             !(info.rms_residual <= limit)
         };
         if suspect(&info, self.typical_residual) {
-            let (r2, info2) = self.recover(pyr, r);
+            let (p2, info2) = self.recover(pyr, pose);
             if info2.rms_residual < info.rms_residual {
-                r = r2;
+                pose = p2;
                 info = TrackInfo {
                     iterations: info.iterations + info2.iterations,
                     ..info2
@@ -422,7 +595,11 @@ impl Tracker {
             let t = self.typical_residual.get_or_insert(info.rms_residual);
             *t += 0.1 * (info.rms_residual - *t);
         }
-        self.r_kj = so3::renormalize(&r);
+        self.r_kj = so3::renormalize(&pose.r);
+        self.intra = IntraFrame {
+            phi: pose.intra.phi - self.gauge_tpl.phi,
+            psi: pose.intra.psi - self.gauge_tpl.psi,
+        };
         if self.params.reject_static && !info.lost {
             let r_kj = self.r_kj;
             self.vote_static(&pyr.levels[0], &r_kj);
@@ -430,6 +607,9 @@ impl Tracker {
         let r_0j = so3::renormalize(&(self.r_0k * self.r_kj));
         if dt.is_finite() && dt > 0.0 {
             self.rate = so3::body_rate(&r_prev, &r_0j, dt);
+            if self.rolling.is_some() && good {
+                self.check_gauge();
+            }
         }
         self.last = Some((t, r_0j));
 
@@ -444,12 +624,36 @@ impl Tracker {
         (r_0j, info)
     }
 
-    /// Runs all levels from `r`, returning the estimate and its quality.
-    fn coarse_to_fine(&self, pyr: &Pyramid, mut r: Rot) -> (Rot, TrackInfo) {
+    /// Adds the last frame to the gauge check; at the end of a block, removes
+    /// the gauge error from this frame's readout motion and from every later
+    /// estimate against the current template (see [`Gauge`]).
+    fn check_gauge(&mut self) {
+        let g = &mut self.gauge;
+        g.sum_phi += self.intra.phi - self.rate * self.readout_s;
+        g.sum_psi += self.intra.psi;
+        g.count += 1;
+        if g.count < g.block.max(GAUGE_FIRST_BLOCK) {
+            return;
+        }
+        let n = g.count as f64;
+        let c = IntraFrame {
+            phi: g.sum_phi / n,
+            psi: g.sum_psi / n,
+        };
+        g.block = (g.count * 2).min(GAUGE_BLOCK);
+        (g.sum_phi, g.sum_psi, g.count) = (Tangent::zeros(), Tangent::zeros(), 0);
+        self.intra.phi -= c.phi;
+        self.intra.psi -= c.psi;
+        self.gauge_tpl.phi += c.phi;
+        self.gauge_tpl.psi += c.psi;
+    }
+
+    /// Runs all levels from `pose`, returning the estimate and its quality.
+    fn coarse_to_fine(&self, pyr: &Pyramid, mut pose: Pose) -> (Pose, TrackInfo) {
         let mut info = TrackInfo::default();
         for level in (0..self.n_levels).rev() {
-            let (r_new, final_eval, iters) = self.refine(level, &pyr.levels[level], r);
-            r = r_new;
+            let (p_new, final_eval, iters) = self.refine(level, &pyr.levels[level], pose);
+            pose = p_new;
             info.iterations += iters;
             if level == 0 {
                 let n_tpl = self.template[0].xs.len().max(1) as f32;
@@ -462,12 +666,12 @@ impl Tracker {
                 info.lost = info.valid_fraction < MIN_VALID_SHARE;
             }
         }
-        (r, info)
+        (pose, info)
     }
 
     /// Recovery from a wrong minimum: scores a pan/tilt grid around `center` at
     /// the coarsest level and refines the best point at all levels.
-    fn recover(&self, pyr: &Pyramid, center: Rot) -> (Rot, TrackInfo) {
+    fn recover(&self, pyr: &Pyramid, center: Pose) -> (Pose, TrackInfo) {
         let coarsest = self.n_levels - 1;
         let img = &pyr.levels[coarsest];
         let f = self.template[coarsest].k.map_or(1.0, |k| k.fx.max(k.fy)) as f64;
@@ -477,7 +681,10 @@ impl Tracker {
         for i in -RECOVERY_RADIUS..=RECOVERY_RADIUS {
             for j in -RECOVERY_RADIUS..=RECOVERY_RADIUS {
                 // Offsets about the template camera's y (pan) and x (tilt) axes.
-                let cand = so3::exp(&Tangent::new(j as f64 * step, i as f64 * step, 0.0)) * center;
+                let cand = Pose {
+                    r: so3::exp(&Tangent::new(j as f64 * step, i as f64 * step, 0.0)) * center.r,
+                    intra: center.intra,
+                };
                 let e = self.evaluate(coarsest, img, &cand);
                 if e.n > min_valid && e.mean_loss() < best.0 {
                     best = (e.mean_loss(), cand);
@@ -535,11 +742,14 @@ impl Tracker {
     ///
     /// A step shorter than the level's convergence threshold ends the level
     /// without being tried: near the optimum such steps are noise, and testing
-    /// them (with halvings) would cost full passes for nothing.
-    fn refine(&self, level: usize, img: &GrayImage, mut r: Rot) -> (Rot, Eval, u32) {
+    /// them (with halvings) would cost full passes for nothing. With a rolling
+    /// shutter the readout motion is estimated on the finest
+    /// [`INTRA_LEVELS`] levels (coarser ones have too few rows to see it).
+    fn refine(&self, level: usize, img: &GrayImage, mut pose: Pose) -> (Pose, Eval, u32) {
         let tpl = &self.template[level];
         let min_valid = ((tpl.xs.len() as f32) * MIN_VALID_SHARE).max(8.0) as u32;
         let f_level = tpl.k.map_or(1.0, |k| k.fx.max(k.fy)) as f64;
+        let intra = self.rolling.is_some() && level < INTRA_LEVELS;
         // Coarse levels only need to land inside the next level's basin.
         let tol = self.params.convergence_px
             * if level == 0 {
@@ -547,14 +757,16 @@ impl Tracker {
             } else {
                 COARSE_TOLERANCE_FACTOR
             };
-        let mut cur = self.evaluate(level, img, &r);
+        let mut cur = self.evaluate(level, img, &pose);
         let mut iters = 0;
         for _ in 0..self.params.max_iterations {
             if cur.n < min_valid {
                 break;
             }
-            let Some(delta) = cur.step() else { break };
-            let step_px = delta.norm() * f_level;
+            let Some(step) = cur.pose_step(&pose, intra) else {
+                break;
+            };
+            let step_px = step.angle() * f_level;
             if step_px < tol {
                 break;
             }
@@ -562,10 +774,10 @@ impl Tracker {
             let mut s = 1.0;
             let mut accepted = false;
             for _ in 0..MAX_BACKTRACK {
-                let cand = so3::exp(&(delta * s)) * r;
+                let cand = step.apply(&pose, s);
                 let e = self.evaluate(level, img, &cand);
                 if e.n >= min_valid && e.mean_loss() <= cur.mean_loss() {
-                    r = cand;
+                    pose = cand;
                     cur = e;
                     accepted = true;
                     break;
@@ -579,12 +791,21 @@ impl Tracker {
                 break;
             }
         }
-        (r, cur, iters)
+        (pose, cur, iters)
+    }
+
+    /// One pass over a level's template pixels at `pose`, with the global-
+    /// or the rolling-shutter model.
+    fn evaluate(&self, level: usize, img: &GrayImage, pose: &Pose) -> Eval {
+        match &self.rolling {
+            None => self.evaluate_global(level, img, &pose.r),
+            Some(rows) => self.evaluate_rolling(level, img, pose, rows),
+        }
     }
 
     /// One pass over a level's template pixels at rotation `r = R_{k,j}`:
     /// robust loss, and the IRLS-weighted Gauss-Newton system.
-    fn evaluate(&self, level: usize, img: &GrayImage, r: &Rot) -> Eval {
+    fn evaluate_global(&self, level: usize, img: &GrayImage, r: &Rot) -> Eval {
         let tpl = &self.template[level];
         let Some(k) = tpl.k else {
             return Eval::default();
@@ -595,9 +816,7 @@ impl Tracker {
             return Eval::default();
         }
         let (k_fx, k_fy, k_skew, k_cx, k_cy) = (k.fx, k.fy, k.skew, k.cx, k.cy);
-        let (umax, vmax) = ((w - 1) as f32, (h - 1) as f32);
         let c = self.params.huber_delta as f32;
-        let data = &img.data[..];
         let mut ev = Eval::default();
         let (mut pu, mut pv, mut pe) = ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
         let m = [
@@ -629,48 +848,14 @@ impl Tracker {
                 pv[k] = k_fy * yn + k_cy;
             }
             // Pass 2 (gathers): bilinear residuals, NaN where invalid.
-            let tv = &tpl.tv[lo..hi];
-            for k in 0..len {
-                let (u, v) = (pu[k], pv[k]);
-                pe[k] = if u >= 0.0 && v >= 0.0 && u < umax && v < vmax {
-                    let (x0, y0) = (u as usize, v as usize);
-                    let (ax, ay) = (u - x0 as f32, v - y0 as f32);
-                    let idx = y0 * w + x0;
-                    match (data.get(idx..idx + 2), data.get(idx + w..idx + w + 2)) {
-                        (Some(t), Some(b)) => {
-                            let top = t[0] + (t[1] - t[0]) * ax;
-                            let bot = b[0] + (b[1] - b[0]) * ax;
-                            top + (bot - top) * ay - tv[k]
-                        }
-                        _ => f32::NAN,
-                    }
-                } else {
-                    f32::NAN
-                };
-            }
+            residuals(img, &pu[..len], &pv[..len], &tpl.tv[lo..hi], &mut pe[..len]);
             // Pass 3 (branch-free, vectorizes): Huber loss and IRLS sums.
             let sd = &tpl.sd[lo..hi];
             let (mut loss, mut sq, mut n) = (0f32, 0f32, 0f32);
             let mut g = [0f32; 3];
             let mut hh = [0f32; 6];
             for k in 0..len {
-                let e = pe[k];
-                let valid = e.is_finite();
-                let e = if valid { e } else { 0.0 };
-                let ae = e.abs();
-                let inlier = ae <= c;
-                let rho = if inlier {
-                    0.5 * e * e
-                } else {
-                    c * (ae - 0.5 * c)
-                };
-                let wt = if !valid {
-                    0.0
-                } else if inlier {
-                    1.0
-                } else {
-                    c / ae
-                };
+                let (valid, e, rho, wt) = huber(pe[k], c);
                 loss += rho;
                 sq += e * e;
                 n += if valid { 1.0 } else { 0.0 };
@@ -701,9 +886,137 @@ impl Tracker {
         ev
     }
 
+    /// [`Tracker::evaluate_global`] through a rolling shutter: each template
+    /// ray (rectified into the template's mid-readout camera) is projected
+    /// into the current frame at the time of the row it lands on (fixed-point
+    /// steps from the mid-readout guess, [`crate::shutter::project_rolling`]),
+    /// and the sums carry that row's readout fraction for the intra-frame
+    /// terms of [`Eval::pose_step`].
+    ///
+    /// The readout rotation `exp(-a)`, `a = s phi + s^2 psi`, is applied to
+    /// third order, `z + b x z + (b x (b x z)) / 2 + (b x (b x (b x z))) / 6`
+    /// with `b = -a`: its error `|a|^4 / 24` is 3e-7 rad for a 6 deg turn
+    /// across the readout (300 deg/s over 20 ms).
+    fn evaluate_rolling(&self, level: usize, img: &GrayImage, pose: &Pose, rows: &RowTime) -> Eval {
+        let tpl = &self.template[level];
+        let Some(k) = tpl.k else {
+            return Eval::default();
+        };
+        let (w, h) = (img.width, img.height);
+        if w < 2 || h < 2 || tpl.zs.len() != tpl.xs.len() {
+            return Eval::default();
+        }
+        let mm = pose.r.matrix().transpose().map(|v| v as f32);
+        let m: [f32; 9] = std::array::from_fn(|i| mm[(i / 3, i % 3)]);
+        let phi = pose.intra.phi.map(|v| v as f32);
+        let psi = pose.intra.psi.map(|v| v as f32);
+        let c = self.params.huber_delta as f32;
+        let project = |x: f32, y: f32, z: f32| {
+            let iz = if z > 1e-6 { 1.0 / z } else { -1e9 };
+            let (xn, yn) = (x * iz, y * iz);
+            (k.fx * xn + k.skew * yn + k.cx, k.fy * yn + k.cy)
+        };
+        let cross = |a: [f32; 3], b: [f32; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
+        let mut ev = Eval::default();
+        let (mut pu, mut pv, mut pe, mut ps) =
+            ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
+        let n_pts = tpl.xs.len();
+        let mut lo = 0;
+        while lo < n_pts {
+            let hi = (lo + CHUNK).min(n_pts);
+            let len = hi - lo;
+            // Pass 1: project at the mid-readout pose, then at the time of the
+            // row the point lands on.
+            for q in 0..len {
+                let (x, y, z) = (tpl.xs[lo + q], tpl.ys[lo + q], tpl.zs[lo + q]);
+                let r = [
+                    m[0] * x + m[1] * y + m[2] * z,
+                    m[3] * x + m[4] * y + m[5] * z,
+                    m[6] * x + m[7] * y + m[8] * z,
+                ];
+                let (mut u, mut v) = project(r[0], r[1], r[2]);
+                let mut s = 0.0;
+                for _ in 0..TRACK_FIXED_POINT_STEPS {
+                    s = rows.at(level, u, v);
+                    let s2 = s * s;
+                    let b = [
+                        -(s * phi[0] + s2 * psi[0]),
+                        -(s * phi[1] + s2 * psi[1]),
+                        -(s * phi[2] + s2 * psi[2]),
+                    ];
+                    let b1 = cross(b, r);
+                    let b2 = cross(b, b1);
+                    let b3 = cross(b, b2);
+                    (u, v) = project(
+                        r[0] + b1[0] + 0.5 * b2[0] + b3[0] / 6.0,
+                        r[1] + b1[1] + 0.5 * b2[1] + b3[1] / 6.0,
+                        r[2] + b1[2] + 0.5 * b2[2] + b3[2] / 6.0,
+                    );
+                }
+                pu[q] = u;
+                pv[q] = v;
+                ps[q] = s;
+            }
+            // Pass 2 (gathers): bilinear residuals, NaN where invalid.
+            residuals(img, &pu[..len], &pv[..len], &tpl.tv[lo..hi], &mut pe[..len]);
+            // Pass 3: Huber loss and IRLS sums with the rows' readout fractions.
+            let sd = &tpl.sd[lo..hi];
+            let (mut loss, mut sq, mut n) = (0f32, 0f32, 0f32);
+            let mut g = [[0f32; 3]; 3];
+            let mut hh = [[0f32; 6]; 5];
+            for q in 0..len {
+                let s = ps[q];
+                let (valid, e, rho, wt) = huber(if s.is_finite() { pe[q] } else { f32::NAN }, c);
+                let s = if valid { s } else { 0.0 };
+                loss += rho;
+                sq += e * e;
+                n += if valid { 1.0 } else { 0.0 };
+                let [s0, s1, s2] = sd[q];
+                let we = wt * e;
+                let pow = [1.0, s, s * s, s * s * s, s * s * s * s];
+                for (gk, p) in g.iter_mut().zip(pow) {
+                    gk[0] += s0 * we * p;
+                    gk[1] += s1 * we * p;
+                    gk[2] += s2 * we * p;
+                }
+                let (w0, w1, w2) = (wt * s0, wt * s1, wt * s2);
+                let outer = [w0 * s0, w0 * s1, w0 * s2, w1 * s1, w1 * s2, w2 * s2];
+                for (hk, p) in hh.iter_mut().zip(pow) {
+                    for a in 0..6 {
+                        hk[a] += outer[a] * p;
+                    }
+                }
+            }
+            ev.loss += loss as f64;
+            ev.sq += sq as f64;
+            ev.n += n as u32;
+            for a in 0..3 {
+                ev.g[a] += g[0][a] as f64;
+                ev.gs[0][a] += g[1][a] as f64;
+                ev.gs[1][a] += g[2][a] as f64;
+            }
+            for a in 0..6 {
+                ev.h[a] += hh[0][a] as f64;
+                for kk in 0..4 {
+                    ev.hs[kk][a] += hh[kk + 1][a] as f64;
+                }
+            }
+            lo = hi;
+        }
+        ev
+    }
+
     /// Makes `pyr` the template: selects pixels and precomputes steepest descent.
     fn set_template(&mut self, pyr: &Pyramid) {
         self.frames_since_reset = 0;
+        // The new template is rectified with the gauge-corrected motion.
+        self.gauge_tpl = IntraFrame::ZERO;
         let mut k = self.base;
         let votes = if self.params.reject_static {
             Some((&self.static_votes[..], self.width))
@@ -720,9 +1033,86 @@ impl Tracker {
                 votes.map(|(v, w)| (v, w, level)),
                 &mut self.template[level],
             );
+            if let Some(rows) = &self.rolling {
+                rectify_template(&mut self.template[level], rows, level, &self.intra);
+            }
             k = k.halved();
         }
     }
+}
+
+/// Rolling shutter: turns each template ray into the template frame's
+/// mid-readout camera, `y = exp(a(s)) x` for the readout fraction `s` of its
+/// row (`a(s) = s phi + s^2 psi` of the template frame), in `xs, ys, zs`.
+fn rectify_template(tpl: &mut LevelTemplate, rows: &RowTime, level: usize, intra: &IntraFrame) {
+    tpl.zs.clear();
+    let Some(k) = tpl.k else { return };
+    for i in 0..tpl.xs.len() {
+        let (x, y) = (tpl.xs[i] as f64, tpl.ys[i] as f64);
+        let (u, v) = (
+            (k.fx * tpl.xs[i] + k.skew * tpl.ys[i] + k.cx),
+            (k.fy * tpl.ys[i] + k.cy),
+        );
+        let s = rows.at(level, u, v) as f64;
+        let ray = if s.is_finite() {
+            intra.rotation_at(s) * Vector3::new(x, y, 1.0)
+        } else {
+            Vector3::new(x, y, 1.0)
+        };
+        tpl.xs[i] = ray.x as f32;
+        tpl.ys[i] = ray.y as f32;
+        tpl.zs.push(ray.z as f32);
+    }
+}
+
+/// Bilinear residuals `I(u, v) - T` of points at `(pu, pv)` (NaN outside the
+/// image or on invalid pixels) into `pe`.
+#[inline]
+fn residuals(img: &GrayImage, pu: &[f32], pv: &[f32], tv: &[f32], pe: &mut [f32]) {
+    let w = img.width;
+    let (umax, vmax) = ((w - 1) as f32, (img.height - 1) as f32);
+    let data = &img.data[..];
+    for k in 0..pe.len() {
+        let (u, v) = (pu[k], pv[k]);
+        pe[k] = if u >= 0.0 && v >= 0.0 && u < umax && v < vmax {
+            let (x0, y0) = (u as usize, v as usize);
+            let (ax, ay) = (u - x0 as f32, v - y0 as f32);
+            let idx = y0 * w + x0;
+            match (data.get(idx..idx + 2), data.get(idx + w..idx + w + 2)) {
+                (Some(t), Some(b)) => {
+                    let top = t[0] + (t[1] - t[0]) * ax;
+                    let bot = b[0] + (b[1] - b[0]) * ax;
+                    top + (bot - top) * ay - tv[k]
+                }
+                _ => f32::NAN,
+            }
+        } else {
+            f32::NAN
+        };
+    }
+}
+
+/// Huber loss of residual `e` (NaN: invalid) with threshold `c`: whether it
+/// is valid, the residual (0 when not), the loss and the IRLS weight.
+#[inline]
+fn huber(e: f32, c: f32) -> (bool, f32, f32, f32) {
+    let valid = e.is_finite();
+    let e = if valid { e } else { 0.0 };
+    let ae = e.abs();
+    let inlier = ae <= c;
+    let rho = if inlier {
+        0.5 * e * e
+    } else {
+        c * (ae - 0.5 * c)
+    };
+    let wt = if !valid {
+        0.0
+    } else if inlier {
+        1.0
+    } else {
+        c / ae
+    };
+    (valid, e, rho, wt)
 }
 
 /// True when level pixel `(u, v)` lies on a camera-fixed location (votes are
@@ -753,6 +1143,7 @@ fn build_level_template(
     tpl.loc.clear();
     tpl.xs.clear();
     tpl.ys.clear();
+    tpl.zs.clear();
     tpl.tv.clear();
     tpl.sd.clear();
     let (w, h) = (img.width, img.height);

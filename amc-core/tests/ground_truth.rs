@@ -137,7 +137,8 @@ fn stabilize(
         ..ShakeParams::default()
     })
     .expect("valid shake");
-    let telemetry = stabilize_motion(case, pano_full, params, &|t| shake.orientation_at(t));
+    let readout_s = params.shutter.readout_s();
+    let telemetry = stabilize_motion_rolling(case, pano_full, params, &|t| shake.orientation_at(t), readout_s);
     (telemetry, shake)
 }
 
@@ -148,6 +149,18 @@ fn stabilize_motion(
     pano_full: &Frame,
     params: StabilizerParams,
     motion: &dyn Fn(f64) -> Rot,
+) -> Vec<amc_core::Telemetry> {
+    stabilize_motion_rolling(case, pano_full, params, motion, 0.0)
+}
+
+/// [`stabilize_motion`] filmed through a rolling shutter read out in
+/// `readout_s` seconds (row `v` at `t + readout_s (v / H - 1/2)`).
+fn stabilize_motion_rolling(
+    case: &Case,
+    pano_full: &Frame,
+    params: StabilizerParams,
+    motion: &dyn Fn(f64) -> Rot,
+    readout_s: f64,
 ) -> Vec<amc_core::Telemetry> {
     let cam = &case.camera;
     let pano = downsample_pano(
@@ -168,8 +181,13 @@ fn stabilize_motion(
     let mut planar = Frame::new(cam.width, cam.height, PixelFormat::Yuv420p);
     for j in 0..n {
         let t = j as f64 / FPS;
+        let h = cam.height as f64;
         renderer
-            .render_into(&pano.as_ref(), &motion(t), &mut frame)
+            .render_rolling_into(
+                &pano.as_ref(),
+                &|f| motion(t + readout_s * (f * (h - 1.0) / h - 0.5)),
+                &mut frame,
+            )
             .expect("frame renders");
         let pushed = if case.format == PixelFormat::Yuv420p {
             let (w, h) = (cam.width, cam.height);
@@ -192,7 +210,11 @@ fn stabilize_motion(
 }
 
 fn run(case: &Case, pano_full: &Frame) -> Errors {
-    let (telemetry, shake) = stabilize(case, pano_full, StabilizerParams::default());
+    run_with(case, pano_full, StabilizerParams::default())
+}
+
+fn run_with(case: &Case, pano_full: &Frame, params: StabilizerParams) -> Errors {
+    let (telemetry, shake) = stabilize(case, pano_full, params);
     let n = telemetry.len();
     let est: Vec<Rot> = telemetry
         .iter()
@@ -610,4 +632,72 @@ fn lock_holds_every_axis_within_the_budget() {
     eprintln!("lock: view turns {view_motion:.4} deg/frame RMS, camera {cam_motion:.4}");
     assert!(tel.iter().all(|t| t.uncovered == 0), "a border showed");
     assert!(view_motion < 0.3 * cam_motion);
+}
+
+/// Rolling shutter (experiment).
+#[test]
+fn rolling_shutter_experiment() {
+    let (w, h) = SIZE;
+    let pano = panorama();
+    let cam = CameraModel::pinhole_hfov(w, h, 90.0).unwrap();
+    let spec: Vec<(f64, f64, bool)> = std::env::var("RS_CASES")
+        .unwrap_or("100,15,1;100,15,0;100,0,0".into())
+        .split(';')
+        .map(|c| {
+            let v: Vec<f64> = c.split(',').map(|x| x.parse().unwrap()).collect();
+            (v[0], v[1], v[2] != 0.0)
+        })
+        .collect();
+    for (dps, ms, model) in spec {
+        let case = Case {
+            name: "rs",
+            camera: cam.clone(),
+            shake_dps: dps,
+            seed: 1,
+            format: PixelFormat::Rgb8,
+            max_median_frame_deg: 0.0,
+            max_final_deg: 0.0,
+            max_orientation_deg: 0.0,
+        };
+        let mut params = StabilizerParams::default();
+        params.view.mode = amc_core::Mode::None;
+        if model {
+            params.shutter.readout_ms = ms;
+        }
+        let shake = Shake::new(&ShakeParams {
+            shake_dps: dps,
+            band_hz: (12.0, 20.0),
+            seed: 1,
+            ..ShakeParams::default()
+        })
+        .unwrap();
+        let tel = stabilize_motion_rolling(&case, &pano, params, &|t| shake.orientation_at(t), ms / 1000.0);
+        let n = tel.len();
+        let est: Vec<Rot> = tel.iter().map(|t| so3::exp(&Tangent::from(t.r_est))).collect();
+        let gt: Vec<Rot> = (0..n).map(|j| shake.orientation_at(j as f64 / FPS)).collect();
+        let mut fe: Vec<f64> = (1..n)
+            .map(|j| so3::angle_between(&(gt[j - 1].transpose() * gt[j]), &(est[j - 1].transpose() * est[j])).to_degrees())
+            .collect();
+        fe.sort_by(f64::total_cmp);
+        let fin = so3::angle_between(&gt[n - 1], &est[n - 1]).to_degrees();
+        // intra-frame truth: phi = log(R(t-τ/2)^T R(t+τ/2)) approx
+        let tau = ms / 1000.0;
+        let mut phi_err = Vec::new();
+        for j in 0..n {
+            let t = j as f64 / FPS;
+            let mid = shake.orientation_at(t);
+            let a = so3::log(&(mid.transpose() * shake.orientation_at(t + tau / 2.0)));
+            let b = so3::log(&(mid.transpose() * shake.orientation_at(t - tau / 2.0)));
+            let phi_gt = a - b;
+            let phi = Tangent::from(tel[j].readout_rotation);
+            phi_err.push(((phi - phi_gt).norm().to_degrees(), phi_gt.norm().to_degrees()));
+            if (j % 20 == 7 || j <= 1) && std::env::var("RS_DEBUG").is_ok() {
+                eprintln!("j {j}: phi est {:?} gt {:?}", phi.map(f64::to_degrees).as_slice(), phi_gt.map(f64::to_degrees).as_slice());
+            }
+        }
+        let mpe = phi_err.iter().map(|p| p.0).sum::<f64>() / phi_err.len() as f64;
+        let mpg = phi_err.iter().map(|p| p.1).sum::<f64>() / phi_err.len() as f64;
+        let fit = amc_core::shutter::fit_readout(&tel).unwrap();
+        eprintln!("dps {dps} readout {ms} model {model}: median frame err {:.5} deg, p90 {:.5}, final {:.4} deg; phi err mean {mpe:.4} of {mpg:.4} deg; fit {:?}", fe[fe.len()/2], fe[fe.len()*9/10], fin, fit);
+    }
 }

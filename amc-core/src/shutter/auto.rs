@@ -204,8 +204,8 @@ pub fn fit_readout(telemetry: &[Telemetry]) -> Result<ReadoutEstimate, AmcError>
             .sum()
     };
     // x = tau / (2 dt): grid over the frame period, then golden section.
-    let steps = 200;
-    let x_max = 0.5;
+    let steps = 400;
+    let x_max = 1.0;
     let (mut best_x, mut best) = (0.0, sse(0.0));
     for i in 1..=steps {
         let x = x_max * i as f64 / steps as f64;

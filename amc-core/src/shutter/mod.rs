@@ -30,6 +30,7 @@ mod auto;
 mod motion;
 mod params;
 mod project;
+mod row_time;
 #[cfg(test)]
 mod tests;
 
@@ -37,3 +38,4 @@ pub use auto::{fit_readout, ReadoutEstimate, ReadoutEstimator, READOUT_FRAMES};
 pub use motion::{row_fraction, IntraFrame};
 pub use params::{ShutterParams, MAX_READOUT_MS};
 pub use project::{project_rolling, FIXED_POINT_STEPS};
+pub use row_time::RowTime;
