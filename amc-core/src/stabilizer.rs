@@ -20,7 +20,7 @@ use crate::framing::{
 use crate::frontend::TrackingFrontend;
 use crate::image::{Frame, FrameRef, PixelFormat};
 use crate::pyramid::Pyramid;
-use crate::shutter::{IntraFrame, RowTime, ShutterParams};
+use crate::shutter::{IntraFrame, RollingProjector, RowTime, ShutterParams};
 use crate::render::{chroma_camera, Accumulator, RenderParams, WarpedFrame, Warper};
 use crate::so3::{self, Rot};
 use crate::tracker::{TrackInfo, Tracker, TrackerParams};
@@ -107,8 +107,9 @@ pub struct Telemetry {
     /// `auto` or `static`); for planar frames, luma pixels.
     pub uncovered: u64,
     /// Rotation vector (radians, this frame's camera axes) of the camera's
-    /// rotation across its readout, `phi` of [`IntraFrame`]: the readout time
-    /// times the angular velocity at mid-readout. Zero with a global shutter.
+    /// rotation across its readout, first row to last (`a(1/2) - a(-1/2)` of
+    /// [`IntraFrame`]; about the readout time times the angular velocity at
+    /// mid-readout). Zero with a global shutter.
     pub readout_rotation: [f64; 3],
     /// Tracking quality.
     pub track: TrackInfo,
@@ -121,6 +122,8 @@ struct Buffered {
     r_est: Rot,
     /// Its motion during the readout (zero with a global shutter).
     intra: IntraFrame,
+    /// Its rows' readout rotations, tabulated (empty with a global shutter).
+    rows: RollingProjector,
     info: TrackInfo,
     /// Forward-filtered view at this frame.
     view_fwd: Rot,
@@ -173,6 +176,10 @@ struct Rendering {
     border: Border,
     /// Orientations of the averaged frames (reused).
     window_rots: Vec<Rot>,
+    /// Their rows' readout rotations (reused; empty with a global shutter).
+    window_rows: Vec<RollingProjector>,
+    /// Their readout motions (reused).
+    window_intra: Vec<IntraFrame>,
     /// Rotations of the framing's coverage test (reused).
     need_rots: Vec<nalgebra::Matrix3<f64>>,
     /// Whether pixels are rendered (off: views and zoom needs only).
@@ -194,7 +201,8 @@ pub struct Stabilizer {
     tracking: Tracking,
     rendering: Rendering,
     ring: VecDeque<Buffered>,
-    spare: Vec<Frame>,
+    /// Buffers of frames that left the ring, for reuse.
+    spare: Vec<(Frame, RollingProjector)>,
     view_fwd: Rot,
     received: u64,
     last_t: Option<f64>,
@@ -266,7 +274,7 @@ impl Stabilizer {
         let camera_zoom = if identity {
             1.0
         } else {
-            needed_zoom(&cam, &border, &[nalgebra::Matrix3::identity()])
+            needed_zoom(&cam, &border, &[nalgebra::Matrix3::identity()], &[])
         };
         let warper = Warper::new(&cam, &out_cam);
         let chroma = Warper::new(&chroma_camera(&cam), &chroma_camera(&out_cam));
@@ -298,6 +306,8 @@ impl Stabilizer {
                 framer,
                 border,
                 window_rots: Vec::new(),
+                window_rows: Vec::new(),
+                window_intra: Vec::new(),
                 need_rots: Vec::new(),
                 render: true,
                 locked_view: None,
@@ -476,13 +486,14 @@ impl Stabilizer {
         let capacity = self.params.render.n_avg + self.params.view.lookahead;
         if self.ring.len() >= capacity {
             if let Some(old) = self.ring.pop_front() {
-                self.spare.push(old.frame);
+                self.spare.push((old.frame, old.rows));
             }
         }
-        let mut buf = self
+        let (mut buf, mut rows) = self
             .spare
             .pop()
-            .unwrap_or_else(|| Frame::new(0, 0, frame.format));
+            .unwrap_or_else(|| (Frame::new(0, 0, frame.format), RollingProjector::default()));
+        rows.set(&intra, self.height);
         buf.copy_from(&frame);
         // Tail padding for the vectorized sampler's dword gathers.
         buf.data
@@ -493,6 +504,7 @@ impl Stabilizer {
             t,
             r_est,
             intra,
+            rows,
             info,
             view_fwd: self.view_fwd,
         });
@@ -561,6 +573,16 @@ impl Rendering {
         self.window_rots.clear();
         self.window_rots
             .extend(ring.range(first..=pos).map(|b| b.r_est));
+        self.window_intra.clear();
+        self.window_intra
+            .extend(ring.range(first..=pos).map(|b| b.intra));
+        if params.shutter.is_rolling() {
+            let n = pos + 1 - first;
+            self.window_rows.resize_with(n, RollingProjector::default);
+            for (dst, b) in self.window_rows.iter_mut().zip(ring.range(first..=pos)) {
+                dst.clone_from(&b.rows);
+            }
+        }
         let mut r_view = match mode {
             Mode::None => r_est,
             Mode::Stabilize => {
@@ -597,6 +619,7 @@ impl Rendering {
                         &self.src_cam,
                         &self.border,
                         &self.window_rots,
+                        &self.window_rows,
                         &r_view,
                         &r_est,
                         z,
@@ -649,6 +672,8 @@ impl Rendering {
                 ring.range(first..=pos)
                     .map(|b| b.r_est.matrix().transpose() * r_view.matrix() * zinv),
             );
+            self.warper.set_readout_motion(&self.window_intra);
+            self.chroma.set_readout_motion(&self.window_intra);
             valid_fraction = if format.is_planar() {
                 // One geometry, three planes: Y through the luma cameras, U and V
                 // through the chroma cameras, all with the same rotations.
@@ -722,7 +747,7 @@ impl Rendering {
                 1.0 / (1.0 - 2.0 * params.render.margin)
             },
             uncovered,
-            readout_rotation: cur.intra.phi.into(),
+            readout_rotation: (cur.intra.at(0.5) - cur.intra.at(-0.5)).into(),
             track: info,
         }
     }
@@ -734,6 +759,7 @@ impl Rendering {
             &self.src_cam,
             &self.border,
             &self.window_rots,
+            &self.window_rows,
             view,
             &mut self.need_rots,
         )
@@ -793,6 +819,9 @@ impl Rendering {
                 continue;
             }
             let m = b.r_est.matrix().transpose() * view.matrix() * zinv;
+            let intra = std::slice::from_ref(&b.intra);
+            self.warper.set_readout_motion(intra);
+            self.chroma.set_readout_motion(intra);
             let mut slot = self.spare_slots.pop().unwrap_or_default();
             if planar {
                 let (w, h) = (src.0, src.1);

@@ -59,7 +59,7 @@ use crate::camera::CameraModel;
 use crate::error::{check_range, AmcError};
 use crate::image::GrayImage;
 use crate::pyramid::Pyramid;
-use crate::shutter::IntraFrame;
+use crate::shutter::{IntraFrame, INTRA_TERMS};
 use crate::so3::{self, Rot, Tangent};
 use crate::shutter::RowTime;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
@@ -253,11 +253,12 @@ struct Eval {
     g: [f64; 3],
     /// Upper triangle of H: xx, xy, xz, yy, yz, zz.
     h: [f64; 6],
-    /// Rolling shutter: `sum w s^k SD SD^T` for `k = 1..=4` (upper triangles)
-    /// and `sum w s^k SD e` for `k = 1, 2`, `s` the readout fraction of the
-    /// row each point landed on (zero with a global shutter).
-    hs: [[f64; 6]; 4],
-    gs: [[f64; 3]; 2],
+    /// Rolling shutter: `sum w s^k SD SD^T` for `k = 1..=2N` (upper
+    /// triangles) and `sum w s^k SD e` for `k = 1..=N` (`N` the terms of the
+    /// readout path), `s` the readout fraction of the row each point landed on
+    /// (zero with a global shutter).
+    hs: [[f64; 6]; 2 * INTRA_TERMS],
+    gs: [[f64; 3]; INTRA_TERMS],
 }
 
 /// A frame's pose relative to the template: the mid-readout rotation
@@ -273,27 +274,30 @@ struct Pose {
 #[derive(Clone, Copy, Debug)]
 struct Step {
     delta: Tangent,
-    dphi: Tangent,
-    dpsi: Tangent,
+    /// Steps of the readout path's terms (`phi, psi, chi`).
+    dterms: [Tangent; INTRA_TERMS],
 }
 
 impl Step {
-    /// The largest angle the step moves a ray by (the intra-frame terms act
-    /// at most at `s = 1/2`).
+    /// The largest angle the step moves a ray by (term `k` acts at most
+    /// `2^-(k+1)` at `s = 1/2`).
     fn angle(&self) -> f64 {
-        self.delta
-            .norm()
-            .max(0.5 * self.dphi.norm() + 0.25 * self.dpsi.norm())
+        let intra: f64 = (self.dterms.iter())
+            .enumerate()
+            .map(|(k, d)| d.norm() * 0.5f64.powi(k as i32 + 1))
+            .sum();
+        self.delta.norm().max(intra)
     }
 
     /// `pose` moved by `scale` times this step.
     fn apply(&self, pose: &Pose, scale: f64) -> Pose {
+        let mut terms = pose.intra.terms();
+        for (t, d) in terms.iter_mut().zip(&self.dterms) {
+            *t += d * scale;
+        }
         Pose {
             r: so3::exp(&(self.delta * scale)) * pose.r,
-            intra: IntraFrame {
-                phi: pose.intra.phi + self.dphi * scale,
-                psi: pose.intra.psi + self.dpsi * scale,
-            },
+            intra: IntraFrame::from_terms(terms),
         }
     }
 }
@@ -320,52 +324,44 @@ impl Eval {
     }
 
     /// The step of `pose`'s parameters: the rotation only, or with the
-    /// intra-frame motion (`intra`).
+    /// readout path's terms (`intra`).
     ///
     /// With `P = R_{k,j}^T`, the residual's Jacobian at a point that landed
-    /// on readout fraction `s` is `[SD, s P SD, s^2 P SD]`: moving `phi` by
-    /// `d` turns the ray by `s d` in the current camera, which is the
-    /// template-side rotation `s R d` (to first order), so
+    /// on readout fraction `s` is `[SD, s P SD, s^2 P SD, s^3 P SD]`: moving
+    /// term `k` by `d` turns the ray by `s^k d` in the current camera, which
+    /// is the template-side rotation `s^k R d` (to first order), so with
+    /// `Sk = sum w s^k SD SD^T` and `Gk = sum w s^k SD e`
     /// ```text
-    /// H = [[S0, S1 P^T, S2 P^T], [., P S2 P^T, P S3 P^T], [., ., P S4 P^T]]
-    /// g = [G0, P G1, P G2]
+    /// H_ab = P_a S_(a+b) P_b^T,    g_a = P_a G_a      (P_0 = I, P_a = P)
     /// ```
-    /// with `Sk = sum w s^k SD SD^T`, `Gk = sum w s^k SD e`.
     fn pose_step(&self, pose: &Pose, intra: bool) -> Option<Step> {
         if !intra {
             return self.step().map(|delta| Step {
                 delta,
-                dphi: Tangent::zeros(),
-                dpsi: Tangent::zeros(),
+                dterms: [Tangent::zeros(); INTRA_TERMS],
             });
         }
+        const N: usize = 3 * (INTRA_TERMS + 1);
         let sym = |h: &[f64; 6]| Matrix3::new(h[0], h[1], h[2], h[1], h[3], h[4], h[2], h[4], h[5]);
         let p = *pose.r.matrix();
-        let pt = p.transpose();
-        let s0 = sym(&self.h);
-        let [s1, s2, s3, s4] = self.hs.each_ref().map(sym);
-        let blocks = [
-            [s0, s1 * pt, s2 * pt],
-            [p * s1, p * s2 * pt, p * s3 * pt],
-            [p * s2, p * s3 * pt, p * s4 * pt],
-        ];
-        let mut h = SMatrix::<f64, 9, 9>::zeros();
-        for (a, row) in blocks.iter().enumerate() {
-            for (b, m) in row.iter().enumerate() {
-                h.fixed_view_mut::<3, 3>(3 * a, 3 * b).copy_from(m);
+        let side = |a: usize| if a == 0 { Matrix3::identity() } else { p };
+        let sk = |k: usize| if k == 0 { sym(&self.h) } else { sym(&self.hs[k - 1]) };
+        let gk = |k: usize| {
+            Vector3::from(if k == 0 { self.g } else { self.gs[k - 1] })
+        };
+        let mut h = SMatrix::<f64, N, N>::zeros();
+        let mut g = SVector::<f64, N>::zeros();
+        for a in 0..=INTRA_TERMS {
+            for b in 0..=INTRA_TERMS {
+                let m = side(a) * sk(a + b) * side(b).transpose();
+                h.fixed_view_mut::<3, 3>(3 * a, 3 * b).copy_from(&m);
             }
+            g.fixed_rows_mut::<3>(3 * a).copy_from(&(side(a) * gk(a)));
         }
-        let g0 = Vector3::from(self.g);
-        let g1 = p * Vector3::from(self.gs[0]);
-        let g2 = p * Vector3::from(self.gs[1]);
-        let mut g = SVector::<f64, 9>::zeros();
-        g.fixed_rows_mut::<3>(0).copy_from(&g0);
-        g.fixed_rows_mut::<3>(3).copy_from(&g1);
-        g.fixed_rows_mut::<3>(6).copy_from(&g2);
-        // Levenberg damping, a little stronger than the rotation's: the bend
-        // of the readout path is weakly seen where texture is sparse.
-        let damp = 1e-6 * h.trace() / 9.0 + 1e-18;
-        for i in 0..9 {
+        // Levenberg damping, stronger on the readout terms than on the
+        // rotation: they are weakly seen where texture is sparse.
+        let damp = 1e-6 * h.trace() / N as f64 + 1e-18;
+        for i in 0..N {
             h[(i, i)] += damp * if i < 3 { 1e-3 } else { 1.0 };
         }
         let d = h.cholesky()?.solve(&g);
@@ -374,8 +370,7 @@ impl Eval {
         }
         Some(Step {
             delta: d.fixed_rows::<3>(0).into_owned(),
-            dphi: d.fixed_rows::<3>(3).into_owned(),
-            dpsi: d.fixed_rows::<3>(6).into_owned(),
+            dterms: std::array::from_fn(|k| d.fixed_rows::<3>(3 * (k + 1)).into_owned()),
         })
     }
 }
@@ -443,7 +438,7 @@ pub struct Tracker {
 /// former sample the same motion), up to a bounded difference. So over a
 /// block of `K` frames
 /// ```text
-/// c_phi = mean_j (phi_j - tau omega_j),     c_psi = mean_j psi_j
+/// c_phi = mean_j (phi_j - tau omega_j),     c_psi = mean_j psi_j,     c_chi = mean_j chi_j
 /// ```
 /// is the gauge error (to `tau |theta| / (K dt)`: 0.02 deg for 15 ms, 1.5 deg
 /// of shake and a 1 s block), and is removed. Blocks start short
@@ -451,8 +446,8 @@ pub struct Tracker {
 /// double up to [`GAUGE_BLOCK`].
 #[derive(Clone, Copy, Debug, Default)]
 struct Gauge {
-    sum_phi: Tangent,
-    sum_psi: Tangent,
+    /// Sums of `phi - tau omega` and of the higher terms.
+    sums: [Tangent; INTRA_TERMS],
     count: usize,
     block: usize,
 }
@@ -548,10 +543,7 @@ self.set_template(pyr);
         // Warm-start candidates, as rotations relative to the template.
         // At most three candidates; a fixed array keeps `track` allocation-free.
         // With a rolling shutter each starts from the last frame's readout motion.
-        let intra = IntraFrame {
-            phi: self.intra.phi + self.gauge_tpl.phi,
-            psi: self.intra.psi + self.gauge_tpl.psi,
-        };
+        let intra = self.intra.plus(&self.gauge_tpl, 1.0);
         let pose = |r| Pose { r, intra };
         let mut candidates = [pose(self.r_kj), pose(Rot::identity()), pose(Rot::identity())];
         let mut n_cand = 1;
@@ -596,10 +588,7 @@ self.set_template(pyr);
             *t += 0.1 * (info.rms_residual - *t);
         }
         self.r_kj = so3::renormalize(&pose.r);
-        self.intra = IntraFrame {
-            phi: pose.intra.phi - self.gauge_tpl.phi,
-            psi: pose.intra.psi - self.gauge_tpl.psi,
-        };
+        self.intra = pose.intra.plus(&self.gauge_tpl, -1.0);
         if self.params.reject_static && !info.lost {
             let r_kj = self.r_kj;
             self.vote_static(&pyr.levels[0], &r_kj);
@@ -629,23 +618,21 @@ self.set_template(pyr);
     /// estimate against the current template (see [`Gauge`]).
     fn check_gauge(&mut self) {
         let g = &mut self.gauge;
-        g.sum_phi += self.intra.phi - self.rate * self.readout_s;
-        g.sum_psi += self.intra.psi;
+        let mut terms = self.intra.terms();
+        terms[0] -= self.rate * self.readout_s;
+        for (sum, t) in g.sums.iter_mut().zip(terms) {
+            *sum += t;
+        }
         g.count += 1;
         if g.count < g.block.max(GAUGE_FIRST_BLOCK) {
             return;
         }
-        let n = g.count as f64;
-        let c = IntraFrame {
-            phi: g.sum_phi / n,
-            psi: g.sum_psi / n,
-        };
+        let c = IntraFrame::from_terms(g.sums.map(|sum| sum / g.count as f64));
         g.block = (g.count * 2).min(GAUGE_BLOCK);
-        (g.sum_phi, g.sum_psi, g.count) = (Tangent::zeros(), Tangent::zeros(), 0);
-        self.intra.phi -= c.phi;
-        self.intra.psi -= c.psi;
-        self.gauge_tpl.phi += c.phi;
-        self.gauge_tpl.psi += c.psi;
+        g.sums = [Tangent::zeros(); INTRA_TERMS];
+        g.count = 0;
+        self.intra = self.intra.plus(&c, -1.0);
+        self.gauge_tpl = self.gauge_tpl.plus(&c, 1.0);
     }
 
     /// Runs all levels from `pose`, returning the estimate and its quality.
@@ -893,7 +880,7 @@ self.set_template(pyr);
     /// and the sums carry that row's readout fraction for the intra-frame
     /// terms of [`Eval::pose_step`].
     ///
-    /// The readout rotation `exp(-a)`, `a = s phi + s^2 psi`, is applied to
+    /// The readout rotation `exp(-a)`, `a = s phi + s^2 psi + s^3 chi`, is applied to
     /// third order, `z + b x z + (b x (b x z)) / 2 + (b x (b x (b x z))) / 6`
     /// with `b = -a`: its error `|a|^4 / 24` is 3e-7 rad for a 6 deg turn
     /// across the readout (300 deg/s over 20 ms).
@@ -908,8 +895,7 @@ self.set_template(pyr);
         }
         let mm = pose.r.matrix().transpose().map(|v| v as f32);
         let m: [f32; 9] = std::array::from_fn(|i| mm[(i / 3, i % 3)]);
-        let phi = pose.intra.phi.map(|v| v as f32);
-        let psi = pose.intra.psi.map(|v| v as f32);
+        let [phi, psi, chi] = pose.intra.terms().map(|t| t.map(|v| v as f32));
         let c = self.params.huber_delta as f32;
         let project = |x: f32, y: f32, z: f32| {
             let iz = if z > 1e-6 { 1.0 / z } else { -1e9 };
@@ -944,12 +930,8 @@ self.set_template(pyr);
                 let mut s = 0.0;
                 for _ in 0..TRACK_FIXED_POINT_STEPS {
                     s = rows.at(level, u, v);
-                    let s2 = s * s;
-                    let b = [
-                        -(s * phi[0] + s2 * psi[0]),
-                        -(s * phi[1] + s2 * psi[1]),
-                        -(s * phi[2] + s2 * psi[2]),
-                    ];
+                    let b: [f32; 3] =
+                        std::array::from_fn(|i| -((phi[i] + (psi[i] + chi[i] * s) * s) * s));
                     let b1 = cross(b, r);
                     let b2 = cross(b, b1);
                     let b3 = cross(b, b2);
@@ -968,8 +950,8 @@ self.set_template(pyr);
             // Pass 3: Huber loss and IRLS sums with the rows' readout fractions.
             let sd = &tpl.sd[lo..hi];
             let (mut loss, mut sq, mut n) = (0f32, 0f32, 0f32);
-            let mut g = [[0f32; 3]; 3];
-            let mut hh = [[0f32; 6]; 5];
+            let mut g = [[0f32; 3]; INTRA_TERMS + 1];
+            let mut hh = [[0f32; 6]; 2 * INTRA_TERMS + 1];
             for q in 0..len {
                 let s = ps[q];
                 let (valid, e, rho, wt) = huber(if s.is_finite() { pe[q] } else { f32::NAN }, c);
@@ -979,7 +961,10 @@ self.set_template(pyr);
                 n += if valid { 1.0 } else { 0.0 };
                 let [s0, s1, s2] = sd[q];
                 let we = wt * e;
-                let pow = [1.0, s, s * s, s * s * s, s * s * s * s];
+                let mut pow = [1f32; 2 * INTRA_TERMS + 1];
+                for i in 1..pow.len() {
+                    pow[i] = pow[i - 1] * s;
+                }
                 for (gk, p) in g.iter_mut().zip(pow) {
                     gk[0] += s0 * we * p;
                     gk[1] += s1 * we * p;
@@ -998,12 +983,13 @@ self.set_template(pyr);
             ev.n += n as u32;
             for a in 0..3 {
                 ev.g[a] += g[0][a] as f64;
-                ev.gs[0][a] += g[1][a] as f64;
-                ev.gs[1][a] += g[2][a] as f64;
+                for kk in 0..INTRA_TERMS {
+                    ev.gs[kk][a] += g[kk + 1][a] as f64;
+                }
             }
             for a in 0..6 {
                 ev.h[a] += hh[0][a] as f64;
-                for kk in 0..4 {
+                for kk in 0..2 * INTRA_TERMS {
                     ev.hs[kk][a] += hh[kk + 1][a] as f64;
                 }
             }
@@ -1043,7 +1029,7 @@ self.set_template(pyr);
 
 /// Rolling shutter: turns each template ray into the template frame's
 /// mid-readout camera, `y = exp(a(s)) x` for the readout fraction `s` of its
-/// row (`a(s) = s phi + s^2 psi` of the template frame), in `xs, ys, zs`.
+/// row (`a(s)` of the template frame's readout path), in `xs, ys, zs`.
 fn rectify_template(tpl: &mut LevelTemplate, rows: &RowTime, level: usize, intra: &IntraFrame) {
     tpl.zs.clear();
     let Some(k) = tpl.k else { return };

@@ -162,6 +162,18 @@ fn stabilize_motion_rolling(
     motion: &dyn Fn(f64) -> Rot,
     readout_s: f64,
 ) -> Vec<amc_core::Telemetry> {
+    stabilize_measured(case, pano_full, params, motion, readout_s, None)
+}
+
+/// [`stabilize_motion_rolling`], measuring every output with `metrics`.
+fn stabilize_measured(
+    case: &Case,
+    pano_full: &Frame,
+    params: StabilizerParams,
+    motion: &dyn Fn(f64) -> Rot,
+    readout_s: f64,
+    mut metrics: Option<&mut amc_core::metrics::MetricsAccumulator>,
+) -> Vec<amc_core::Telemetry> {
     let cam = &case.camera;
     let pano = downsample_pano(
         &pano_full.as_ref(),
@@ -172,7 +184,10 @@ fn stabilize_motion_rolling(
 
     let n = (SECONDS * FPS).round() as usize;
     let mut out: Vec<Option<amc_core::Telemetry>> = vec![None; n];
-    let mut record = |tel: amc_core::Telemetry| {
+    let mut record = |tel: amc_core::Telemetry, stab: &Stabilizer| {
+        if let Some(m) = metrics.as_deref_mut() {
+            m.push(&stab.output(), stab.output_coverage(), tel.valid_fraction, Some(&tel));
+        }
         let j = tel.frame as usize;
         assert!(j < n && out[j].is_none(), "telemetry for frame {j} twice");
         out[j] = Some(tel);
@@ -197,11 +212,11 @@ fn stabilize_motion_rolling(
             &frame
         };
         if let Some(tel) = stab.push(pushed.as_ref(), t).expect("frame accepted") {
-            record(tel);
+            record(tel, &stab);
         }
     }
     while let Some(tel) = stab.finish() {
-        record(tel);
+        record(tel, &stab);
     }
     out.into_iter()
         .enumerate()
@@ -661,12 +676,19 @@ fn rolling_shutter_experiment() {
         };
         let mut params = StabilizerParams::default();
         params.view.mode = amc_core::Mode::None;
+        if let Ok(v) = std::env::var("RS_CONV") {
+            params.tracker.convergence_px = v.parse().unwrap();
+        }
+        if let Ok(v) = std::env::var("RS_NTRACK") {
+            params.tracker.n_track = v.parse().unwrap();
+        }
         if model {
             params.shutter.readout_ms = ms;
         }
+        let band: Vec<f64> = std::env::var("RS_BAND").unwrap_or("12,20".into()).split(',').map(|x| x.parse().unwrap()).collect();
         let shake = Shake::new(&ShakeParams {
             shake_dps: dps,
-            band_hz: (12.0, 20.0),
+            band_hz: (band[0], band[1]),
             seed: 1,
             ..ShakeParams::default()
         })
@@ -698,6 +720,18 @@ fn rolling_shutter_experiment() {
         let mpe = phi_err.iter().map(|p| p.0).sum::<f64>() / phi_err.len() as f64;
         let mpg = phi_err.iter().map(|p| p.1).sum::<f64>() / phi_err.len() as f64;
         let fit = amc_core::shutter::fit_readout(&tel).unwrap();
+        let mut params = StabilizerParams::default();
+        params.view.mode = amc_core::Mode::Saccade;
+        params.render.n_avg = 1;
+        if std::env::var("RS_ZOOMNONE").is_ok() {
+            params.framing.zoom = amc_core::Zoom::None;
+        }
+        if model {
+            params.shutter.readout_ms = ms;
+        }
+        let mut m = amc_core::metrics::MetricsAccumulator::new();
+        stabilize_measured(&case, &pano, params, &|t| shake.orientation_at(t), ms / 1000.0, Some(&mut m));
+        eprintln!("saccade n_avg 1: {:?}", m.summary());
         eprintln!("dps {dps} readout {ms} model {model}: median frame err {:.5} deg, p90 {:.5}, final {:.4} deg; phi err mean {mpe:.4} of {mpg:.4} deg; fit {:?}", fe[fe.len()/2], fe[fe.len()*9/10], fin, fit);
     }
 }

@@ -10,6 +10,7 @@
 
 use super::coverage::{view_need, Border};
 use crate::camera::CameraModel;
+use crate::shutter::RollingProjector;
 use crate::so3::{self, Rot};
 use nalgebra::Matrix3;
 
@@ -24,12 +25,13 @@ pub fn pull_view(
     src: &CameraModel,
     border: &Border,
     window: &[Rot],
+    rows: &[RollingProjector],
     view: &Rot,
     camera: &Rot,
     zoom: f64,
     scratch: &mut Vec<Matrix3<f64>>,
 ) -> (Rot, f64) {
-    let mut need_of = |v: &Rot| view_need(src, border, window, v, scratch);
+    let mut need_of = |v: &Rot| view_need(src, border, window, rows, v, scratch);
     let need = need_of(view);
     if need <= zoom {
         return (*view, need);

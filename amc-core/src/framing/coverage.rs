@@ -17,6 +17,7 @@
 //! of a pixel at the output's scale.
 
 use crate::camera::CameraModel;
+use crate::shutter::RollingProjector;
 use crate::so3::Rot;
 use nalgebra::{Matrix3, Vector2, Vector3};
 
@@ -88,9 +89,9 @@ pub fn zoom_matrix(zoom: f64) -> Matrix3<f64> {
 
 /// Whether output point `q` (normalized, unzoomed) lands inside `src` through `m`.
 #[inline]
-fn covers(src: &CameraModel, m: &Matrix3<f64>, q: &Vector2<f64>) -> bool {
+fn covers(src: &CameraModel, m: &Matrix3<f64>, rows: &RollingProjector, q: &Vector2<f64>) -> bool {
     let ray = m * Vector3::new(q.x, q.y, 1.0);
-    match src.project(&ray) {
+    match rows.project(src, &ray) {
         Some(p) => {
             let (xmax, ymax) = (src.width as f64 - 1.0, src.height as f64 - 1.0);
             p.x >= EDGE_PX && p.y >= EDGE_PX && p.x <= xmax - EDGE_PX && p.y <= ymax - EDGE_PX
@@ -100,18 +101,24 @@ fn covers(src: &CameraModel, m: &Matrix3<f64>, q: &Vector2<f64>) -> bool {
 }
 
 /// How far out along `b` (from the centre) `m` keeps points inside `src`, in `[0, 1]`.
-fn reach(src: &CameraModel, m: &Matrix3<f64>, b: &Vector2<f64>, at_least: f64) -> f64 {
-    if covers(src, m, b) {
+fn reach(
+    src: &CameraModel,
+    m: &Matrix3<f64>,
+    rows: &RollingProjector,
+    b: &Vector2<f64>,
+    at_least: f64,
+) -> f64 {
+    if covers(src, m, rows, b) {
         return 1.0;
     }
     // Only a reach beyond what another frame already gives can matter.
-    if !covers(src, m, &(b * at_least.max(1e-9))) {
+    if !covers(src, m, rows, &(b * at_least.max(1e-9))) {
         return 0.0;
     }
     let (mut lo, mut hi) = (at_least, 1.0);
     for _ in 0..REACH_STEPS {
         let mid = 0.5 * (lo + hi);
-        if covers(src, m, &(b * mid)) {
+        if covers(src, m, rows, &(b * mid)) {
             lo = mid;
         } else {
             hi = mid;
@@ -127,6 +134,7 @@ pub fn view_need(
     src: &CameraModel,
     border: &Border,
     window: &[Rot],
+    rows: &[RollingProjector],
     view: &Rot,
     scratch: &mut Vec<Matrix3<f64>>,
 ) -> f64 {
@@ -136,23 +144,34 @@ pub fn view_need(
             .iter()
             .map(|r| r.matrix().transpose() * view.matrix()),
     );
-    needed_zoom(src, border, scratch)
+    needed_zoom(src, border, scratch, rows)
 }
 
 /// The least zoom, at least 1, at which every pixel of the output whose
 /// border is `border` is covered by at least one of the frames mapped by
 /// `rotations` (`M_i`, output ray -> source ray, without the zoom) into
 /// `src`. [`NO_ZOOM_SUFFICES`] when the output's centre is not covered.
-pub fn needed_zoom(src: &CameraModel, border: &Border, rotations: &[Matrix3<f64>]) -> f64 {
+pub fn needed_zoom(
+    src: &CameraModel,
+    border: &Border,
+    rotations: &[Matrix3<f64>],
+    rows: &[RollingProjector],
+) -> f64 {
+    let global = RollingProjector::default();
+    let rows_of = |i: usize| rows.get(i).unwrap_or(&global);
     let centre = Vector2::zeros();
-    if !rotations.iter().any(|m| covers(src, m, &centre)) {
+    if !rotations
+        .iter()
+        .enumerate()
+        .any(|(i, m)| covers(src, m, rows_of(i), &centre))
+    {
         return NO_ZOOM_SUFFICES;
     }
     let mut smallest = 1.0f64;
     for b in border.points() {
         let mut best = 0.0f64;
-        for m in rotations {
-            best = best.max(reach(src, m, b, best));
+        for (i, m) in rotations.iter().enumerate() {
+            best = best.max(reach(src, m, rows_of(i), b, best));
             if best >= 1.0 {
                 break;
             }

@@ -18,7 +18,7 @@ fn rots(window: &[Rot], view: &Rot) -> Vec<Matrix3<f64>> {
 fn the_camera_itself_needs_no_zoom() {
     let cam = pinhole();
     let border = Border::new(&cam);
-    let need = needed_zoom(&cam, &border, &[Matrix3::identity()]);
+    let need = needed_zoom(&cam, &border, &[Matrix3::identity()], &[]);
     // The edge allowance of EDGE_PX source pixels, nothing more.
     let e = coverage_edge();
     let expected = (159.5 / (159.5 - e)).max(89.5 / (89.5 - e));
@@ -37,7 +37,7 @@ fn a_pan_needs_the_zoom_that_hides_it() {
     let border = Border::new(&cam);
     let a = 3f64.to_radians();
     let view = so3::exp(&Tangent::new(0.0, a, 0.0));
-    let need = needed_zoom(&cam, &border, &rots(&[Rot::identity()], &view));
+    let need = needed_zoom(&cam, &border, &rots(&[Rot::identity()], &view), &[]);
     // Edge of the source (2 px inside), normalized: (159.5 - 2) / fx.
     let edge = (159.5 - coverage_edge()) / cam.fx;
     let half = 159.5 / cam.fx;
@@ -59,8 +59,8 @@ fn the_union_of_frames_counts() {
     let left = so3::exp(&Tangent::new(0.0, -a, 0.0));
     let right = so3::exp(&Tangent::new(0.0, a, 0.0));
     let view = Rot::identity();
-    let one = needed_zoom(&cam, &border, &rots(&[left], &view));
-    let both = needed_zoom(&cam, &border, &rots(&[left, right], &view));
+    let one = needed_zoom(&cam, &border, &rots(&[left], &view), &[]);
+    let both = needed_zoom(&cam, &border, &rots(&[left, right], &view), &[]);
     assert!(both < one, "{both} vs {one}");
     assert!(both >= 1.0);
 }
@@ -70,7 +70,7 @@ fn an_uncovered_centre_needs_more_than_any_zoom() {
     let cam = pinhole();
     let border = Border::new(&cam);
     let view = so3::exp(&Tangent::new(0.0, 1.2, 0.0));
-    let need = needed_zoom(&cam, &border, &rots(&[Rot::identity()], &view));
+    let need = needed_zoom(&cam, &border, &rots(&[Rot::identity()], &view), &[]);
     assert_eq!(need, super::coverage::NO_ZOOM_SUFFICES);
 }
 
@@ -82,9 +82,9 @@ fn pulling_keeps_the_view_within_the_zoom_and_moves_it_least() {
     let view = Rot::identity();
     let mut scratch = Vec::new();
     let zoom = 1.1;
-    let (pulled, need) = pull_view(&cam, &border, &[camera], &view, &camera, zoom, &mut scratch);
+    let (pulled, need) = pull_view(&cam, &border, &[camera], &[], &view, &camera, zoom, &mut scratch);
     assert!(need <= zoom + 1e-9, "{need}");
-    let before = needed_zoom(&cam, &border, &rots(&[camera], &view));
+    let before = needed_zoom(&cam, &border, &rots(&[camera], &view), &[]);
     assert!(
         before > zoom,
         "the test needs a view out of the budget: {before}"
@@ -94,12 +94,13 @@ fn pulling_keeps_the_view_within_the_zoom_and_moves_it_least() {
     let w = so3::log(&(view.transpose() * camera));
     let a = so3::angle_between(&view, &pulled) / w.norm();
     let less = view * so3::exp(&(w * (a - 0.01)));
-    assert!(needed_zoom(&cam, &border, &rots(&[camera], &less)) > zoom);
+    assert!(needed_zoom(&cam, &border, &rots(&[camera], &less), &[]) > zoom);
     // Already within: untouched.
     let (same, _) = pull_view(
         &cam,
         &border,
         &[camera],
+        &[],
         &camera,
         &camera,
         zoom,

@@ -15,6 +15,7 @@ use super::accumulator::WarpedFrame;
 use super::kernels::{Geometry, Kernel, RowCoords, FRAME_PADDING};
 use crate::camera::CameraModel;
 use crate::image::FrameRef;
+use crate::shutter::{IntraFrame, RollingProjector};
 use nalgebra::{Matrix3, Vector2, Vector3};
 
 /// Grid spacing (output pixels) of the exact lens map for distorted sources.
@@ -41,10 +42,15 @@ pub fn chroma_camera(cam: &CameraModel) -> CameraModel {
 /// How one frame's source coordinates are produced along output rows.
 #[derive(Clone, Debug, Default)]
 struct RowMap {
-    /// Homography `K_src M K_out^-1` (pinhole sources).
+    /// Homography `K_src M K_out^-1` (pinhole sources, global shutter).
     h: Matrix3<f32>,
-    /// Exact source coordinates at the grid nodes (distorted sources).
+    /// Exact source coordinates at the grid nodes (distorted sources, and any
+    /// source through a rolling shutter).
     grid: Vec<[f32; 2]>,
+    /// Whether this map is the grid (else the homography).
+    gridded: bool,
+    /// The readout rotations of the frame's rows (rolling shutter).
+    rows: RollingProjector,
 }
 
 /// Per-row working buffers: one set per band of rows being rendered.
@@ -80,7 +86,7 @@ impl RowScratch {
 pub struct Warper {
     src: CameraModel,
     out: CameraModel,
-    /// Output rays at the grid nodes (distorted sources only).
+    /// Output rays at the grid nodes.
     grid_rays: Vec<Vector3<f64>>,
     grid_w: usize,
     grid_h: usize,
@@ -88,6 +94,9 @@ pub struct Warper {
     /// The row kernel: a vectorized one (AVX2 on this CPU, or wasm `simd128`)
     /// or the scalar reference, which leaves every pixel to the per-pixel path.
     kernel: Kernel,
+    /// Readout motion of the frames of the next render, in the order of its
+    /// rotations ([`Warper::set_readout_motion`]); empty for a global shutter.
+    intra: Vec<IntraFrame>,
     /// Row buffers of the sequential path.
     scratch: RowScratch,
     /// Row buffers of the bands of the parallel path (one per band, kept so
@@ -111,18 +120,25 @@ struct Pass<'m, 'd> {
     tables: bool,
 }
 
+impl Pass<'_, '_> {
+    /// Whether any frame is sampled through its grid.
+    fn any_grid(maps: &[RowMap]) -> bool {
+        maps.iter().any(|m| m.gridded)
+    }
+}
+
 impl Warper {
     /// A warper from frames of `src` into `out` (a pinhole).
     pub fn new(src: &CameraModel, out: &CameraModel) -> Self {
-        let (mut grid_rays, mut grid_w, mut grid_h) = (Vec::new(), 0, 0);
-        if !src.is_pinhole() {
-            grid_w = out.width.div_ceil(GRID_STEP) + 1;
-            grid_h = out.height.div_ceil(GRID_STEP) + 1;
-            for gy in 0..grid_h {
-                for gx in 0..grid_w {
-                    let p = Vector2::new((gx * GRID_STEP) as f64, (gy * GRID_STEP) as f64);
-                    grid_rays.push(out.unproject(&p).unwrap_or_else(Vector3::z));
-                }
+        // Grid nodes for distorted sources and rolling shutters (a pinhole
+        // source needs them only once a frame has a readout motion).
+        let grid_w = out.width.div_ceil(GRID_STEP) + 1;
+        let grid_h = out.height.div_ceil(GRID_STEP) + 1;
+        let mut grid_rays = Vec::with_capacity(grid_w * grid_h);
+        for gy in 0..grid_h {
+            for gx in 0..grid_w {
+                let p = Vector2::new((gx * GRID_STEP) as f64, (gy * GRID_STEP) as f64);
+                grid_rays.push(out.unproject(&p).unwrap_or_else(Vector3::z));
             }
         }
         Self {
@@ -133,6 +149,7 @@ impl Warper {
             grid_h,
             maps: Vec::new(),
             kernel: Kernel::detect(),
+            intra: Vec::new(),
             scratch: RowScratch::default(),
             band_scratch: Vec::new(),
         }
@@ -148,24 +165,38 @@ impl Warper {
         (self.out.width, self.out.height)
     }
 
-    /// Prepares `map` for rotation `m` (output ray -> source ray).
-    fn prepare_map(&self, map: &mut RowMap, m: &Matrix3<f64>) {
-        if self.src.is_pinhole() {
+    /// Sets the readout motion of the frames of the next renders (a rolling
+    /// shutter), one per rotation they are given, in the same order: every
+    /// source row is then sampled at its own orientation (see
+    /// [`crate::shutter::project_rolling`]; exact at the grid nodes, bilinear
+    /// between them). Empty (the default) for a global shutter. Frames beyond
+    /// the list, or with zero motion, are sampled as with a global shutter.
+    pub fn set_readout_motion(&mut self, intra: &[IntraFrame]) {
+        self.intra.clear();
+        self.intra.extend_from_slice(intra);
+    }
+
+    /// Prepares `map` for rotation `m` (output ray -> source ray) and the
+    /// frame's readout motion.
+    fn prepare_map(&self, map: &mut RowMap, m: &Matrix3<f64>, intra: &IntraFrame) {
+        map.gridded = !self.src.is_pinhole() || !intra.is_zero();
+        if map.gridded {
+            map.rows.set(intra, self.src.height);
+            map.grid.clear();
+            for ray in &self.grid_rays {
+                let c = map
+                    .rows
+                    .project(&self.src, &(m * ray))
+                    .map_or([f32::NAN; 2], |p| [p.x as f32, p.y as f32]);
+                map.grid.push(c);
+            }
+        } else {
             let k_out_inv = self
                 .out
                 .k_matrix()
                 .try_inverse()
                 .unwrap_or_else(Matrix3::identity);
             map.h = (self.src.k_matrix() * m * k_out_inv).map(|v| v as f32);
-        } else {
-            map.grid.clear();
-            for ray in &self.grid_rays {
-                let c = self
-                    .src
-                    .project(&(m * ray))
-                    .map_or([f32::NAN; 2], |p| [p.x as f32, p.y as f32]);
-                map.grid.push(c);
-            }
         }
     }
 
@@ -173,8 +204,9 @@ impl Warper {
     fn prepare_maps(&mut self, rotations: &[Matrix3<f64>]) -> Vec<RowMap> {
         let mut maps = std::mem::take(&mut self.maps);
         maps.resize_with(rotations.len(), RowMap::default);
-        for (map, m) in maps.iter_mut().zip(rotations) {
-            self.prepare_map(map, m);
+        for (i, (map, m)) in maps.iter_mut().zip(rotations).enumerate() {
+            let intra = self.intra.get(i).copied().unwrap_or(IntraFrame::ZERO);
+            self.prepare_map(map, m, &intra);
         }
         maps
     }
@@ -205,13 +237,13 @@ impl Warper {
             datas,
             geom,
             n8,
-            tables: !self.src.is_pinhole() || n8 < ow,
+            tables: Pass::any_grid(maps) || n8 < ow,
         }
     }
 
     /// Fills `xs`/`ys` with the source coordinates of output row `v` under `map`.
     fn fill_row(&self, map: &RowMap, v: usize, xs: &mut [f32], ys: &mut [f32]) {
-        if self.src.is_pinhole() {
+        if !map.gridded {
             let h = &map.h;
             let vf = v as f32;
             let (x0, y0, z0) = (
@@ -249,7 +281,7 @@ impl Warper {
         let n = pass.maps.len().min(pass.datas.len()).min(MAX_FRAMES);
         let vf = v as f32;
         for (f, map) in pass.maps.iter().enumerate().take(n) {
-            coords[f] = if self.src.is_pinhole() {
+            coords[f] = if !map.gridded {
                 let h = &map.h;
                 RowCoords::Homography {
                     x0: h[(0, 1)] * vf + h[(0, 2)],
@@ -459,7 +491,8 @@ impl Warper {
         let geom = Geometry::of(frame);
         let (ow, oh) = (self.out.width, self.out.height);
         let mut map = RowMap::default();
-        self.prepare_map(&mut map, m);
+        let intra = self.intra.first().copied().unwrap_or(IntraFrame::ZERO);
+        self.prepare_map(&mut map, m, &intra);
         let (mut xs, mut ys) = (vec![0f32; ow], vec![0f32; ow]);
         for v in 0..oh {
             self.fill_row(&map, v, &mut xs, &mut ys);

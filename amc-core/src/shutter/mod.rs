@@ -7,18 +7,20 @@
 //! ```
 //! (`tau` the readout time; `s` the row's readout fraction, `0` at the middle
 //! row). The frame's pose `R_{0,j}` is its mid-readout pose, and within the
-//! frame the orientation follows a quadratic in `s` on SO(3):
+//! frame the orientation follows a cubic in `s` on SO(3):
 //! ```text
-//! R_{0,j}(s) = R_{0,j} exp(s phi_j + s^2 psi_j)
+//! R_{0,j}(s) = R_{0,j} exp(s phi_j + s^2 psi_j + s^3 chi_j)
 //! ```
 //! `phi_j` (radians, camera-j frame) is the rotation across the readout
-//! (`tau` times the angular velocity at mid-readout) and `psi_j` its change
-//! (`tau^2 / 2` times the angular acceleration). At 12-20 Hz shake a readout
-//! can span half a shake period: a constant velocity per frame leaves a
-//! bend that biases the mid-readout pose, so the tracker estimates both
-//! (see `tracker.rs`), from the intensities, per frame ([`IntraFrame`]).
+//! (`tau` times the angular velocity at mid-readout), `psi_j` and `chi_j` the
+//! next Taylor terms (`tau^2 / 2` times the angular acceleration, `tau^3 / 6`
+//! times the jerk). At 12-20 Hz shake a readout can span a third of a shake
+//! period: a constant velocity per frame leaves a bend that biases the
+//! mid-readout pose, so the tracker estimates all three (see `tracker.rs`),
+//! from the intensities, per frame ([`IntraFrame`]).
 //!
-//! A ray seen at sensor row `y` is rotated by `exp(-(s phi + s^2 psi))` from
+//! A ray seen at sensor row `y` is rotated by `exp(-a(s))`, `a(s) = s phi +
+//! s^2 psi + s^3 chi`, from
 //! the mid-readout camera; which row it lands on depends on that rotation, so
 //! projection is a fixed point, solved from the mid-readout guess
 //! ([`project_rolling`]).
@@ -35,7 +37,9 @@ mod row_time;
 mod tests;
 
 pub use auto::{fit_readout, ReadoutEstimate, ReadoutEstimator, READOUT_FRAMES};
-pub use motion::{row_fraction, IntraFrame};
+pub use motion::{row_fraction, IntraFrame, INTRA_TERMS};
 pub use params::{ShutterParams, MAX_READOUT_MS};
-pub use project::{project_rolling, FIXED_POINT_STEPS};
+pub use project::{
+    project_rolling, RollingProjector, FIXED_POINT_STEPS, FIXED_POINT_TOLERANCE_PX,
+};
 pub use row_time::RowTime;
