@@ -32,6 +32,6 @@ pub mod view;
 pub use camera::CameraModel;
 pub use framing::Zoom;
 pub use image::{Frame, FrameRef, PixelFormat};
-pub use options::{LensSpec, StabilizerOptions};
+pub use options::{LensSpec, ReadoutSpec, StabilizerOptions};
 pub use stabilizer::{Stabilizer, StabilizerParams, Telemetry};
 pub use view::{Mode, Roll};

@@ -8,6 +8,7 @@
 //! its name in kebab-case.
 
 use crate::error::AmcError;
+use crate::shutter::MAX_READOUT_MS;
 use crate::stabilizer::StabilizerParams;
 use crate::view::Mode;
 use std::path::PathBuf;
@@ -96,6 +97,18 @@ pub const OPTIONS: &[OptionSpec] = &[
             min: 0.0,
             max: MAX_PINHOLE_HFOV_DEG,
             above_min: true,
+            words: &["auto"],
+        },
+    },
+    OptionSpec {
+        name: "readout_ms",
+        flag: "readout-ms",
+        value_name: "MS|auto",
+        help: "rolling-shutter readout time (first row to last) in milliseconds, 0..=100 (0 = global shutter), or auto to estimate it from the footage (0 with a warning when the clip does not pin it down) (default: the lens file's readout_ms or Gyroflow frame_readout_time, else 0)",
+        allowed: Allowed::Number {
+            min: 0.0,
+            max: MAX_READOUT_MS,
+            above_min: false,
             words: &["auto"],
         },
     },
@@ -225,13 +238,60 @@ impl LensSpec {
     }
 }
 
+/// How the rolling-shutter readout time of the footage is known (`readout_ms`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum ReadoutSpec {
+    /// Not given: the lens file's readout when it states one, else 0 (a
+    /// global shutter).
+    #[default]
+    FromLens,
+    /// Estimate it from the footage (`readout_ms=auto`, see
+    /// [`crate::shutter::ReadoutEstimator`]).
+    Auto,
+    /// This readout, milliseconds, in `0..=100`.
+    Ms(f64),
+}
+
+impl ReadoutSpec {
+    /// Parses a `readout_ms` value: `auto` or milliseconds in `0..=100`.
+    pub fn parse(value: &str) -> Result<Self, AmcError> {
+        let v = value.trim();
+        if v.eq_ignore_ascii_case("auto") {
+            return Ok(ReadoutSpec::Auto);
+        }
+        match v.parse::<f64>() {
+            Ok(ms) if ms.is_finite() && (0.0..=MAX_READOUT_MS).contains(&ms) => {
+                Ok(ReadoutSpec::Ms(ms))
+            }
+            _ => Err(AmcError::invalid(
+                "readout_ms",
+                format!("{value:?}"),
+                "a readout time in milliseconds, 0..=100 (0 = global shutter), or auto",
+            )),
+        }
+    }
+
+    /// The readout when it needs no estimate: the option's, else the lens
+    /// file's (`lens_ms`), else 0; `None` for [`ReadoutSpec::Auto`].
+    pub fn given(&self, lens_ms: Option<f64>) -> Option<f64> {
+        match self {
+            ReadoutSpec::FromLens => Some(lens_ms.unwrap_or(0.0)),
+            ReadoutSpec::Auto => None,
+            ReadoutSpec::Ms(ms) => Some(*ms),
+        }
+    }
+}
+
 /// The stabilizer's parameters and the lens, as a user sets them option by option.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct StabilizerOptions {
-    /// The stabilizer's parameters.
+    /// The stabilizer's parameters (`shutter.readout_ms` is set by the caller
+    /// once [`readout`](Self::readout) is resolved against the lens).
     pub params: StabilizerParams,
     /// How the lens is known.
     pub lens: LensSpec,
+    /// How the rolling-shutter readout is known.
+    pub readout: ReadoutSpec,
 }
 
 impl StabilizerOptions {
@@ -262,6 +322,7 @@ impl StabilizerOptions {
             "mode" => p.view.mode = value.trim().parse()?,
             "roll" => p.view.roll = value.trim().parse()?,
             "fov" => self.lens = LensSpec::parse_fov(value)?,
+            "readout_ms" => self.readout = ReadoutSpec::parse(value)?,
             "n_avg" => p.render.n_avg = parse_value(spec, value)?,
             "n_track" => p.tracker.n_track = parse_value(spec, value)?,
             "margin" => p.render.margin = parse_value(spec, value)?,
@@ -388,12 +449,14 @@ mod tests {
             ("n_avg", "4"),
             ("margin", "0.1"),
             ("fov", "90"),
+            ("readout_ms", "14.5"),
             ("lookahead", "3"),
             ("rate_a", "0.5"),
             ("rate_b", "10"),
         ] {
             o.set(k, v).unwrap();
         }
+        assert_eq!(o.readout, ReadoutSpec::Ms(14.5));
         o.validate().unwrap();
         assert_eq!(o.params.view.mode, Mode::Saccade);
         assert_eq!(o.params.render.n_avg, 4);
@@ -412,6 +475,10 @@ mod tests {
             ("fov", "500"),
             ("fov", "0"),
             ("fov", "nan"),
+            ("readout_ms", "200"),
+            ("readout_ms", "-1"),
+            ("readout_ms", "abc"),
+            ("readout_ms", "inf"),
             ("mode", "wobble"),
             ("lookahead", "100000"),
             ("n_track", "-3"),
@@ -438,5 +505,32 @@ mod tests {
         for deg in [0.5, 179.0] {
             crate::CameraModel::pinhole_hfov(64, 48, deg).unwrap();
         }
+    }
+
+    #[test]
+    fn readout_is_a_number_or_auto_and_defaults_to_the_lens() {
+        assert_eq!(StabilizerOptions::default().readout, ReadoutSpec::FromLens);
+        assert_eq!(ReadoutSpec::parse(" Auto ").unwrap(), ReadoutSpec::Auto);
+        assert_eq!(ReadoutSpec::parse("0").unwrap(), ReadoutSpec::Ms(0.0));
+        assert_eq!(ReadoutSpec::parse("100").unwrap(), ReadoutSpec::Ms(100.0));
+        for bad in ["100.5", "-0.1", "nan", "", "fast"] {
+            let e = ReadoutSpec::parse(bad).unwrap_err();
+            assert!(
+                matches!(
+                    e,
+                    AmcError::InvalidParameter {
+                        name: "readout_ms",
+                        ..
+                    }
+                ),
+                "{bad}: {e}"
+            );
+            assert!(e.to_string().contains("0..=100"), "{e}");
+        }
+        // An explicit option beats the lens file, which beats 0.
+        assert_eq!(ReadoutSpec::Ms(5.0).given(Some(12.0)), Some(5.0));
+        assert_eq!(ReadoutSpec::FromLens.given(Some(12.0)), Some(12.0));
+        assert_eq!(ReadoutSpec::FromLens.given(None), Some(0.0));
+        assert_eq!(ReadoutSpec::Auto.given(Some(12.0)), None);
     }
 }

@@ -33,9 +33,11 @@
 //!
 //! For every output pixel, `n x n` sub-pixel rays (offsets `(i + 0.5)/n - 0.5`)
 //! are unprojected once by [`EquirectRenderer::new`]. A frame is rendered with
-//! an orientation per row (rolling shutter: row `v` is exposed at
-//! `t + readout * v / (height - 1)`; the caller maps that row fraction to an
-//! orientation). For a camera ray `d_cam`:
+//! an orientation per row (rolling shutter: row `v` of a frame `H` rows high
+//! is exposed at `t + readout * (v / H - 1/2)`, [`crate::shutter::row_fraction`],
+//! so the frame's time `t` is its mid-readout time, the pose the telemetry
+//! reports; the caller maps that row fraction to an orientation). For a
+//! camera ray `d_cam`:
 //! ```text
 //! d = R_{0}(t_row) d_cam                      (world = camera 0)
 //! lon = atan2(d.x, d.z),   lat = atan2(-d.y, sqrt(d.x^2 + d.z^2))   (y is down)
@@ -473,8 +475,10 @@ impl EquirectRenderer {
     }
 
     /// Renders with a rolling shutter: `orientation(s)` is `R_{0}` at the
-    /// exposure of the row at fraction `s = v / (height - 1)` (`0` for the first
-    /// row, `1` for the last; `0` when the frame has a single row).
+    /// exposure of the row at readout fraction `s = v / height - 1/2`
+    /// ([`row_fraction`](crate::shutter::row_fraction): `-1/2` for the first
+    /// row, `0` for row `height / 2`, `1/2 - 1/height` for the last), so
+    /// `orientation(0)` is the frame's mid-readout pose.
     ///
     /// `out` is resized to the camera's size; its pixel format is kept (alpha is
     /// written as 255).
@@ -503,15 +507,10 @@ impl EquirectRenderer {
         };
         let ss2 = self.supersample * self.supersample;
         let norm = 1.0 / ss2 as f32;
-        let denom = if self.height > 1 {
-            (self.height - 1) as f64
-        } else {
-            1.0
-        };
         let mut us = vec![0f32; self.width * ss2];
         let mut vs = vec![0f32; self.width * ss2];
         for v in 0..self.height {
-            let r = orientation(v as f64 / denom);
+            let r = orientation(crate::shutter::row_fraction(v as f64, self.height));
             let m = r.matrix();
             let m: [[f32; 3]; 3] =
                 std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)] as f32));
@@ -1018,8 +1017,9 @@ mod tests {
         let cam = CameraModel::pinhole_hfov(21, 11, 30.0).unwrap();
         let ren = EquirectRenderer::new(&cam, 1).unwrap();
         let mut out = Frame::new(1, 1, PixelFormat::Rgba8);
-        // Yaw from 0 (first row) to 12 degrees (last row).
-        let orient = |s: f64| so3::exp(&Tangent::new(0.0, (12.0 * s).to_radians(), 0.0));
+        // Yaw 11 degrees per readout: -5.5 at the first row (s = -1/2),
+        // 11 (v / 11 - 1/2) at row v.
+        let orient = |s: f64| so3::exp(&Tangent::new(0.0, (11.0 * s).to_radians(), 0.0));
         ren.render_rolling_into(&pano.as_ref(), &orient, &mut out)
             .unwrap();
         assert_eq!(out.data.len(), 21 * 11 * 4);
@@ -1027,10 +1027,41 @@ mod tests {
         let (lon_top, _) = decode_lon_lat(px(0));
         let (lon_mid, _) = decode_lon_lat(px(5));
         let (lon_bot, _) = decode_lon_lat(px(10));
-        assert!(lon_top.abs() < 0.6, "{lon_top}");
-        assert!((lon_mid - 6.0).abs() < 0.6, "{lon_mid}");
-        assert!((lon_bot - 12.0).abs() < 0.6, "{lon_bot}");
+        assert!((lon_top + 5.5).abs() < 0.6, "{lon_top}");
+        assert!((lon_mid + 0.5).abs() < 0.6, "{lon_mid}");
+        assert!((lon_bot - 4.5).abs() < 0.6, "{lon_bot}");
         assert_eq!(px(0)[3], 255);
+    }
+
+    /// The ground truth of a rolling-shutter frame is its mid-readout pose:
+    /// row `H / 2` of a frame rendered at `t` is the global-shutter render of
+    /// the orientation at `t`, whatever the motion during the readout.
+    #[test]
+    fn rolling_shutter_middle_row_is_the_global_shutter_render() {
+        let pano = smooth_pano(720, 360);
+        let cam = CameraModel::pinhole_hfov(24, 16, 40.0).unwrap();
+        let ren = EquirectRenderer::new(&cam, 2).unwrap();
+        let shake = Shake::new(&ShakeParams {
+            shake_dps: 300.0,
+            ..ShakeParams::default()
+        })
+        .unwrap();
+        let (t, readout) = (0.37, 0.02);
+        let mut rolling = Frame::new(1, 1, PixelFormat::Rgb8);
+        ren.render_rolling_into(
+            &pano.as_ref(),
+            &|s| shake.orientation_at(t + readout * s),
+            &mut rolling,
+        )
+        .unwrap();
+        let mut global = Frame::new(1, 1, PixelFormat::Rgb8);
+        ren.render_into(&pano.as_ref(), &shake.orientation_at(t), &mut global)
+            .unwrap();
+        let row = |f: &Frame, v: usize| f.data[v * 24 * 3..(v + 1) * 24 * 3].to_vec();
+        assert_eq!(row(&rolling, 8), row(&global, 8));
+        // The motion during the readout shows away from the middle.
+        assert_ne!(row(&rolling, 0), row(&global, 0));
+        assert_ne!(row(&rolling, 15), row(&global, 15));
     }
 
     #[test]

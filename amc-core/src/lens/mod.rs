@@ -9,6 +9,11 @@
 //! of it. The resulting model is checked with
 //! [`CameraModel::validate`](crate::camera::CameraModel::validate). Every error names the
 //! key and what was expected, so a person can fix the file.
+//!
+//! A file may also state the sensor's rolling-shutter readout time
+//! ([`parse_lens_file`], [`LensFile::readout_ms`]): the project JSON's optional
+//! `readout_ms`, a Gyroflow profile's `frame_readout_time` (both milliseconds,
+//! `0..=100`).
 
 mod document;
 mod error;
@@ -21,5 +26,5 @@ mod tests;
 mod value;
 
 pub use error::LensError;
-pub use parse::parse_lens;
+pub use parse::{parse_lens, parse_lens_file, LensFile};
 pub use project::to_project_json;

@@ -1,19 +1,43 @@
 //! The project's own JSON format (written by [`to_project_json`]):
 //! ```text
 //! {"model": "pinhole" | "opencv" | "fisheye", "width": 800, "height": 600,
-//!  "fx": .., "fy": .., "cx": .., "cy": .., "skew": 0.0 (optional), "dist": [..]}
+//!  "fx": .., "fy": .., "cx": .., "cy": .., "skew": 0.0 (optional), "dist": [..],
+//!  "readout_ms": 0.0 (optional)}
 //! ```
+//! `readout_ms`: the rolling-shutter readout time, first row to last,
+//! milliseconds, `0..=100` (0 = global shutter); absent when not known.
 //! `dist`: pinhole -> empty, absent or all zeros; opencv -> `k1 k2 p1 p2 [k3]`;
 //! fisheye -> `k1 k2 k3 k4`.
 
 use super::value::{as_f64, as_size, fisheye_from, flat_numbers, get, invalid, radtan_from, show};
-use super::LensError;
+use super::{LensError, LensFile};
 use crate::camera::{CameraModel, Distortion};
 use serde_json::{Map, Value};
 
 /// Writes `cam` in the project JSON format; [`parse_lens`](super::parse_lens) reads it back unchanged.
 /// Non-finite numbers are written as `null` (and rejected when read back).
 pub fn to_project_json(cam: &CameraModel) -> String {
+    LensFile {
+        camera: cam.clone(),
+        readout_ms: None,
+    }
+    .to_project_json()
+}
+
+impl LensFile {
+    /// Writes the camera and the readout (when known) in the project JSON
+    /// format; [`parse_lens_file`](super::parse_lens_file) reads it back unchanged.
+    pub fn to_project_json(&self) -> String {
+        let readout = self
+            .readout_ms
+            .map(|ms| format!(",\n  \"readout_ms\": {}", num(ms)))
+            .unwrap_or_default();
+        camera_json(&self.camera, &readout)
+    }
+}
+
+/// The project JSON of `cam`, with `extra` (`,\n  "key": value` lines) before the closing brace.
+fn camera_json(cam: &CameraModel, extra: &str) -> String {
     let (model, dist): (&str, Vec<f64>) = match cam.distortion {
         Distortion::None => ("pinhole", vec![]),
         Distortion::RadTan { k1, k2, p1, p2, k3 } => ("opencv", vec![k1, k2, p1, p2, k3]),
@@ -22,7 +46,7 @@ pub fn to_project_json(cam: &CameraModel) -> String {
     let dist: Vec<String> = dist.into_iter().map(num).collect();
     format!(
         "{{\n  \"model\": \"{model}\",\n  \"width\": {},\n  \"height\": {},\n  \"fx\": {},\n  \"fy\": {},\n  \
-         \"cx\": {},\n  \"cy\": {},\n  \"skew\": {},\n  \"dist\": [{}]\n}}\n",
+         \"cx\": {},\n  \"cy\": {},\n  \"skew\": {},\n  \"dist\": [{}]{extra}\n}}\n",
         cam.width,
         cam.height,
         num(cam.fx),

@@ -387,3 +387,71 @@ fn wrong_values_are_explained() {
     let far_cx = PROJECT.replace("399.5", "1e6");
     assert!(err(&far_cx).contains("cx"));
 }
+
+#[test]
+fn readout_from_the_project_json_and_gyroflow() {
+    // Absent: not known (the caller falls back to a global shutter).
+    assert_eq!(parse_lens_file(PROJECT).expect("valid").readout_ms, None);
+    assert_eq!(
+        parse_lens_file(OPENCV_YAML).expect("valid").readout_ms,
+        None
+    );
+    let with = PROJECT.replace("\"dist\"", "\"readout_ms\": 14.5, \"dist\"");
+    let lens = parse_lens_file(&with).expect("valid");
+    assert_eq!(lens.readout_ms, Some(14.5));
+    assert_eq!(lens.camera, parse_lens(PROJECT).unwrap());
+    let null = PROJECT.replace("\"dist\"", "\"readout_ms\": null, \"dist\"");
+    assert_eq!(parse_lens_file(&null).unwrap().readout_ms, None);
+    // Gyroflow's frame_readout_time is in milliseconds too.
+    assert_eq!(parse_lens_file(GYROFLOW).unwrap().readout_ms, Some(10.0));
+    let unknown = GYROFLOW.replace(
+        "\"frame_readout_time\": 10.0",
+        "\"frame_readout_time\": null",
+    );
+    assert_eq!(parse_lens_file(&unknown).unwrap().readout_ms, None);
+    // Out of range or not a number: the key, the value and the range.
+    for (text, key, found) in [
+        (
+            PROJECT.replace("\"dist\"", "\"readout_ms\": 150, \"dist\""),
+            "readout_ms",
+            "150",
+        ),
+        (
+            PROJECT.replace("\"dist\"", "\"readout_ms\": \"fast\", \"dist\""),
+            "readout_ms",
+            "fast",
+        ),
+        (
+            GYROFLOW.replace(
+                "\"frame_readout_time\": 10.0",
+                "\"frame_readout_time\": -8.0",
+            ),
+            "frame_readout_time",
+            "-8",
+        ),
+    ] {
+        let e = parse_lens_file(&text).unwrap_err();
+        assert!(matches!(e, LensError::InvalidValue { .. }), "{e}");
+        let msg = e.to_string();
+        assert!(msg.contains(key) && msg.contains(found), "{msg}");
+        assert!(msg.contains("0..=100") || msg.contains("number"), "{msg}");
+    }
+}
+
+#[test]
+fn readout_round_trips_through_the_project_json() {
+    let camera = parse_lens(PROJECT).unwrap();
+    for readout_ms in [None, Some(0.0), Some(16.7), Some(100.0)] {
+        let lens = LensFile {
+            camera: camera.clone(),
+            readout_ms,
+        };
+        let text = lens.to_project_json();
+        assert_eq!(
+            parse_lens_file(&text).expect("own output parses"),
+            lens,
+            "{text}"
+        );
+    }
+    assert!(!to_project_json(&camera).contains("readout_ms"));
+}

@@ -16,6 +16,7 @@ fn projection_lands_on_its_own_rows_time() {
     let intra = IntraFrame {
         phi: Tangent::new(0.08, -0.12, 0.05),
         psi: Tangent::new(-0.02, 0.03, 0.01),
+        chi: Tangent::new(0.01, -0.005, 0.004),
     };
     let m: Matrix3<f64> = *so3::exp(&Tangent::new(0.1, -0.2, 0.05)).matrix();
     for cam in &cams {
@@ -49,6 +50,9 @@ fn readout_range_is_checked() {
     assert!(ShutterParams { readout_ms: 0.0 }.validate().is_ok());
     assert!(ShutterParams { readout_ms: 33.0 }.validate().is_ok());
     for bad in [-1.0, 100.5, f64::NAN, f64::INFINITY] {
-        assert!(ShutterParams { readout_ms: bad }.validate().is_err(), "{bad}");
+        assert!(
+            ShutterParams { readout_ms: bad }.validate().is_err(),
+            "{bad}"
+        );
     }
 }
