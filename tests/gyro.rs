@@ -81,6 +81,8 @@ fn cc9_gyro_agreement() {
         "--telemetry".into(),
         s(&tel),
         "-q".into(),
+        "--readout-ms".into(),
+        std::env::var("CC9_READOUT").unwrap_or("0".into()),
     ]);
     let est = rotations(&Csv::read(&tel), "rx", "ry", "rz");
     let n = est.len();

@@ -17,6 +17,7 @@
 use amc_core::camera::CameraModel;
 use amc_core::frontend::TrackingFrontend;
 use amc_core::pyramid::Pyramid;
+use amc_core::shutter::RowTime;
 use amc_core::synth::{EquirectRenderer, Shake, ShakeParams};
 use amc_core::tracker::{Tracker, TrackerParams};
 use amc_core::view::Mode;
@@ -118,6 +119,11 @@ fn karma(width: usize, height: usize) -> Option<Vec<Frame>> {
 
 /// A shaky clip of `CLIP_FRAMES` frames at `width x height` (90 deg pinhole).
 fn clip(width: usize, height: usize) -> (CameraModel, Vec<Frame>) {
+    clip_rolling(width, height, 0.0)
+}
+
+/// [`clip`] filmed through a rolling shutter read out in `readout_s` seconds.
+fn clip_rolling(width: usize, height: usize, readout_s: f64) -> (CameraModel, Vec<Frame>) {
     let cam = CameraModel::pinhole_hfov(width, height, 90.0).expect("camera");
     let pano = panorama();
     let renderer = EquirectRenderer::new(&cam, 1).expect("renderer");
@@ -125,9 +131,13 @@ fn clip(width: usize, height: usize) -> (CameraModel, Vec<Frame>) {
     let frames = (0..CLIP_FRAMES)
         .map(|j| {
             let mut out = Frame::new(width, height, PixelFormat::Rgb8);
-            let r = shake.orientation_at(j as f64 / FPS);
+            let t = j as f64 / FPS;
             renderer
-                .render_into(&pano.as_ref(), &r, &mut out)
+                .render_rolling_into(
+                    &pano.as_ref(),
+                    &|s| shake.orientation_at(t + readout_s * s),
+                    &mut out,
+                )
                 .expect("render");
             out
         })
@@ -135,23 +145,34 @@ fn clip(width: usize, height: usize) -> (CameraModel, Vec<Frame>) {
     (cam, frames)
 }
 
+/// Readout of the rolling-shutter runs, seconds (a phone's).
+const READOUT_S: f64 = 0.015;
+
 fn bench_tracking(c: &mut Criterion) {
-    let (cam, frames) = clip(320, 180);
     let mut g = c.benchmark_group("track");
     g.throughput(Throughput::Elements(1));
-    g.bench_function("320x180", |b| {
-        let mut frontend = TrackingFrontend::new(&cam, 320).expect("frontend");
-        let mut tracker =
-            Tracker::new(frontend.camera(), TrackerParams::default()).expect("tracker");
-        let mut pyr = Pyramid::default();
-        let mut j = 0usize;
-        b.iter(|| {
-            let f = ping_pong(&frames, j);
-            frontend.prepare(&f.as_ref(), &mut pyr, tracker.levels());
-            black_box(tracker.track(&pyr, j as f64 / FPS));
-            j += 1;
-        })
-    });
+    // The global shutter, and a rolling shutter with its readout motion
+    // estimated (on frames filmed through one).
+    for readout_s in [0.0, READOUT_S] {
+        let (cam, frames) = clip_rolling(320, 180, readout_s);
+        let name = if readout_s > 0.0 { "320x180-rolling" } else { "320x180" };
+        g.bench_function(name, |b| {
+            let mut frontend = TrackingFrontend::new(&cam, 320).expect("frontend");
+            let mut tracker =
+                Tracker::new(frontend.camera(), TrackerParams::default()).expect("tracker");
+            if readout_s > 0.0 {
+                tracker.set_rolling(RowTime::new(&cam, frontend.camera()), readout_s);
+            }
+            let mut pyr = Pyramid::default();
+            let mut j = 0usize;
+            b.iter(|| {
+                let f = ping_pong(&frames, j);
+                frontend.prepare(&f.as_ref(), &mut pyr, tracker.levels());
+                black_box(tracker.track(&pyr, j as f64 / FPS));
+                j += 1;
+            })
+        });
+    }
     g.finish();
 }
 
@@ -167,10 +188,15 @@ fn bench_stabilize(c: &mut Criterion) {
     for (w, h) in [(320, 180), (1280, 720)] {
         let (cam, rgb) = clip(w, h);
         let yuv = to_yuv(&rgb);
+        let (_, rolling) = clip_rolling(w, h, READOUT_S);
+        let rolling = to_yuv(&rolling);
         let real = karma(w, h);
         // The paper's framing (`zoom = none`: the central 75%) as the numbers
         // in the README; `-zoom-auto` is the default framing (the input's
         // size, a zoom and its coverage test per frame).
+        // `-rolling`: the same motion through a rolling shutter, its readout
+        // given (`readout_ms` 15): tracking with the readout motion, every
+        // source row rendered at its own orientation.
         let mut runs: Vec<(String, Mode, Zoom, &[Frame])> = vec![
             (format!("{w}x{h}-rgb"), Mode::Stabilize, Zoom::None, &rgb),
             (
@@ -178,6 +204,12 @@ fn bench_stabilize(c: &mut Criterion) {
                 Mode::Stabilize,
                 Zoom::None,
                 &yuv,
+            ),
+            (
+                format!("{w}x{h}-yuv420p-rolling"),
+                Mode::Stabilize,
+                Zoom::None,
+                &rolling,
             ),
             (
                 format!("{w}x{h}-yuv420p-zoom-auto"),
@@ -207,6 +239,9 @@ fn bench_stabilize(c: &mut Criterion) {
                 let mut params = StabilizerParams::default();
                 params.view.mode = mode;
                 params.framing.zoom = zoom;
+                if name.ends_with("-rolling") {
+                    params.shutter.readout_ms = READOUT_S * 1000.0;
+                }
                 let mut stab = Stabilizer::new(&cam, w, h, params).expect("stabilizer");
                 let mut j = 0usize;
                 b.iter(|| {

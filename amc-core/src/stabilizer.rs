@@ -178,8 +178,6 @@ struct Rendering {
     window_rots: Vec<Rot>,
     /// Their rows' readout rotations (reused; empty with a global shutter).
     window_rows: Vec<RollingProjector>,
-    /// Their readout motions (reused).
-    window_intra: Vec<IntraFrame>,
     /// Rotations of the framing's coverage test (reused).
     need_rots: Vec<nalgebra::Matrix3<f64>>,
     /// Whether pixels are rendered (off: views and zoom needs only).
@@ -307,7 +305,6 @@ impl Stabilizer {
                 border,
                 window_rots: Vec::new(),
                 window_rows: Vec::new(),
-                window_intra: Vec::new(),
                 need_rots: Vec::new(),
                 render: true,
                 locked_view: None,
@@ -573,9 +570,6 @@ impl Rendering {
         self.window_rots.clear();
         self.window_rots
             .extend(ring.range(first..=pos).map(|b| b.r_est));
-        self.window_intra.clear();
-        self.window_intra
-            .extend(ring.range(first..=pos).map(|b| b.intra));
         if params.shutter.is_rolling() {
             let n = pos + 1 - first;
             self.window_rows.resize_with(n, RollingProjector::default);
@@ -672,8 +666,8 @@ impl Rendering {
                 ring.range(first..=pos)
                     .map(|b| b.r_est.matrix().transpose() * r_view.matrix() * zinv),
             );
-            self.warper.set_readout_motion(&self.window_intra);
-            self.chroma.set_readout_motion(&self.window_intra);
+            self.warper.set_readout_rows(&self.window_rows);
+            self.chroma.set_readout_rows(&self.window_rows);
             valid_fraction = if format.is_planar() {
                 // One geometry, three planes: Y through the luma cameras, U and V
                 // through the chroma cameras, all with the same rotations.
@@ -819,9 +813,9 @@ impl Rendering {
                 continue;
             }
             let m = b.r_est.matrix().transpose() * view.matrix() * zinv;
-            let intra = std::slice::from_ref(&b.intra);
-            self.warper.set_readout_motion(intra);
-            self.chroma.set_readout_motion(intra);
+            let rows = std::slice::from_ref(&b.rows);
+            self.warper.set_readout_rows(rows);
+            self.chroma.set_readout_rows(rows);
             let mut slot = self.spare_slots.pop().unwrap_or_default();
             if planar {
                 let (w, h) = (src.0, src.1);

@@ -178,6 +178,11 @@ const COARSE_TOLERANCE_FACTOR: f64 = 20.0;
 /// Pyramid levels (finest first) on which a rolling shutter's readout motion
 /// is estimated; coarser levels keep the last frame's.
 const INTRA_LEVELS: usize = 2;
+/// Weight of the readout path's step in the convergence test: its terms
+/// converge more slowly than the rotation (the bend and the S-shape are weakly
+/// seen), and a move of the rows by `convergence_px / INTRA_TOLERANCE_SCALE`
+/// is still far below what the estimate can resolve.
+const INTRA_TOLERANCE_SCALE: f64 = 0.25;
 /// Fixed-point steps of the rolling-shutter projection in the tracker.
 const TRACK_FIXED_POINT_STEPS: usize = 2;
 /// Fewer valid template pixels than this share means the frame is lost at that level.
@@ -286,7 +291,7 @@ impl Step {
             .enumerate()
             .map(|(k, d)| d.norm() * 0.5f64.powi(k as i32 + 1))
             .sum();
-        self.delta.norm().max(intra)
+        self.delta.norm().max(intra * INTRA_TOLERANCE_SCALE)
     }
 
     /// `pose` moved by `scale` times this step.
@@ -786,7 +791,7 @@ self.set_template(pyr);
     fn evaluate(&self, level: usize, img: &GrayImage, pose: &Pose) -> Eval {
         match &self.rolling {
             None => self.evaluate_global(level, img, &pose.r),
-            Some(rows) => self.evaluate_rolling(level, img, pose, rows),
+            Some(rows) => self.evaluate_rolling(level, img, pose, rows, level < INTRA_LEVELS),
         }
     }
 
@@ -884,7 +889,36 @@ self.set_template(pyr);
     /// third order, `z + b x z + (b x (b x z)) / 2 + (b x (b x (b x z))) / 6`
     /// with `b = -a`: its error `|a|^4 / 24` is 3e-7 rad for a 6 deg turn
     /// across the readout (300 deg/s over 20 ms).
-    fn evaluate_rolling(&self, level: usize, img: &GrayImage, pose: &Pose, rows: &RowTime) -> Eval {
+    fn evaluate_rolling(
+        &self,
+        level: usize,
+        img: &GrayImage,
+        pose: &Pose,
+        rows: &RowTime,
+        intra: bool,
+    ) -> Eval {
+        // Monomorphized per row-time model so the affine one inlines.
+        match rows {
+            RowTime::Affine { a, b } => {
+                let k = (1u32 << level) as f32;
+                let (a, b) = (a * k, a * 0.5 * (k - 1.0) + b);
+                self.evaluate_rolling_with(level, img, pose, intra, |_, v| a * v + b)
+            }
+            table => self.evaluate_rolling_with(level, img, pose, intra, |u, v| table.at(level, u, v)),
+        }
+    }
+
+    /// [`Tracker::evaluate_rolling`] with the readout fraction `row_time(u, v)`
+    /// of level pixel `(u, v)`. The intra-frame sums are accumulated only
+    /// when `intra` (the level estimates the readout path).
+    fn evaluate_rolling_with<T: Fn(f32, f32) -> f32>(
+        &self,
+        level: usize,
+        img: &GrayImage,
+        pose: &Pose,
+        intra: bool,
+        row_time: T,
+    ) -> Eval {
         let tpl = &self.template[level];
         let Some(k) = tpl.k else {
             return Eval::default();
@@ -902,95 +936,93 @@ self.set_template(pyr);
             let (xn, yn) = (x * iz, y * iz);
             (k.fx * xn + k.skew * yn + k.cx, k.fy * yn + k.cy)
         };
-        let cross = |a: [f32; 3], b: [f32; 3]| {
-            [
-                a[1] * b[2] - a[2] * b[1],
-                a[2] * b[0] - a[0] * b[2],
-                a[0] * b[1] - a[1] * b[0],
-            ]
-        };
         let mut ev = Eval::default();
         let (mut pu, mut pv, mut pe, mut ps) =
             ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
+        let (mut rx, mut ry, mut rz) = ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
+        // Per point of a chunk: IRLS-weighted residual and SD outer products.
+        let mut we = [[0f32; CHUNK]; 3];
+        let mut outer = [[0f32; CHUNK]; 6];
         let n_pts = tpl.xs.len();
         let mut lo = 0;
         while lo < n_pts {
             let hi = (lo + CHUNK).min(n_pts);
             let len = hi - lo;
-            // Pass 1: project at the mid-readout pose, then at the time of the
-            // row the point lands on.
+            // Pass 1 (branch-free loops over the chunk, which vectorize):
+            // project at the mid-readout pose, then at the time of the row
+            // the point lands on.
+            let (xs, ys, zs) = (&tpl.xs[lo..hi], &tpl.ys[lo..hi], &tpl.zs[lo..hi]);
             for q in 0..len {
-                let (x, y, z) = (tpl.xs[lo + q], tpl.ys[lo + q], tpl.zs[lo + q]);
-                let r = [
-                    m[0] * x + m[1] * y + m[2] * z,
-                    m[3] * x + m[4] * y + m[5] * z,
-                    m[6] * x + m[7] * y + m[8] * z,
-                ];
-                let (mut u, mut v) = project(r[0], r[1], r[2]);
-                let mut s = 0.0;
-                for _ in 0..TRACK_FIXED_POINT_STEPS {
-                    s = rows.at(level, u, v);
+                let (x, y, z) = (xs[q], ys[q], zs[q]);
+                rx[q] = m[0] * x + m[1] * y + m[2] * z;
+                ry[q] = m[3] * x + m[4] * y + m[5] * z;
+                rz[q] = m[6] * x + m[7] * y + m[8] * z;
+                (pu[q], pv[q]) = project(rx[q], ry[q], rz[q]);
+            }
+            for _ in 0..TRACK_FIXED_POINT_STEPS {
+                for q in 0..len {
+                    let s = row_time(pu[q], pv[q]);
+                    ps[q] = s;
                     let b: [f32; 3] =
                         std::array::from_fn(|i| -((phi[i] + (psi[i] + chi[i] * s) * s) * s));
-                    let b1 = cross(b, r);
-                    let b2 = cross(b, b1);
-                    let b3 = cross(b, b2);
-                    (u, v) = project(
-                        r[0] + b1[0] + 0.5 * b2[0] + b3[0] / 6.0,
-                        r[1] + b1[1] + 0.5 * b2[1] + b3[1] / 6.0,
-                        r[2] + b1[2] + 0.5 * b2[2] + b3[2] / 6.0,
-                    );
+                    let z = rotate_small(&b, &[rx[q], ry[q], rz[q]]);
+                    (pu[q], pv[q]) = project(z[0], z[1], z[2]);
                 }
-                pu[q] = u;
-                pv[q] = v;
-                ps[q] = s;
             }
             // Pass 2 (gathers): bilinear residuals, NaN where invalid.
             residuals(img, &pu[..len], &pv[..len], &tpl.tv[lo..hi], &mut pe[..len]);
-            // Pass 3: Huber loss and IRLS sums with the rows' readout fractions.
+            // Pass 3: Huber loss and IRLS sums, then (estimating the readout
+            // path) their moments in the rows' readout fractions.
             let sd = &tpl.sd[lo..hi];
             let (mut loss, mut sq, mut n) = (0f32, 0f32, 0f32);
-            let mut g = [[0f32; 3]; INTRA_TERMS + 1];
-            let mut hh = [[0f32; 6]; 2 * INTRA_TERMS + 1];
             for q in 0..len {
-                let s = ps[q];
-                let (valid, e, rho, wt) = huber(if s.is_finite() { pe[q] } else { f32::NAN }, c);
-                let s = if valid { s } else { 0.0 };
+                let valid_s = ps[q].is_finite();
+                let (valid, e, rho, wt) = huber(if valid_s { pe[q] } else { f32::NAN }, c);
+                ps[q] = if valid { ps[q] } else { 0.0 };
                 loss += rho;
                 sq += e * e;
                 n += if valid { 1.0 } else { 0.0 };
                 let [s0, s1, s2] = sd[q];
-                let we = wt * e;
-                let mut pow = [1f32; 2 * INTRA_TERMS + 1];
-                for i in 1..pow.len() {
-                    pow[i] = pow[i - 1] * s;
-                }
-                for (gk, p) in g.iter_mut().zip(pow) {
-                    gk[0] += s0 * we * p;
-                    gk[1] += s1 * we * p;
-                    gk[2] += s2 * we * p;
-                }
+                let wte = wt * e;
+                we[0][q] = s0 * wte;
+                we[1][q] = s1 * wte;
+                we[2][q] = s2 * wte;
                 let (w0, w1, w2) = (wt * s0, wt * s1, wt * s2);
-                let outer = [w0 * s0, w0 * s1, w0 * s2, w1 * s1, w1 * s2, w2 * s2];
-                for (hk, p) in hh.iter_mut().zip(pow) {
-                    for a in 0..6 {
-                        hk[a] += outer[a] * p;
-                    }
-                }
+                outer[0][q] = w0 * s0;
+                outer[1][q] = w0 * s1;
+                outer[2][q] = w0 * s2;
+                outer[3][q] = w1 * s1;
+                outer[4][q] = w1 * s2;
+                outer[5][q] = w2 * s2;
             }
             ev.loss += loss as f64;
             ev.sq += sq as f64;
             ev.n += n as u32;
-            for a in 0..3 {
-                ev.g[a] += g[0][a] as f64;
-                for kk in 0..INTRA_TERMS {
-                    ev.gs[kk][a] += g[kk + 1][a] as f64;
+            let moments = if intra { 2 * INTRA_TERMS } else { 0 };
+            // pw = s^p per point, p = 0..=moments (vectorized over points).
+            let mut pw = [1f32; CHUNK];
+            for p in 0..=moments {
+                if p > 0 {
+                    for q in 0..len {
+                        pw[q] *= ps[q];
+                    }
                 }
-            }
-            for a in 0..6 {
-                ev.h[a] += hh[0][a] as f64;
-                for kk in 0..2 * INTRA_TERMS {
-                    ev.hs[kk][a] += hh[kk + 1][a] as f64;
+                let dot = |a: &[f32; CHUNK]| -> f64 {
+                    let mut acc = 0f32;
+                    for q in 0..len {
+                        acc += a[q] * pw[q];
+                    }
+                    acc as f64
+                };
+                let hk = if p == 0 { &mut ev.h } else { &mut ev.hs[p - 1] };
+                for (a, o) in outer.iter().enumerate() {
+                    hk[a] += dot(o);
+                }
+                if p <= INTRA_TERMS && (p == 0 || intra) {
+                    let gk = if p == 0 { &mut ev.g } else { &mut ev.gs[p - 1] };
+                    for (a, v) in we.iter().enumerate() {
+                        gk[a] += dot(v);
+                    }
                 }
             }
             lo = hi;
@@ -1041,14 +1073,31 @@ fn rectify_template(tpl: &mut LevelTemplate, rows: &RowTime, level: usize, intra
         );
         let s = rows.at(level, u, v) as f64;
         let ray = if s.is_finite() {
-            intra.rotation_at(s) * Vector3::new(x, y, 1.0)
+            rotate_small(&intra.at(s).map(|a| a as f32).into(), &[x as f32, y as f32, 1.0])
         } else {
-            Vector3::new(x, y, 1.0)
+            [x as f32, y as f32, 1.0]
         };
-        tpl.xs[i] = ray.x as f32;
-        tpl.ys[i] = ray.y as f32;
-        tpl.zs.push(ray.z as f32);
+        tpl.xs[i] = ray[0];
+        tpl.ys[i] = ray[1];
+        tpl.zs.push(ray[2]);
     }
+}
+
+/// `exp(b) z` for a small rotation vector `b`, to third order:
+/// `z + b x z + (b x (b x z)) / 2 + (b x (b x (b x z))) / 6` (error `|b|^4 / 24`).
+#[inline]
+fn rotate_small(b: &[f32; 3], z: &[f32; 3]) -> [f32; 3] {
+    let cross = |a: &[f32; 3], c: &[f32; 3]| {
+        [
+            a[1] * c[2] - a[2] * c[1],
+            a[2] * c[0] - a[0] * c[2],
+            a[0] * c[1] - a[1] * c[0],
+        ]
+    };
+    let b1 = cross(b, z);
+    let b2 = cross(b, &b1);
+    let b3 = cross(b, &b2);
+    std::array::from_fn(|i| z[i] + b1[i] + 0.5 * b2[i] + b3[i] * (1.0 / 6.0))
 }
 
 /// Bilinear residuals `I(u, v) - T` of points at `(pu, pv)` (NaN outside the

@@ -196,13 +196,8 @@ fn stabilize_measured(
     let mut planar = Frame::new(cam.width, cam.height, PixelFormat::Yuv420p);
     for j in 0..n {
         let t = j as f64 / FPS;
-        let h = cam.height as f64;
         renderer
-            .render_rolling_into(
-                &pano.as_ref(),
-                &|f| motion(t + readout_s * (f * (h - 1.0) / h - 0.5)),
-                &mut frame,
-            )
+            .render_rolling_into(&pano.as_ref(), &|s| motion(t + readout_s * s), &mut frame)
             .expect("frame renders");
         let pushed = if case.format == PixelFormat::Yuv420p {
             let (w, h) = (cam.width, cam.height);
@@ -654,7 +649,11 @@ fn lock_holds_every_axis_within_the_budget() {
 fn rolling_shutter_experiment() {
     let (w, h) = SIZE;
     let pano = panorama();
-    let cam = CameraModel::pinhole_hfov(w, h, 90.0).unwrap();
+    let cam = if std::env::var("RS_FISHEYE").is_ok() {
+        CameraModel::fisheye_hfov(w, h, 150.0, [0.05, -0.01, 0.002, -0.0005]).unwrap()
+    } else {
+        CameraModel::pinhole_hfov(w, h, 90.0).unwrap()
+    };
     let spec: Vec<(f64, f64, bool)> = std::env::var("RS_CASES")
         .unwrap_or("100,15,1;100,15,0;100,0,0".into())
         .split(';')
@@ -678,6 +677,9 @@ fn rolling_shutter_experiment() {
         params.view.mode = amc_core::Mode::None;
         if let Ok(v) = std::env::var("RS_CONV") {
             params.tracker.convergence_px = v.parse().unwrap();
+        }
+        if let Ok(v) = std::env::var("RS_POINTS") {
+            params.tracker.max_points = v.parse().unwrap();
         }
         if let Ok(v) = std::env::var("RS_NTRACK") {
             params.tracker.n_track = v.parse().unwrap();
@@ -720,6 +722,7 @@ fn rolling_shutter_experiment() {
         let mpe = phi_err.iter().map(|p| p.0).sum::<f64>() / phi_err.len() as f64;
         let mpg = phi_err.iter().map(|p| p.1).sum::<f64>() / phi_err.len() as f64;
         let fit = amc_core::shutter::fit_readout(&tel).unwrap();
+        eprintln!("mean iterations {}", tel.iter().map(|t| t.track.iterations as f64).sum::<f64>() / n as f64);
         let mut params = StabilizerParams::default();
         params.view.mode = amc_core::Mode::Saccade;
         params.render.n_avg = 1;

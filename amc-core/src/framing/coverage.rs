@@ -91,7 +91,7 @@ pub fn zoom_matrix(zoom: f64) -> Matrix3<f64> {
 #[inline]
 fn covers(src: &CameraModel, m: &Matrix3<f64>, rows: &RollingProjector, q: &Vector2<f64>) -> bool {
     let ray = m * Vector3::new(q.x, q.y, 1.0);
-    match rows.project(src, &ray) {
+    match rows.project(src, &ray, None) {
         Some(p) => {
             let (xmax, ymax) = (src.width as f64 - 1.0, src.height as f64 - 1.0);
             p.x >= EDGE_PX && p.y >= EDGE_PX && p.x <= xmax - EDGE_PX && p.y <= ymax - EDGE_PX

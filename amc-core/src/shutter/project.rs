@@ -58,6 +58,11 @@ pub struct RollingProjector {
 }
 
 impl RollingProjector {
+    /// True when the table is empty (a global shutter).
+    pub fn is_global(&self) -> bool {
+        self.rows.is_empty()
+    }
+
     /// Tabulates `intra` for a sensor `height` rows high (nothing when it is
     /// zero). Reuses the table's memory.
     pub fn set(&mut self, intra: &IntraFrame, height: usize) {
@@ -71,19 +76,34 @@ impl RollingProjector {
     }
 
     /// The pixel of `cam` that sees the mid-readout ray `z` (see
-    /// [`project_rolling`]); `cam` must be the camera the table was set for.
-    pub fn project(&self, cam: &CameraModel, z: &Vector3<f64>) -> Option<Vector2<f64>> {
-        let mut p = cam.project(z)?;
+    /// [`project_rolling`]). `cam` is the sensor's camera the table was set
+    /// for, or the camera of a plane subsampled from it by an integer factor
+    /// (a 4:2:0 chroma plane: its row `y` is sensor row `2 y + 1/2`).
+    /// `guess`, a nearby ray's landing row, saves steps.
+    pub fn project(
+        &self,
+        cam: &CameraModel,
+        z: &Vector3<f64>,
+        guess: Option<f64>,
+    ) -> Option<Vector2<f64>> {
         if self.rows.is_empty() {
-            return Some(p);
+            return cam.project(z);
         }
         let last = (self.rows.len() - 1) as f64;
-        for _ in 0..FIXED_POINT_STEPS {
-            let y = p.y.clamp(0.0, last);
+        let scale = last / cam.height.max(1) as f64;
+        let offset = 0.5 * (scale - 1.0);
+        let at = |y: f64| {
+            let y = (y * scale + offset).clamp(0.0, last);
             let i = (y as usize).min(self.rows.len().saturating_sub(2));
             let a = y - i as f64;
-            let r = self.rows[i] * (1.0 - a) + self.rows[i + 1] * a;
-            let q = cam.project(&(r * z))?;
+            self.rows[i] * (1.0 - a) + self.rows[i + 1] * a
+        };
+        let mut p = match guess {
+            Some(y) => cam.project(&(at(y) * z))?,
+            None => cam.project(z)?,
+        };
+        for _ in 0..FIXED_POINT_STEPS {
+            let q = cam.project(&(at(p.y) * z))?;
             let done = (q - p).norm() < FIXED_POINT_TOLERANCE_PX;
             p = q;
             if done {

@@ -33,7 +33,9 @@ fn projection_lands_on_its_own_rows_time() {
         for &(x, y) in &[(0.0, 0.0), (0.4, -0.3), (-0.5, 0.4)] {
             let ray = Vector3::new(x, y, 1.0);
             let p = project_rolling(cam, &m, &intra, &ray).unwrap();
-            let q = table.project(cam, &(m * ray)).unwrap();
+            let q = table.project(cam, &(m * ray), None).unwrap();
+            let r = table.project(cam, &(m * ray), Some(p.y + 3.0)).unwrap();
+            assert!((p - r).norm() < 1e-4, "{p} vs {r}");
             assert!((p - q).norm() < 1e-4, "{p} vs {q}");
         }
         // A global shutter is the plain projection.
