@@ -23,9 +23,7 @@ fn projection_lands_on_its_own_rows_time() {
             let ray = Vector3::new(x, y, 1.0);
             let p = project_rolling(cam, &m, &intra, &ray).expect("in view");
             let s = row_fraction(p.y, cam.height);
-            let q = cam
-                .project(&(intra.rotation_at(s).inverse() * (m * ray)))
-                .unwrap();
+            let q = cam.project(&(intra.rotation_at(s).inverse() * (m * ray))).unwrap();
             assert!((p - q).norm() < 1e-6, "{p} vs {q}");
         }
         // A global shutter is the plain projection.
@@ -42,9 +40,6 @@ fn readout_range_is_checked() {
     assert!(ShutterParams { readout_ms: 0.0 }.validate().is_ok());
     assert!(ShutterParams { readout_ms: 33.0 }.validate().is_ok());
     for bad in [-1.0, 100.5, f64::NAN, f64::INFINITY] {
-        assert!(
-            ShutterParams { readout_ms: bad }.validate().is_err(),
-            "{bad}"
-        );
+        assert!(ShutterParams { readout_ms: bad }.validate().is_err(), "{bad}");
     }
 }
