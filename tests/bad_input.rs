@@ -234,10 +234,57 @@ fn bad_option_values() {
             "--lookahead 100000",
             &["--fov", "60", "--lookahead", "100000"],
         ),
+        ("--readout-ms 200", &["--fov", "60", "--readout-ms", "200"]),
+        ("--readout-ms -1", &["--fov", "60", "--readout-ms", "-1"]),
+        (
+            "--readout-ms fast",
+            &["--fov", "60", "--readout-ms", "fast"],
+        ),
     ];
     for (case, a) in cases {
         bad(case, &cup(), "out.mp4", &args(a), Expect::ClapOrOneLine);
     }
+}
+
+/// An out-of-range readout is our own one-line error naming the option and its range.
+#[test]
+fn bad_readout_names_the_option_and_its_range() {
+    let r = bad(
+        "--readout-ms 200",
+        &cup(),
+        "out.mp4",
+        &args(&["--fov", "60", "--readout-ms", "200"]),
+        Expect::OneLine,
+    );
+    assert!(
+        r.stderr.contains("readout_ms") && r.stderr.contains("0..=100"),
+        "{}",
+        r.stderr
+    );
+}
+
+/// A lens file's readout outside 0..=100 ms names the key, the value and the range.
+#[test]
+fn bad_lens_readout() {
+    let tmp = tempfile::tempdir().unwrap();
+    let lens = tmp.path().join("lens.json");
+    std::fs::write(
+        &lens,
+        r#"{"model":"pinhole","width":640,"height":360,"fx":500,"fy":500,"cx":319.5,"cy":179.5,"readout_ms":250}"#,
+    )
+    .unwrap();
+    let r = bad(
+        "lens readout_ms 250",
+        &cup(),
+        "out.mp4",
+        &args(&["--lens", &s(&lens)]),
+        Expect::OneLine,
+    );
+    assert!(
+        r.stderr.contains("readout_ms") && r.stderr.contains("250") && r.stderr.contains("0..=100"),
+        "{}",
+        r.stderr
+    );
 }
 
 #[test]

@@ -65,3 +65,81 @@ fn demo_writes_both_clips() {
         assert!(frames > 0, "{name} has no frames");
     }
 }
+
+/// The readout: a synthetic rolling-shutter clip's `lens.json` states it and
+/// `stabilize --lens` uses it (and says so); `--readout-ms` overrides it;
+/// `auto` estimates it or falls back to 0 with a warning; the telemetry
+/// ends with the rotation across the readout.
+#[test]
+fn readout_from_the_lens_file_the_option_and_auto() {
+    let tmp = tempfile::tempdir().unwrap();
+    let clip = tmp.path().join("clip");
+    synth(
+        &clip,
+        &[
+            "--seconds",
+            "1",
+            "--width",
+            "160",
+            "--height",
+            "90",
+            "--rolling-shutter-ms",
+            "8",
+        ],
+    );
+    let lens = clip.join("lens.json");
+    let text = std::fs::read_to_string(&lens).unwrap();
+    assert!(text.contains("\"readout_ms\": 8"), "{text}");
+    let stabilize = |extra: &[&str]| {
+        let (out, tel, met) = (
+            tmp.path().join("out.y4m"),
+            tmp.path().join("t.csv"),
+            tmp.path().join("m.json"),
+        );
+        let mut a = vec![
+            "stabilize".to_string(),
+            s(&clip),
+            "-o".into(),
+            s(&out),
+            "--lens".into(),
+            s(&lens),
+            "--telemetry".into(),
+            s(&tel),
+            "--metrics".into(),
+            s(&met),
+        ];
+        a.extend(extra.iter().map(|x| x.to_string()));
+        let r = amc_ok(&a);
+        let readout = json_f64(&read_json(&met), "/readout_ms");
+        let header = std::fs::read_to_string(&tel)
+            .unwrap()
+            .lines()
+            .next()
+            .unwrap()
+            .to_string();
+        (r.stderr, readout, header)
+    };
+    let (stderr, readout, header) = stabilize(&[]);
+    assert!(
+        stderr.contains("readout: 8 ms (from the lens file)"),
+        "{stderr}"
+    );
+    assert_eq!(readout, 8.0);
+    assert!(
+        header.starts_with("frame,t,rx,ry,rz,vx,vy,vz,")
+            && header.ends_with(",zoom,uncovered,readout_rx,readout_ry,readout_rz"),
+        "{header}"
+    );
+    // The option beats the lens file.
+    let (stderr, readout, _) = stabilize(&["--readout-ms", "0"]);
+    assert_eq!(readout, 0.0);
+    assert!(!stderr.contains("readout:"), "{stderr}");
+    // auto: an estimate it trusts, or 0 with a warning.
+    let (stderr, readout, _) = stabilize(&["--readout-ms", "auto"]);
+    if stderr.contains("warning: the footage does not pin down the rolling-shutter readout") {
+        assert_eq!(readout, 0.0, "{stderr}");
+    } else {
+        assert!(stderr.contains("(estimated from 60 frames"), "{stderr}");
+        assert!((0.0..=100.0).contains(&readout), "{stderr}");
+    }
+}

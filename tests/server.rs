@@ -669,6 +669,20 @@ fn bad_inputs_get_clear_statuses_and_leave_the_server_healthy() {
             cup.clone(),
             400,
         ),
+        (
+            "readout_ms text",
+            "/stabilize?readout_ms=abc",
+            "video/mp4",
+            cup.clone(),
+            400,
+        ),
+        (
+            "readout_ms too long",
+            "/jobs?readout_ms=200",
+            "video/mp4",
+            cup.clone(),
+            400,
+        ),
     ];
     for (what, path, ctype, body, want) in cases {
         eprintln!("bad input: {what}");

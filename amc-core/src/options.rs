@@ -221,20 +221,31 @@ pub enum LensSpec {
 impl LensSpec {
     /// Parses a `fov` value: `auto` or degrees in `(0, 179]`.
     pub fn parse_fov(value: &str) -> Result<Self, AmcError> {
-        let v = value.trim();
-        if v.eq_ignore_ascii_case("auto") {
-            return Ok(LensSpec::Auto);
-        }
-        match v.parse::<f64>() {
-            Ok(deg) if deg.is_finite() && deg > 0.0 && deg <= MAX_PINHOLE_HFOV_DEG => {
-                Ok(LensSpec::Fov(deg))
-            }
-            _ => Err(AmcError::invalid(
-                "fov",
-                format!("{value:?}"),
-                "a horizontal field of view in degrees, 0 < DEG <= 179, or auto",
-            )),
-        }
+        let deg = number_or_auto(
+            "fov",
+            value,
+            |deg| deg > 0.0 && deg <= MAX_PINHOLE_HFOV_DEG,
+            "a horizontal field of view in degrees, 0 < DEG <= 179, or auto",
+        )?;
+        Ok(deg.map_or(LensSpec::Auto, LensSpec::Fov))
+    }
+}
+
+/// Parses `auto` (`None`) or a finite number `ok` accepts; anything else is
+/// an error naming the option `name` and what it `allowed`.
+fn number_or_auto(
+    name: &'static str,
+    value: &str,
+    ok: impl Fn(f64) -> bool,
+    allowed: &'static str,
+) -> Result<Option<f64>, AmcError> {
+    let v = value.trim();
+    if v.eq_ignore_ascii_case("auto") {
+        return Ok(None);
+    }
+    match v.parse::<f64>() {
+        Ok(x) if x.is_finite() && ok(x) => Ok(Some(x)),
+        _ => Err(AmcError::invalid(name, format!("{value:?}"), allowed)),
     }
 }
 
@@ -255,20 +266,13 @@ pub enum ReadoutSpec {
 impl ReadoutSpec {
     /// Parses a `readout_ms` value: `auto` or milliseconds in `0..=100`.
     pub fn parse(value: &str) -> Result<Self, AmcError> {
-        let v = value.trim();
-        if v.eq_ignore_ascii_case("auto") {
-            return Ok(ReadoutSpec::Auto);
-        }
-        match v.parse::<f64>() {
-            Ok(ms) if ms.is_finite() && (0.0..=MAX_READOUT_MS).contains(&ms) => {
-                Ok(ReadoutSpec::Ms(ms))
-            }
-            _ => Err(AmcError::invalid(
-                "readout_ms",
-                format!("{value:?}"),
-                "a readout time in milliseconds, 0..=100 (0 = global shutter), or auto",
-            )),
-        }
+        let ms = number_or_auto(
+            "readout_ms",
+            value,
+            |ms| (0.0..=MAX_READOUT_MS).contains(&ms),
+            "a readout time in milliseconds, 0..=100 (0 = global shutter), or auto",
+        )?;
+        Ok(ms.map_or(ReadoutSpec::Auto, ReadoutSpec::Ms))
     }
 
     /// The readout when it needs no estimate: the option's, else the lens

@@ -1,6 +1,6 @@
 //! `amc eval`: the paper's table for one clip: none / stabilize / saccade.
 
-use crate::engine::{self, LensNote, Progress, RunConfig, RunError, RunSummary};
+use crate::engine::{self, Progress, Resolved, RunConfig, RunError, RunSummary};
 use crate::gt::{self, GtError, GtReport};
 use crate::plot::{self, ModeSeries, PlotError};
 use amc_core::so3::{self, Tangent};
@@ -62,25 +62,24 @@ pub enum EvalError {
     Plot(#[from] PlotError),
 }
 
-/// Runs none / stabilize / saccade; `lens_note` hears how the lens was found,
-/// `progress` each run's progress (with its mode).
+/// Runs none / stabilize / saccade; `resolved` hears how the lens and the
+/// readout were found, `progress` each run's progress (with its mode).
 pub fn run(
     args: &EvalConfig,
-    lens_note: &dyn Fn(&LensNote),
+    resolved: &dyn Fn(&Resolved),
     progress: &(dyn Fn(Mode, Progress) + Sync),
 ) -> Result<EvalReport, EvalError> {
     let timeout = args.timeout;
-    let base = args.options.params.clone();
-    base.validate().map_err(RunError::from)?;
-    let resolved = engine::resolve_lens(
-        &args.options.lens,
+    args.options.params.validate().map_err(RunError::from)?;
+    let found = engine::resolve(
+        &args.options,
         &args.input,
-        &base,
         &engine::input_options(args.fps, timeout),
         None,
     )?;
-    lens_note(&resolved.note);
-    let lens = resolved.camera;
+    resolved(&found);
+    let base = found.params;
+    let lens = found.lens.camera;
     let gt_rot = match &args.gt {
         Some(p) => Some(gt::read_orientations(p)?),
         None => None,

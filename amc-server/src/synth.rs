@@ -7,10 +7,12 @@
 //!   seconds and `(rx, ry, rz)` the rotation vector (axis times angle, radians)
 //!   of `R_{0,j}`, which maps camera-`j` vectors into camera-0 (world)
 //!   coordinates (camera x right, y down, z forward; `R_{0,0} = I`). With a
-//!   rolling shutter, row `v` of frame `j` is exposed at
-//!   `t + readout * v / (height - 1)`; the ground truth is the orientation at
-//!   the FIRST row's exposure, time `t`.
-//! * `lens.json`: the camera model (`amc_core::lens::to_project_json`).
+//!   rolling shutter, row `v` of frame `j` (`H` rows) is exposed at
+//!   `t + readout * (v / H - 1/2)` (`amc_core::shutter::row_fraction`); the
+//!   ground truth is the orientation at time `t`, the MID-readout pose, as the
+//!   stabilizer's telemetry reports it.
+//! * `lens.json`: the camera model (`amc_core::lens::LensFile::to_project_json`),
+//!   with `readout_ms` when the clip has a rolling shutter.
 //!
 //! The clip is rendered into a hidden temporary sibling directory that is
 //! renamed to the output at the end, so a failure leaves nothing behind.
@@ -72,7 +74,8 @@ pub struct SynthConfig {
     pub pan_dps: f64,
 
     /// Rolling-shutter readout time (first to last row), ms; 0 = global
-    /// shutter. gt.csv holds the orientation at the first row's exposure.
+    /// shutter. gt.csv holds the mid-readout orientation; lens.json states
+    /// the readout (`readout_ms`).
     pub rolling_shutter_ms: f64,
 
     /// Anti-aliasing: N x N rays per output pixel.
@@ -208,12 +211,15 @@ fn plan(args: &SynthConfig) -> Result<Plan, SynthError> {
     check(
         args.rolling_shutter_ms.is_finite()
             && args.rolling_shutter_ms >= 0.0
-            && args.rolling_shutter_ms <= period_ms + 1e-9,
+            && args.rolling_shutter_ms <= period_ms + 1e-9
+            && args.rolling_shutter_ms <= amc_core::shutter::MAX_READOUT_MS,
         "rolling-shutter-ms",
         || {
             format!(
-                "--rolling-shutter-ms must be 0 to the frame period ({period_ms:.3} ms at --fps {}), got {}",
-                args.fps, args.rolling_shutter_ms
+                "--rolling-shutter-ms must be 0 to the frame period ({period_ms:.3} ms at --fps {}) and at most {} ms, got {}",
+                args.fps,
+                amc_core::shutter::MAX_READOUT_MS,
+                args.rolling_shutter_ms
             )
         },
     )?;
@@ -388,6 +394,7 @@ fn render_frames(
                     let result = renderer
                         .render_rolling_into(
                             pano,
+                            // s: the row's readout fraction, 0 at mid-readout (time t).
                             &|s| shake.orientation_at(t + readout * s),
                             &mut out,
                         )
@@ -410,8 +417,8 @@ fn render_frames(
     }
 }
 
-/// The `gt.csv` text: `frame,t,rx,ry,rz` (rotation vector of `R_{0,j}` at the
-/// first row's exposure time `t = frame / fps`).
+/// The `gt.csv` text: `frame,t,rx,ry,rz` (rotation vector of `R_{0,j}` at
+/// `t = frame / fps`, the mid-readout time with a rolling shutter).
 fn ground_truth_csv(shake: &Shake, frames: usize, fps: f64) -> String {
     let mut s = String::from("frame,t,rx,ry,rz\n");
     for j in 0..frames {
@@ -456,7 +463,11 @@ pub fn run(
         fs::write(&path, text).map_err(|e| SynthError::io(&path, e))
     };
     write("gt.csv", ground_truth_csv(&shake, plan.frames, args.fps))?;
-    write("lens.json", amc_core::lens::to_project_json(&plan.camera))?;
+    let lens = amc_core::lens::LensFile {
+        camera: plan.camera.clone(),
+        readout_ms: (plan.readout_s > 0.0).then_some(args.rolling_shutter_ms),
+    };
+    write("lens.json", lens.to_project_json())?;
     write(
         amc_video::FOLDER_META,
         format!("{{\"fps\": {}}}\n", args.fps),
@@ -643,7 +654,10 @@ mod tests {
         let last: Vec<f64> = lines[6].split(',').map(|v| v.parse().unwrap()).collect();
         assert_eq!((last[0], last[1]), (5.0, 5.0 / 60.0));
         assert!(last[2..].iter().any(|v| v.abs() > 1e-4), "{last:?}");
-        assert!(out.join("lens.json").exists());
+        let lens =
+            amc_core::lens::parse_lens_file(&fs::read_to_string(out.join("lens.json")).unwrap())
+                .unwrap();
+        assert_eq!(lens.readout_ms, Some(5.0));
         let img = image::open(out.join(frame_name(5))).unwrap().into_rgb8();
         assert_eq!(img.dimensions(), (32, 18));
         assert!(!out.join(frame_name(6)).exists());

@@ -89,6 +89,14 @@ pub fn parse_params(json: &str) -> Result<StabilizerParams, ArgError> {
     Ok(params)
 }
 
+/// Whether the parameters' JSON sets the shutter (`shutter.readout_ms`);
+/// without it a lens file's readout applies.
+pub fn sets_shutter(json: &str) -> bool {
+    serde_json::from_str::<serde_json::Value>(json)
+        .ok()
+        .is_some_and(|v| v.get("shutter").is_some_and(|s| !s.is_null()))
+}
+
 /// The lens argument: a number is a horizontal field of view in degrees
 /// (pinhole), a string the text of a lens file; anything else is refused.
 #[derive(Clone, Copy, Debug)]
@@ -104,13 +112,26 @@ pub fn parse_camera(
     width: usize,
     height: usize,
 ) -> Result<CameraModel, ArgError> {
+    parse_lens(lens, width, height).map(|l| l.camera)
+}
+
+/// The camera of `width x height` frames described by `lens`, with the
+/// readout a lens file states (`readout_ms`, Gyroflow's `frame_readout_time`).
+pub fn parse_lens(
+    lens: LensArg<'_>,
+    width: usize,
+    height: usize,
+) -> Result<amc_core::lens::LensFile, ArgError> {
     match lens {
         LensArg::Fov(deg) => {
             // The one definition of the `fov` option's range.
             amc_core::LensSpec::parse_fov(&deg.to_string())?;
-            Ok(CameraModel::pinhole_hfov(width, height, deg)?)
+            Ok(amc_core::lens::LensFile {
+                camera: CameraModel::pinhole_hfov(width, height, deg)?,
+                readout_ms: None,
+            })
         }
-        LensArg::Text(text) => amc_core::lens::parse_lens(text).map_err(ArgError::LensFile),
+        LensArg::Text(text) => amc_core::lens::parse_lens_file(text).map_err(ArgError::LensFile),
         LensArg::Other => Err(ArgError::LensType),
     }
 }
@@ -209,28 +230,55 @@ pub struct Opened {
     pub format: InputFormat,
 }
 
-/// Checks the constructor's arguments in the order the page's errors name
-/// them (format, sizes, parameters, memory, lens) and builds the core's stabilizer.
-pub fn open(
+/// The constructor's arguments, checked in the order the page's errors name
+/// them (format, sizes, parameters, memory, lens): the camera, and the
+/// parameters with the lens file's readout when `paramsJson` sets no shutter.
+pub struct Checked {
+    pub camera: CameraModel,
+    pub params: StabilizerParams,
+    pub width: usize,
+    pub height: usize,
+    pub format: InputFormat,
+}
+
+/// Checks the arguments of a stabilizer or a readout estimator (see [`Checked`]).
+pub fn check(
     width: f64,
     height: f64,
     params_json: &str,
     lens: LensArg<'_>,
     format: Option<&str>,
-) -> Result<Opened, ArgError> {
+) -> Result<Checked, ArgError> {
     let format = InputFormat::parse(format)?;
     let width = dimension("width", width)?;
     let height = dimension("height", height)?;
-    let params = parse_params(params_json)?;
+    let mut params = parse_params(params_json)?;
     check_memory(width, height, format, &params)?;
-    let cam = parse_camera(lens, width, height)?;
-    let stabilizer = amc_core::Stabilizer::new(&cam, width, height, params)?;
-    Ok(Opened {
-        stabilizer,
+    let lens = parse_lens(lens, width, height)?;
+    if let (false, Some(ms)) = (sets_shutter(params_json), lens.readout_ms) {
+        params.shutter.readout_ms = ms;
+    }
+    Ok(Checked {
+        camera: lens.camera,
+        params,
         width,
         height,
         format,
     })
+}
+
+impl Checked {
+    /// Builds the core's stabilizer from the checked arguments.
+    pub fn open(self) -> Result<Opened, ArgError> {
+        let stabilizer =
+            amc_core::Stabilizer::new(&self.camera, self.width, self.height, self.params)?;
+        Ok(Opened {
+            stabilizer,
+            width: self.width,
+            height: self.height,
+            format: self.format,
+        })
+    }
 }
 
 /// Checks that a pushed frame has exactly the length its size and format need.
@@ -264,6 +312,21 @@ pub fn push_frame(
     t: f64,
     planar: &mut Vec<u8>,
 ) -> Result<Option<amc_core::Telemetry>, ArgError> {
+    with_frame(format, width, height, data, planar, |frame| {
+        Ok(stabilizer.push(frame, t)?)
+    })
+}
+
+/// Calls `f` with the frame in `data` (checked against the size and format;
+/// NV12 de-interleaved into `planar`, reused).
+pub fn with_frame<T>(
+    format: InputFormat,
+    width: usize,
+    height: usize,
+    data: &[u8],
+    planar: &mut Vec<u8>,
+    f: impl FnOnce(amc_core::FrameRef<'_>) -> Result<T, ArgError>,
+) -> Result<T, ArgError> {
     check_frame_len(format, width, height, data.len())?;
     let data = if format == InputFormat::Nv12 {
         nv12_to_i420(width, height, data, planar);
@@ -271,8 +334,7 @@ pub fn push_frame(
     } else {
         data
     };
-    let frame = amc_core::FrameRef::new(width, height, format.core(), data)?;
-    Ok(stabilizer.push(frame, t)?)
+    f(amc_core::FrameRef::new(width, height, format.core(), data)?)
 }
 
 /// De-interleaves an NV12 frame (`width x height`, its exact length, checked

@@ -43,6 +43,17 @@ fn metrics_json(m: &FrameMetrics) -> serde_json::Value {
     })
 }
 
+/// Calls `f` with the lens argument `lens`: a number is a field of view, a
+/// string the text of a lens file.
+fn with_lens<T>(lens: &JsValue, f: impl FnOnce(LensArg<'_>) -> T) -> T {
+    let text = lens.as_string();
+    f(match (lens.as_f64(), text.as_deref()) {
+        (Some(deg), _) => LensArg::Fov(deg),
+        (None, Some(text)) => LensArg::Text(text),
+        (None, None) => LensArg::Other,
+    })
+}
+
 fn norm_dps(v: [f64; 3]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt().to_degrees()
 }
@@ -97,18 +108,16 @@ impl Stabilizer {
         lens: JsValue,
         format: Option<String>,
     ) -> Result<Stabilizer, JsError> {
-        let text = lens.as_string();
-        let lens_arg = match (lens.as_f64(), text.as_deref()) {
-            (Some(deg), _) => LensArg::Fov(deg),
-            (None, Some(text)) => LensArg::Text(text),
-            (None, None) => LensArg::Other,
-        };
         let args::Opened {
             stabilizer: inner,
             width,
             height,
             format,
-        } = args::open(width, height, params_json, lens_arg, format.as_deref()).map_err(err)?;
+        } = with_lens(&lens, |l| {
+            args::check(width, height, params_json, l, format.as_deref())
+        })
+        .and_then(args::Checked::open)
+        .map_err(err)?;
         Ok(Stabilizer {
             inner,
             width,
@@ -354,6 +363,140 @@ impl Stabilizer {
         }
         to_js(&v)
     }
+}
+
+/// `readout_ms: "auto"`: estimates the rolling-shutter readout time from a
+/// clip's first frames ([`amc_core::shutter::ReadoutEstimator`]), the first
+/// pass before the [`Stabilizer`] is made with the estimate. Same arguments
+/// as `new Stabilizer`; push frames until [`ReadoutEstimator::is_full`] or the
+/// clip ends, then [`ReadoutEstimator::finish`].
+#[wasm_bindgen]
+pub struct ReadoutEstimator {
+    inner: Option<amc_core::shutter::ReadoutEstimator>,
+    width: usize,
+    height: usize,
+    format: InputFormat,
+    input: Vec<u8>,
+    planar: Vec<u8>,
+}
+
+#[wasm_bindgen]
+impl ReadoutEstimator {
+    /// `new ReadoutEstimator(width, height, paramsJson, lens, format?)`, as
+    /// `new Stabilizer` (the parameters' tracker settings are used).
+    #[wasm_bindgen(constructor)]
+    pub fn new(
+        width: f64,
+        height: f64,
+        params_json: &str,
+        lens: JsValue,
+        format: Option<String>,
+    ) -> Result<ReadoutEstimator, JsError> {
+        let c = with_lens(&lens, |l| {
+            args::check(width, height, params_json, l, format.as_deref())
+        })
+        .map_err(err)?;
+        let inner =
+            amc_core::shutter::ReadoutEstimator::new(&c.camera, c.width, c.height, &c.params)
+                .map_err(err)?;
+        Ok(ReadoutEstimator {
+            inner: Some(inner),
+            width: c.width,
+            height: c.height,
+            format: c.format,
+            input: Vec::new(),
+            planar: Vec::new(),
+        })
+    }
+
+    /// Whether it has the frames it wants (`READOUT_FRAMES`, 180).
+    #[wasm_bindgen(getter, js_name = isFull)]
+    pub fn is_full(&self) -> bool {
+        self.inner.as_ref().map_or(true, |e| e.is_full())
+    }
+
+    /// Frames pushed so far.
+    #[wasm_bindgen(getter)]
+    pub fn frames(&self) -> usize {
+        self.inner.as_ref().map_or(0, |e| e.frames())
+    }
+
+    /// A view into WASM memory to decode the next frame into, as
+    /// [`Stabilizer::input_buffer`]; then call [`ReadoutEstimator::push_input`].
+    #[wasm_bindgen(js_name = inputBuffer)]
+    pub fn input_buffer(&mut self) -> js_sys::Uint8Array {
+        let len = self.format.buffer_len(self.width, self.height);
+        self.input.resize(len, 0);
+        // SAFETY: as for `Stabilizer::input_buffer`.
+        unsafe { js_sys::Uint8Array::view(&self.input) }
+    }
+
+    /// Tracks the frame in [`ReadoutEstimator::input_buffer`] at `t` seconds.
+    #[wasm_bindgen(js_name = pushInput)]
+    pub fn push_input(&mut self, t: f64) -> Result<(), JsError> {
+        let Self {
+            inner,
+            width,
+            height,
+            format,
+            input,
+            planar,
+        } = self;
+        track(inner, (*format, *width, *height), input, planar, t)
+    }
+
+    /// Tracks a frame in this estimator's format at `t` seconds.
+    pub fn push(&mut self, data: &[u8], t: f64) -> Result<(), JsError> {
+        let size = (self.format, self.width, self.height);
+        track(&mut self.inner, size, data, &mut self.planar, t)
+    }
+
+    /// The estimate: `{readout_ms, confident, explained, motion_deg, frames}`.
+    /// Use `readout_ms` only when `confident` (else a global shutter, 0); a
+    /// clip too short to fit is not confident. Call once.
+    pub fn finish(&mut self) -> Result<JsValue, JsError> {
+        let est = self
+            .inner
+            .take()
+            .ok_or_else(|| JsError::new("the estimate is finished: make a new ReadoutEstimator"))?;
+        let frames = est.frames();
+        let v = match est.finish() {
+            Ok(e) => serde_json::json!({
+                "readout_ms": e.readout_ms,
+                "confident": e.confident,
+                "explained": e.explained,
+                "motion_deg": e.motion_deg,
+                "frames": e.frames,
+            }),
+            Err(amc_core::AmcError::TooFewFrames { .. }) => serde_json::json!({
+                "readout_ms": 0.0,
+                "confident": false,
+                "explained": 0.0,
+                "motion_deg": 0.0,
+                "frames": frames,
+            }),
+            Err(e) => return Err(err(e)),
+        };
+        to_js(&v)
+    }
+}
+
+/// Tracks the frame `data` (`format`, `width x height`; NV12 de-interleaved
+/// into `planar`) at `t` seconds with `est`, unless it is finished.
+fn track(
+    est: &mut Option<amc_core::shutter::ReadoutEstimator>,
+    (format, width, height): (InputFormat, usize, usize),
+    data: &[u8],
+    planar: &mut Vec<u8>,
+    t: f64,
+) -> Result<(), JsError> {
+    let est = est
+        .as_mut()
+        .ok_or_else(|| JsError::new("the estimate is finished: make a new ReadoutEstimator"))?;
+    args::with_frame(format, width, height, data, planar, |frame| {
+        Ok(est.push(frame, t)?)
+    })
+    .map_err(err)
 }
 
 /// Renders random frames through random rotations with the vectorized kernel

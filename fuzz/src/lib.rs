@@ -279,7 +279,9 @@ pub fn wasm_args(data: &[u8]) {
     };
     // Frames of the size a real page sends are a few MB; bigger sizes are
     // checked up to opening (the budget) but not pushed.
-    let Ok(mut opened) = args::open(width, height, &params, lens, format.as_deref()) else {
+    let Ok(mut opened) =
+        args::check(width, height, &params, lens, format.as_deref()).and_then(args::Checked::open)
+    else {
         return;
     };
     let (w, h, fmt) = (opened.width, opened.height, opened.format);

@@ -22,7 +22,7 @@ export async function runLocal(file) {
   state.worker = worker;
   const lens = await lensArg(s);
   const t0 = performance.now();
-  let start = null;
+  let start = null, readoutWarning = null;
   const current = () => state.run === run && state.worker === worker;
   worker.onerror = (e) => { if (current()) showError(`worker failed: ${e.message || e}`); };
   worker.onmessage = (ev) => {
@@ -32,7 +32,10 @@ export async function runLocal(file) {
       start = m;
       document.body.dataset.pixelFormat = m.pixelFormat;
       $('status-text').textContent = `${m.width}x${m.height} ${m.codec} → ${m.outWidth}x${m.outHeight} ${m.outCodec}` +
-        ` (${m.pixelFormat}${m.simd ? ', WASM SIMD' : ''})` + (m.audioNote ? ` · ${m.audioNote}` : '');
+        ` (${m.pixelFormat}${m.simd ? ', WASM SIMD' : ''})` + (m.audioNote ? ` · ${m.audioNote}` : '') +
+        (m.readoutNote ? ` · ${m.readoutNote}` : '');
+      // The readout the stabilizer runs with (the setting, the lens file's, or auto's estimate).
+      document.body.dataset.readoutMs = String(m.params.shutter ? m.params.shutter.readout_ms : 0);
       if (m.total) $('progress').max = m.total;
     } else if (m.type === 'zoom-pass') {
       // zoom static: the first pass (tracking only) that finds the clip's zoom.
@@ -40,6 +43,14 @@ export async function runLocal(file) {
       $('status-text').textContent = m.zoom
         ? `Static zoom ${m.zoom.toFixed(3)}x (keeps ${(100 / m.zoom).toFixed(1)}% of the width); stabilizing…`
         : `Finding the static zoom (first pass): frame ${m.done}${m.total ? ' / ' + m.total : ''}`;
+    } else if (m.type === 'readout-pass') {
+      // readout_ms auto: the first pass (tracking only) over the clip's first frames.
+      if (m.total) { $('progress').max = m.total; $('progress').value = m.done; }
+      $('status-text').textContent = `Estimating the readout (first pass): frame ${m.done}${m.total ? ' / ' + m.total : ''}`;
+    } else if (m.type === 'readout') {
+      readoutWarning = m.warning ? m.note : null;
+      document.body.dataset.readoutNote = m.note;
+      $('status-text').textContent = `${m.note[0].toUpperCase()}${m.note.slice(1)}; stabilizing…`;
     } else if (m.type === 'progress') {
       if (m.total) { $('progress').max = m.total; $('progress').value = m.done; }
       $('status-text').textContent = `Frame ${m.done}${m.total ? ' / ' + m.total : ''} · ${m.fps.toFixed(0)} frames/s ` +
@@ -48,7 +59,8 @@ export async function runLocal(file) {
       const secs = (performance.now() - t0) / 1000;
       $('progress').max = m.frames; $('progress').value = m.frames;
       $('status-text').textContent = `Done: ${m.frames} frames in ${secs.toFixed(1)} s · ${m.fps.toFixed(0)} frames/s end to end ` +
-        `(decode + stabilize + measure + encode); stabilizer alone ${m.stabFps.toFixed(0)} frames/s, plot metrics ${m.metricsFps.toFixed(0)} frames/s.`;
+        `(decode + stabilize + measure + encode); stabilizer alone ${m.stabFps.toFixed(0)} frames/s, plot metrics ${m.metricsFps.toFixed(0)} frames/s.` +
+        (readoutWarning ? ` Warning: ${readoutWarning.replace(/^warning: /, '')}` : '');
       document.body.dataset.frames = m.frames;
       document.body.dataset.fps = m.fps.toFixed(1);
       document.body.dataset.stabFps = m.stabFps.toFixed(1);
@@ -78,5 +90,5 @@ export async function runLocal(file) {
     }
   };
   state.cancel = () => { worker.terminate(); if (state.worker === worker) state.worker = null; showError('Cancelled.'); };
-  worker.postMessage({ type: 'process', file, params: s.params, lens, format: s.format });
+  worker.postMessage({ type: 'process', file, params: s.params, lens, format: s.format, readout: s.readout });
 }

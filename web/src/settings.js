@@ -9,7 +9,9 @@ import { $, showError, setPageState } from './state.js';
  * The number fields: input id, label, the parameter's name in amc-core, its
  * default, range (inclusive, except the minimum when `openMin`), whole numbers
  * only, unit. Ranges: amc-core's option table (amc-core/src/options.rs) and the
- * params' validate(): n_avg, margin, max_crop, rate_a, rate_b, lookahead, and fov (0 < DEG <= 179).
+ * params' validate(): n_avg, margin, max_crop, rate_a, rate_b, lookahead, readout_ms, and fov (0 < DEG <= 179).
+ * `words`: words accepted instead of a number; `unset`: an empty field is not
+ * sent (readout_ms: the lens file's readout applies, else 0).
  */
 export const FIELDS = [
   { id: 'n_avg', label: 'Averaging window', def: 6, min: 1, max: 64, int: true, unit: 'frames' },
@@ -19,6 +21,7 @@ export const FIELDS = [
   { id: 'rate_b', label: 'Smoothing b', def: 20, min: 0, max: 10000, unit: 'per second per radian' },
   { id: 'lookahead', label: 'Lookahead', def: 0, min: 0, max: 600, int: true, unit: 'frames' },
   { id: 'fov', label: 'Field of view', def: 70, min: 0, max: 179, openMin: true, unit: 'degrees' },
+  { id: 'readout_ms', label: 'Readout', def: 0, min: 0, max: 100, unit: 'milliseconds', words: ['auto'], unset: true },
 ];
 
 
@@ -29,9 +32,12 @@ function readField(f) {
   const el = $(f.id);
   const text = el.value.trim();
   const name = `${f.label} (${f.id})`;
-  const allowed = `allowed: ${range(f)}${f.int ? ', whole numbers' : ''}; empty means the default, ${f.def}`;
+  const words = f.words ? ` or ${f.words.join(', ')}` : '';
+  const empty = f.unset ? `the lens file's, else ${f.def}` : `the default, ${f.def}`;
+  const allowed = `allowed: ${range(f)}${words}${f.int ? ', whole numbers' : ''}; empty means ${empty}`;
   if (el.validity && el.validity.badInput) return { error: `${name}: not a number (${allowed}).` };
-  if (text === '') return { value: f.def };
+  if (text === '') return { value: f.unset ? null : f.def };
+  if (f.words && f.words.includes(text.toLowerCase())) return { value: text.toLowerCase() };
   const v = Number(text);
   const inRange = Number.isFinite(v) && (f.openMin ? v > f.min && v <= f.max : v >= f.min && v <= f.max);
   if (!inRange) return { error: `${name}: ${text} is out of range (${allowed}).` };
@@ -40,8 +46,11 @@ function readField(f) {
 }
 
 /**
- * The form's settings: `{ params, fov, format, lensFile, errors }`; `errors`
- * lists `{ id, message }` for every bad field (then `params` must not be used).
+ * The form's settings: `{ params, fov, readout, format, lensFile, errors }`;
+ * `errors` lists `{ id, message }` for every bad field (then `params` must
+ * not be used). `readout` is the readout field: milliseconds (also in
+ * `params.shutter`), `'auto'` (the worker estimates it first) or `null`
+ * (empty: the lens file's readout, else 0).
  */
 export function settings() {
   const values = {}, errors = [];
@@ -58,8 +67,10 @@ export function settings() {
       },
       render: { n_avg: values.n_avg, margin: values.margin },
       framing: { zoom: $('zoom').value, max_crop: values.max_crop },
+      ...(typeof values.readout_ms === 'number' ? { shutter: { readout_ms: values.readout_ms } } : {}),
     },
     fov: values.fov,
+    readout: values.readout_ms ?? null,
     format: $('format').value,
     lensFile: $('lens').files[0] || null,
     errors,
@@ -128,5 +139,7 @@ export function serverQuery(s) {
   const { zoom, max_crop: maxCrop } = s.params.framing || {};
   if (zoom && zoom !== 'auto') q.set('zoom', zoom);
   if (maxCrop != null && maxCrop !== def.max_crop) q.set('max_crop', maxCrop);
+  // Sent only when set (empty: the lens file's readout, else 0; older servers do not know it).
+  if (s.readout != null) q.set('readout_ms', s.readout);
   return q;
 }

@@ -5,7 +5,8 @@
 
 /** amc-server/src/engine/telemetry.rs TELEMETRY_HEADER. */
 export const TELEMETRY_HEADER = 'frame,t,rx,ry,rz,vx,vy,vz,est_speed_dps,view_speed_dps,valid_fraction,' +
-  'frames_averaged,saccade,iterations,rms_residual,track_valid_fraction,lost,template_reset,zoom,uncovered';
+  'frames_averaged,saccade,iterations,rms_residual,track_valid_fraction,lost,template_reset,zoom,uncovered,' +
+  'readout_rx,readout_ry,readout_rz';
 /** Columns only the page has (its per-frame image metrics), after the CLI's; empty where undefined. */
 export const PAGE_COLUMNS = 'input_rms_normal_flow_px,output_rms_normal_flow_px,input_rms_change,output_rms_change';
 
@@ -16,9 +17,10 @@ const opt = (m, k) => (m && m[k] != null && Number.isFinite(m[k]) ? String(m[k])
 const b01 = (v) => (v ? '1' : '0');
 
 /**
- * The telemetry CSV of an in-browser run: the CLI's 20 columns (rotation
- * vectors of the estimate `rx,ry,rz` and of the view `vx,vy,vz`, radians),
- * then the page's image metrics.
+ * The telemetry CSV of an in-browser run: the CLI's 23 columns (rotation
+ * vectors of the estimate `rx,ry,rz` and of the view `vx,vy,vz`, radians; the
+ * rotation across the readout `readout_rx,readout_ry,readout_rz` last), then
+ * the page's image metrics.
  */
 export function telemetryCsv(telemetry) {
   const lines = [`${TELEMETRY_HEADER},${PAGE_COLUMNS}`];
@@ -30,6 +32,7 @@ export function telemetryCsv(telemetry) {
       b01(r.saccade), tr.iterations ?? '', tr.rms_residual != null ? fixed(tr.rms_residual, 6) : '',
       tr.valid_fraction != null ? fixed(tr.valid_fraction, 4) : '', b01(tr.lost), b01(tr.template_reset),
       r.zoom != null ? fixed(r.zoom, 5) : '', r.uncovered ?? '',
+      ...(r.readout_rotation ? r.readout_rotation.map(sci) : ['', '', '']),
       opt(r.input_metrics, 'rms_normal_flow'), opt(r.metrics, 'rms_normal_flow'),
       opt(r.input_metrics, 'rms_change'), opt(r.metrics, 'rms_change'),
     ].join(','));

@@ -1,7 +1,7 @@
 // Stabilizes a clip off the main thread: demux (mediabunny), decode every frame
 // (WebCodecs), stabilize (amc-wasm), encode (WebCodecs) and mux (mediabunny),
 // copying the original's audio packets where the container allows.
-import init, { Stabilizer, simdEnabled } from './pkg/amc_wasm.js';
+import init, { Stabilizer, ReadoutEstimator, simdEnabled } from './pkg/amc_wasm.js';
 import { pixelPath, copyOptions, colorSpaceInit } from './pixels.js';
 import {
   Input, ALL_FORMATS, BlobSource, VideoSampleSink, EncodedPacketSink, VideoSample,
@@ -37,6 +37,34 @@ async function pickVideoCodec(format, width, height) {
   throw new Error(`this browser cannot encode ${format === 'webm' ? 'VP9, VP8 or AV1' : 'H.264, VP9 or AV1'} video`);
 }
 
+/** Frames the readout estimate tracks (amc-core's READOUT_FRAMES). */
+const READOUT_FRAMES = 180;
+
+/**
+ * A first pass over `video`'s frames into `pass` (a Stabilizer that does not
+ * render, or a ReadoutEstimator): each frame decoded into its input buffer and
+ * pushed, until the clip ends or `pass.isFull`; progress posted as `kind`.
+ */
+async function firstPass(pass, video, copyOpts, total, kind) {
+  let n = 0, lastT = -Infinity, lastPost = 0;
+  for await (const sample of new VideoSampleSink(video).samples()) {
+    if (cancelled) { sample.close(); throw new Error('cancelled'); }
+    if (pass.isFull) { sample.close(); break; }
+    let t = sample.timestamp;
+    if (!(t > lastT)) t = lastT + 1e-6; // as the main pass does
+    lastT = t;
+    await sample.copyTo(pass.inputBuffer(), copyOpts);
+    sample.close();
+    pass.pushInput(t);
+    n++;
+    const now = performance.now();
+    if (now - lastPost > 100) {
+      lastPost = now;
+      post(kind, { done: n, total });
+    }
+  }
+}
+
 /**
  * zoom static's first pass: every frame of `video` through a stabilizer that
  * does not render; returns the largest zoom its outputs needed.
@@ -45,22 +73,7 @@ async function staticZoom(video, width, height, paramsJson, lens, path, copyOpts
   const pre = new Stabilizer(width, height, paramsJson, lens, path);
   try {
     pre.setRendering(false);
-    let n = 0, lastT = -Infinity, lastPost = 0;
-    for await (const sample of new VideoSampleSink(video).samples()) {
-      if (cancelled) { sample.close(); throw new Error('cancelled'); }
-      let t = sample.timestamp;
-      if (!(t > lastT)) t = lastT + 1e-6; // as the main pass does
-      lastT = t;
-      await sample.copyTo(pre.inputBuffer(), copyOpts);
-      sample.close();
-      pre.pushInput(t);
-      n++;
-      const now = performance.now();
-      if (now - lastPost > 100) {
-        lastPost = now;
-        post('zoom-pass', { done: n, total });
-      }
-    }
+    await firstPass(pre, video, copyOpts, total, 'zoom-pass');
     while (pre.finish()) { /* the outputs the lookahead held back */ }
     return pre.maxZoomNeed();
   } finally {
@@ -68,7 +81,34 @@ async function staticZoom(video, width, height, paramsJson, lens, path, copyOpts
   }
 }
 
-async function processClip({ file, params, lens, format }) {
+/**
+ * readout_ms auto's first pass: the clip's first READOUT_FRAMES frames
+ * tracked with the rolling-shutter model; returns the estimate
+ * `{ readout_ms, confident, explained, motion_deg, frames }`.
+ */
+async function estimateReadout(video, width, height, paramsJson, lens, path, copyOpts, total) {
+  const est = new ReadoutEstimator(width, height, paramsJson, lens, path);
+  try {
+    const wanted = total ? Math.min(total, READOUT_FRAMES) : READOUT_FRAMES;
+    await firstPass(est, video, copyOpts, wanted, 'readout-pass');
+    return est.finish();
+  } finally {
+    est.free();
+  }
+}
+
+/** What the page says of an estimate: the readout used, and a warning when it fell back to 0. */
+function readoutNote(e) {
+  if (e.confident) return { readout_ms: e.readout_ms, note: `readout ${e.readout_ms.toFixed(1)} ms (estimated from ${e.frames} frames)` };
+  return {
+    readout_ms: 0,
+    warning: true,
+    note: `warning: the clip does not pin down the rolling-shutter readout (estimate ${e.readout_ms.toFixed(1)} ms from ${e.frames} frames, ` +
+      'not reliable); assuming a global shutter (0 ms): enter the readout in milliseconds for best results',
+  };
+}
+
+async function processClip({ file, params, lens, format, readout }) {
   const input = new Input({ source: new BlobSource(file), formats: ALL_FORMATS });
   let video;
   try {
@@ -95,8 +135,16 @@ async function processClip({ file, params, lens, format }) {
   const path = pixelPath(first.value);
   const outColorSpace = path === 'RGBA' ? undefined : colorSpaceInit(first.value);
   const copyOpts = copyOptions(path, width, height);
-  let stab;
+  let stab, readoutResult = null;
   try {
+    if (readout === 'auto') {
+      // readout_ms auto: a first pass (the clip's first frames, tracked with
+      // the rolling-shutter model) estimates it; 0 when it is not reliable.
+      const e = await estimateReadout(video, width, height, JSON.stringify(params), lens, path, copyOpts, total);
+      readoutResult = { ...readoutNote(e), estimate: e };
+      params = { ...params, shutter: { readout_ms: readoutResult.readout_ms } };
+      post('readout', readoutResult);
+    }
     stab = new Stabilizer(width, height, JSON.stringify(params), lens, path);
     if (params.framing && params.framing.zoom === 'static') {
       // One zoom for the whole clip: a first pass (decode, track, smooth, no
@@ -137,7 +185,7 @@ async function processClip({ file, params, lens, format }) {
 
   post('start', { width, height, outWidth: ow, outHeight: oh, total, codec, outCodec, simd: simdEnabled(),
     pixelFormat: path, decodedFormat: first.value.format,
-    params: JSON.parse(stab.paramsJson()), audioNote });
+    params: JSON.parse(stab.paramsJson()), audioNote, readoutNote: readoutResult && readoutResult.note });
 
   const t0 = performance.now();
   const inputMetrics = []; // of frames whose output the lookahead still holds back

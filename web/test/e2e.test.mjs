@@ -266,6 +266,34 @@ test('zoom static: a first pass finds one zoom for the clip, held on every frame
   await page.close();
 });
 
+test('readout: checked as typed; auto makes a first pass and the stabilizer runs with its estimate (or 0 with a warning)', async () => {
+  const { page } = await newPage();
+  await page.fill('#readout_ms', '150');
+  assert.match(await page.textContent('[data-testid=form-error]'), /Readout \(readout_ms\): 150 is out of range \(allowed: 0\.\.=100 milliseconds or auto/);
+  await page.fill('#readout_ms', 'auto');
+  assert.equal(await page.isVisible('[data-testid=form-error]'), false);
+  await page.setInputFiles('[data-testid=file-input]', cup);
+  await waitState(page, ['done', 'error']);
+  assert.equal(await state(page), 'done', await page.textContent('#error'));
+  const { note, ms } = await page.evaluate(() => ({ note: document.body.dataset.readoutNote, ms: Number(document.body.dataset.readoutMs) }));
+  assert.ok(ms >= 0 && ms <= 100, String(ms));
+  if (/^warning:/.test(note)) {
+    assert.equal(ms, 0, note);
+    assert.match(await page.textContent('#status-text'), /Warning: the clip does not pin down the rolling-shutter readout/);
+  } else {
+    assert.match(note, /^readout \d+\.\d ms \(estimated from \d+ frames\)$/);
+    assert.equal(ms.toFixed(1), note.match(/readout (\d+\.\d)/)[1]);
+  }
+  // A number goes to the core as it is.
+  await page.fill('#readout_ms', '12.5');
+  await page.click('#again');
+  await waitState(page, ['processing']);
+  await waitState(page, ['done', 'error']);
+  assert.equal(await state(page), 'done', await page.textContent('#error'));
+  assert.equal(await page.evaluate(() => document.body.dataset.readoutMs), '12.5');
+  await page.close();
+});
+
 test('bad settings and a file that is not a video end in the error state with a message', async () => {
   const { page } = await newPage();
   await page.fill('#n_avg', '0');

@@ -4,7 +4,7 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
-import { initSync, Stabilizer, simdEnabled, simdMatchesScalar } from '../dist/pkg/amc_wasm.js';
+import { initSync, Stabilizer, ReadoutEstimator, simdEnabled, simdMatchesScalar } from '../dist/pkg/amc_wasm.js';
 
 const wasmPath = fileURLToPath(new URL('../dist/pkg/amc_wasm_bg.wasm', import.meta.url));
 initSync({ module: readFileSync(wasmPath) });
@@ -365,6 +365,9 @@ test("the page's telemetry CSV has the CLI's header, column order and number for
     assert.equal(head[18], 'zoom');
     assert.equal(c[18], tel.zoom.toFixed(5));
     assert.equal(Number(c[19]), tel.uncovered);
+    // The rotation across the readout last, radians in Rust's `{:e}`.
+    assert.deepEqual(head.slice(20, 23), ['readout_rx', 'readout_ry', 'readout_rz']);
+    for (let k = 0; k < 3; k++) assert.equal(Number(c[20 + k]), tel.readout_rotation[k]);
   }
   assert.equal(lines[1].split(',').at(-3), '', 'no normal flow on the first frame');
   // Read back as the plot reads the job API's CSV.
@@ -427,4 +430,55 @@ test('plot ticks are round numbers covering the range', () => {
   assert.deepEqual(niceTicks(0, 0.37, 4).ticks.map((v) => +v.toFixed(3)), [0, 0.1, 0.2, 0.3, 0.4]);
   const t = niceTicks(0, 123, 5);
   assert.ok(t.max >= 123 && t.ticks.length <= 7);
+});
+
+test('readout_ms reaches the core: its range, a lens file\'s readout, the page\'s query', () => {
+  const readout = (params, lens = 70) => {
+    const st = new Stabilizer(64, 48, JSON.stringify(params), lens);
+    const ms = JSON.parse(st.paramsJson()).shutter.readout_ms;
+    st.free();
+    return ms;
+  };
+  const f = FIELDS.find((x) => x.id === 'readout_ms');
+  assert.equal(readout({}), f.def);
+  assert.equal(readout({ shutter: { readout_ms: f.max } }), f.max);
+  assert.equal(readout({ shutter: { readout_ms: 16.5 } }), 16.5);
+  throwsMsg(() => new Stabilizer(64, 48, JSON.stringify({ shutter: { readout_ms: f.max + 1e-6 } }), 70), /invalid readout_ms/);
+  throwsMsg(() => new Stabilizer(64, 48, JSON.stringify({ shutter: { readout_ms: -1 } }), 70), /invalid readout_ms/);
+  // A lens file's readout applies unless the parameters set one.
+  const lens = (extra) => JSON.stringify({ model: 'pinhole', width: 64, height: 48, fx: 50, fy: 50, cx: 31.5, cy: 23.5, ...extra });
+  assert.equal(readout({}, lens({ readout_ms: 12 })), 12);
+  assert.equal(readout({ shutter: { readout_ms: 3 } }, lens({ readout_ms: 12 })), 3);
+  assert.equal(readout({}, lens({})), 0);
+  throwsMsg(() => new Stabilizer(64, 48, '{}', lens({ readout_ms: 250 })), /readout_ms.*0\.\.=100/);
+  // The server gets it only when set: a number or auto.
+  const q = (r) => serverQuery({ params: { view: { mode: 'stabilize', rate_a: 2, rate_b: 20, lookahead: 0 }, render: { n_avg: 6, margin: 0.125 } }, fov: 70, format: 'mp4', lensFile: null, readout: r });
+  assert.equal(q(null).has('readout_ms'), false);
+  assert.equal(q(14.5).get('readout_ms'), '14.5');
+  assert.equal(q('auto').get('readout_ms'), 'auto');
+});
+
+test('ReadoutEstimator: frames in, an estimate out (not confident on a sliding test pattern)', () => {
+  const est = new ReadoutEstimator(W, H, '{}', 70);
+  assert.equal(est.isFull, false);
+  for (let i = 0; i < 30; i++) {
+    est.inputBuffer().set(frame(W, H, i, 0));
+    est.pushInput(i / 30);
+  }
+  assert.equal(est.frames, 30);
+  const e = est.finish();
+  for (const k of ['readout_ms', 'explained', 'motion_deg', 'frames']) assert.equal(typeof e[k], 'number', k);
+  assert.equal(typeof e.confident, 'boolean');
+  assert.ok(e.readout_ms >= 0 && e.readout_ms <= 100, String(e.readout_ms));
+  throwsMsg(() => est.finish(), /finished/);
+  est.free();
+  // Too few frames to fit: an answer, not an error (the page then uses 0).
+  const short = new ReadoutEstimator(W, H, '{}', 70);
+  short.push(frame(W, H), 0);
+  const s = short.finish();
+  assert.equal(s.confident, false);
+  short.free();
+  // Its arguments are checked as the Stabilizer's are.
+  throwsMsg(() => new ReadoutEstimator(0, H, '{}', 70), /invalid width/);
+  throwsMsg(() => new ReadoutEstimator(W, H, '{}', 70, 'YUYV'), /invalid format/);
 });

@@ -17,6 +17,7 @@
 
 mod document;
 mod error;
+mod file;
 mod gyroflow;
 mod opencv;
 mod parse;
@@ -26,5 +27,6 @@ mod tests;
 mod value;
 
 pub use error::LensError;
-pub use parse::{parse_lens, parse_lens_file, LensFile};
+pub use file::LensFile;
+pub use parse::{parse_lens, parse_lens_file};
 pub use project::to_project_json;

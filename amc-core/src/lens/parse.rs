@@ -2,6 +2,7 @@
 //! [`parse_lens`], its camera alone).
 
 use super::document::parse_document;
+use super::file::LensFile;
 use super::gyroflow::parse_gyroflow;
 use super::opencv::parse_opencv;
 use super::project::parse_project;
@@ -10,18 +11,6 @@ use super::LensError;
 use crate::camera::CameraModel;
 use crate::shutter::MAX_READOUT_MS;
 use serde_json::{Map, Value};
-
-/// What a lens file states: the camera, and the sensor's rolling-shutter
-/// readout when the file gives one.
-#[derive(Clone, Debug, PartialEq)]
-pub struct LensFile {
-    /// The camera model (validated).
-    pub camera: CameraModel,
-    /// Readout time (first row to last), milliseconds, in `0..=100`: the
-    /// project JSON's `readout_ms`, a Gyroflow profile's `frame_readout_time`;
-    /// `None` when the file does not say (OpenCV calibrations never do).
-    pub readout_ms: Option<f64>,
-}
 
 /// Parses a lens file in any supported format (project JSON, OpenCV JSON/YAML, Gyroflow) and validates it.
 pub fn parse_lens(text: &str) -> Result<CameraModel, LensError> {

@@ -9,8 +9,9 @@
 //! `dist`: pinhole -> empty, absent or all zeros; opencv -> `k1 k2 p1 p2 [k3]`;
 //! fisheye -> `k1 k2 k3 k4`.
 
+use super::file::LensFile;
 use super::value::{as_f64, as_size, fisheye_from, flat_numbers, get, invalid, radtan_from, show};
-use super::{LensError, LensFile};
+use super::LensError;
 use crate::camera::{CameraModel, Distortion};
 use serde_json::{Map, Value};
 

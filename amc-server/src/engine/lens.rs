@@ -37,6 +37,9 @@ pub struct ResolvedLens {
     pub camera: CameraModel,
     /// How it was found.
     pub note: LensNote,
+    /// The rolling-shutter readout the lens file states, milliseconds (none
+    /// without a file, or when the file does not say).
+    pub readout_ms: Option<f64>,
 }
 
 /// Resolves `spec` to a camera for frames of `input`; `size` is the frame size
@@ -52,6 +55,7 @@ pub fn resolve_lens(
         Ok(ResolvedLens {
             camera,
             note: LensNote::Given,
+            readout_ms: None,
         })
     };
     match spec {
@@ -60,12 +64,16 @@ pub fn resolve_lens(
                 path: p.clone(),
                 source,
             })?;
-            let camera =
-                amc_core::lens::parse_lens(&text).map_err(|source| RunError::LensParse {
+            let file =
+                amc_core::lens::parse_lens_file(&text).map_err(|source| RunError::LensParse {
                     path: p.clone(),
                     source,
                 })?;
-            given(camera)
+            Ok(ResolvedLens {
+                camera: file.camera,
+                note: LensNote::Given,
+                readout_ms: file.readout_ms,
+            })
         }
         LensSpec::Fov(deg) => {
             let (w, h) = match size {
@@ -100,6 +108,7 @@ pub fn resolve_lens(
                     camera: CameraModel::pinhole_hfov(w, h, FALLBACK_FOV_DEG)
                         .map_err(amc_core::AmcError::from)?,
                     note: LensNote::FellBack,
+                    readout_ms: None,
                 });
             }
             Ok(ResolvedLens {
@@ -108,6 +117,7 @@ pub fn resolve_lens(
                     hfov_deg: est.hfov_deg,
                     frames: frames.len(),
                 },
+                readout_ms: None,
             })
         }
     }

@@ -11,6 +11,7 @@ mod error;
 mod lens;
 mod measure;
 mod paths;
+mod readout;
 mod run;
 mod stages;
 mod telemetry;
@@ -21,6 +22,7 @@ pub use lens::{
     input_options, resolve_lens, LensNote, ResolvedLens, AUTO_FOV_FRAMES, FALLBACK_FOV_DEG,
 };
 pub use paths::check_distinct;
+pub use readout::{resolve, resolve_readout, ReadoutNote, Resolved, ResolvedReadout};
 pub use run::{render_pool, run, FrameRecord, Progress, RunConfig, RunSummary, TRUNCATED_SHARE};
 pub use telemetry::TELEMETRY_HEADER;
 

@@ -87,6 +87,12 @@ pub struct RunSummary {
     pub metrics: Option<ClipMetrics>,
     /// What the telemetry says of the whole clip (always measured: it is free).
     pub motion: MotionSummary,
+    /// The rolling-shutter readout the run used, milliseconds (0 = global shutter).
+    pub readout_ms: f64,
+    /// Warnings for the user about the run (the caller adds them: e.g.
+    /// `readout_ms=auto` fell back to a global shutter).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
     #[serde(skip)]
     pub per_frame: Vec<FrameRecord>,
 }
@@ -273,6 +279,8 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         frames_per_second: frames as f64 / seconds.max(1e-9),
         metrics,
         motion: motion.summary(),
+        readout_ms: cfg.params.shutter.readout_ms,
+        warnings: Vec::new(),
         per_frame,
     })
 }

@@ -62,6 +62,10 @@ pub struct ServeConfig {
     pub live_max_crop: f64,
     /// With `live_zoom` none: share cropped from each side of the live output (0..=0.45).
     pub live_margin: f64,
+    /// Rolling-shutter readout of the live camera as given (`--live-readout-ms`:
+    /// milliseconds, 0..=100; `auto` needs a whole clip and is refused); none:
+    /// the `live_lens` file's readout, else 0.
+    pub live_readout_ms: Option<String>,
     /// Width of the live output in pixels (default: the cropped input width).
     pub live_width: Option<usize>,
     /// JPEG quality of live frames (1..=100).
@@ -205,6 +209,24 @@ impl ServeConfig {
         })
     }
 
+    /// The live camera's readout: `--live-readout-ms`, else the lens file's
+    /// (`lens_ms`), else 0. `auto` is refused: the estimate needs a clip's
+    /// first seconds before the first frame is shown.
+    fn live_readout(&self, lens_ms: Option<f64>) -> Result<f64, ServeError> {
+        let spec = match &self.live_readout_ms {
+            Some(v) => amc_core::ReadoutSpec::parse(v).map_err(|_| ServeError::Invalid {
+                flag: "live-readout-ms",
+                detail: format!("{v:?} (allowed: 0..=100 milliseconds, 0 = global shutter)"),
+            })?,
+            None => amc_core::ReadoutSpec::FromLens,
+        };
+        spec.given(lens_ms).ok_or_else(|| ServeError::Invalid {
+            flag: "live-readout-ms",
+            detail: "auto (estimating the readout needs a whole clip first; allowed: 0..=100 milliseconds)"
+                .into(),
+        })
+    }
+
     /// The live feed's configuration.
     pub fn live(&self) -> Result<LiveConfig, ServeError> {
         check("live-jpeg-quality", self.live_jpeg_quality, 1, 100)?;
@@ -231,17 +253,19 @@ impl ServeConfig {
         params.framing.zoom = self.live_zoom;
         params.framing.max_crop = self.live_max_crop;
         params.render.output_width = self.live_width;
-        params.validate()?;
         let lens = match &self.live_lens {
             Some(p) => {
                 let text = std::fs::read_to_string(p).map_err(|source| ServeError::Io {
                     path: p.clone(),
                     source,
                 })?;
-                Some(amc_core::lens::parse_lens(&text).map_err(amc_core::AmcError::from)?)
+                Some(amc_core::lens::parse_lens_file(&text).map_err(amc_core::AmcError::from)?)
             }
             None => None,
         };
+        params.shutter.readout_ms = self.live_readout(lens.as_ref().and_then(|l| l.readout_ms))?;
+        params.validate()?;
+        let lens = lens.map(|l| l.camera);
         Ok(LiveConfig {
             source: self.live_source.clone(),
             format: self.live_format.clone(),

@@ -272,7 +272,9 @@ pub fn spec() -> Value {
                 "rms_frame_change": {"type": ["number", "null"], "description": "RMS luma change between consecutive outputs, 0..1 (null with metrics=false)"},
                 "sharpness": {"type": ["number", "null"], "description": "RMS Sobel gradient magnitude (null with metrics=false)"},
                 "valid_fraction": {"type": "number", "description": "Mean share of pixels covered by every averaged frame"},
-                "min_valid_fraction": {"type": "number", "description": "Lowest per-frame share of fully covered pixels"}
+                "min_valid_fraction": {"type": "number", "description": "Lowest per-frame share of fully covered pixels"},
+                "readout_ms": {"type": "number", "minimum": 0, "maximum": 100, "description": "Rolling-shutter readout time used, ms (0 = global shutter): readout_ms, the lens file's, or the estimate of readout_ms=auto"},
+                "warnings": {"type": "array", "items": {"type": "string"}, "description": "What the user should know about the run (readout_ms=auto fell back to 0)"}
             }},
             "JobMotion": {"type": "object", "properties": {
                 "rms_speed_est_dps": {"type": "number", "description": "RMS angular speed of the camera (estimated), deg/s"},

@@ -144,6 +144,16 @@ mod tests {
         assert_eq!(o.stabilizer.lens, LensSpec::Fov(90.0));
         assert_eq!(o.format, OutputFormat::Webm);
         assert!(!o.measure);
+        assert_eq!(o.stabilizer.readout, amc_core::ReadoutSpec::FromLens);
+        for (q, want) in [
+            ("readout_ms=auto", amc_core::ReadoutSpec::Auto),
+            ("readout_ms=16.7", amc_core::ReadoutSpec::Ms(16.7)),
+        ] {
+            assert_eq!(
+                JobOptions::from_query(Some(q)).unwrap().stabilizer.readout,
+                want
+            );
+        }
     }
 
     #[test]
@@ -159,6 +169,8 @@ mod tests {
             ("lookahead=100000", "lookahead"),
             ("bogus=1", "unknown option"),
             ("n_track=-3", "n_track"),
+            ("readout_ms=abc", "readout_ms"),
+            ("readout_ms=100.5", "readout_ms"),
         ] {
             let e = JobOptions::from_query(Some(q)).unwrap_err();
             assert!(matches!(e, ApiError::BadOption(_)), "{q}");

@@ -126,6 +126,8 @@ pub const SUMMARY_HEADERS: &[&str] = &[
     "x-amc-rms-speed-estimate-dps",
     "x-amc-rms-speed-view-dps",
     "x-amc-saccades",
+    "x-amc-readout-ms",
+    "x-amc-warning",
 ];
 
 fn summary_headers(h: &mut HeaderMap, s: &RunSummary) {
@@ -157,6 +159,10 @@ fn summary_headers(h: &mut HeaderMap, s: &RunSummary) {
         format!("{:.3}", motion.rms_speed_view_dps),
     );
     put("x-amc-saccades", motion.saccades.to_string());
+    put("x-amc-readout-ms", format!("{}", s.readout_ms));
+    if !s.warnings.is_empty() {
+        put("x-amc-warning", s.warnings.join("; "));
+    }
     // The image metrics cost about as much as stabilizing; `metrics=false` skips them.
     if let Some(m) = &s.metrics {
         put("x-amc-rms-normal-flow", format!("{:.5}", m.rms_normal_flow));

@@ -78,6 +78,24 @@ async fn routes_and_errors() {
     assert_eq!(s, StatusCode::BAD_REQUEST, "{j}");
     assert!(j["detail"].as_str().unwrap().contains("rate_a"), "{j}");
 
+    // The readout too: a number in 0..=100 ms, or auto.
+    for q in ["readout_ms=abc", "readout_ms=200"] {
+        let (s, _, j) = call(
+            &app,
+            Request::post(format!("/stabilize?{q}"))
+                .header("content-type", "video/mp4")
+                .body(Body::from("x"))
+                .unwrap(),
+        )
+        .await;
+        assert_eq!(s, StatusCode::BAD_REQUEST, "{q}: {j}");
+        let detail = j["detail"].as_str().unwrap();
+        assert!(
+            detail.contains("readout_ms") && detail.contains("0..=100"),
+            "{q}: {j}"
+        );
+    }
+
     let (s, _, _) = call(&app, get("/jobs/abc")).await;
     assert_eq!(s, StatusCode::NOT_FOUND);
     let (s, ctype, _) = call(&app, get("/nothing/here")).await;
@@ -276,7 +294,7 @@ async fn a_small_job_runs_to_done_and_its_files_go_with_it() {
     let app = app(st.clone());
     let (s, _, j) = call(
         &app,
-        Request::post("/jobs?fov=60&n_avg=3&rate_a=0.5&rate_b=10")
+        Request::post("/jobs?fov=60&n_avg=3&rate_a=0.5&rate_b=10&readout_ms=auto")
             .header("content-type", "video/mp4")
             .body(Body::from(std::fs::read(&clip).unwrap()))
             .unwrap(),
@@ -305,6 +323,7 @@ async fn a_small_job_runs_to_done_and_its_files_go_with_it() {
         "valid_fraction",
         "min_valid_fraction",
         "frames_per_second",
+        "readout_ms",
     ] {
         assert!(m[key].is_number(), "metrics.{key}: {last}");
     }
@@ -312,6 +331,17 @@ async fn a_small_job_runs_to_done_and_its_files_go_with_it() {
         m.get("metrics").is_none() && m.get("motion").is_none(),
         "{last}"
     );
+    // readout_ms=auto: the estimate, or 0 with a warning the client sees.
+    let warnings = m["warnings"].as_array().unwrap();
+    assert!(
+        warnings
+            .iter()
+            .all(|w| w.as_str().unwrap().contains("readout")),
+        "{last}"
+    );
+    if !warnings.is_empty() {
+        assert_eq!(m["readout_ms"], 0.0, "{last}");
+    }
     for key in ["rms_speed_est_dps", "rms_speed_view_dps", "saccades"] {
         assert!(last["motion"][key].is_number(), "motion.{key}: {last}");
         assert!(m.get(key).is_none(), "{key} twice: {last}");
@@ -382,7 +412,8 @@ async fn a_panicking_worker_fails_its_request_and_the_service_carries_on() {
     st.panic_in_workers.store(false, Ordering::SeqCst);
     let (s, _, j) = call(&app, get("/healthz")).await;
     assert_eq!(s, StatusCode::OK, "{j}");
-    let (s, _, _) = call(&app, post("/stabilize?metrics=false")).await;
+    // (readout_ms=auto: the estimate's first pass, then the run.)
+    let (s, _, _) = call(&app, post("/stabilize?metrics=false&readout_ms=auto")).await;
     assert_eq!(s, StatusCode::OK);
     let (s, _, _) = call(&app, delete(&format!("/jobs/{id}"))).await;
     assert_eq!(s, StatusCode::NO_CONTENT);

@@ -7,7 +7,7 @@ use super::config::Limits;
 use super::jobs::JobFile;
 use super::options::JobOptions;
 use super::problem::{count, ApiError};
-use crate::engine::{self, RunConfig, RunControl, RunError, RunSummary};
+use crate::engine::{self, LensNote, ResolvedLens, RunConfig, RunControl, RunError, RunSummary};
 use amc_core::{AmcError, LensSpec};
 use amc_video::{self as video, Inspection, VideoError};
 use std::path::{Path, PathBuf};
@@ -117,27 +117,48 @@ pub fn stabilize(
     limits: &Limits,
     control: &RunControl,
 ) -> Result<RunSummary, ApiError> {
-    let params = spec.options.stabilizer.params.clone();
+    let mut params = spec.options.stabilizer.params.clone();
+    let opts = engine::input_options(None, limits.ffmpeg_timeout);
     let lens = match &spec.lens_text {
-        Some(text) => amc_core::lens::parse_lens(text)
-            .map_err(|e| ApiError::BadOption(format!("invalid lens file: {e}")))?,
+        Some(text) => {
+            let file = amc_core::lens::parse_lens_file(text)
+                .map_err(|e| ApiError::BadOption(format!("invalid lens file: {e}")))?;
+            ResolvedLens {
+                camera: file.camera,
+                note: LensNote::Given,
+                readout_ms: file.readout_ms,
+            }
+        }
         None => {
             let lens = match &spec.options.stabilizer.lens {
                 // A client never names a server path.
                 LensSpec::File(_) => &LensSpec::Auto,
                 other => other,
             };
-            engine::resolve_lens(
-                lens,
-                &spec.input,
-                &params,
-                &engine::input_options(None, limits.ffmpeg_timeout),
-                Some(spec.input_size),
-            )
-            .map_err(|e| run_error(e, &spec.input))?
-            .camera
+            engine::resolve_lens(lens, &spec.input, &params, &opts, Some(spec.input_size))
+                .map_err(|e| run_error(e, &spec.input))?
         }
     };
+    let readout = engine::resolve_readout(
+        &spec.options.stabilizer.readout,
+        &lens,
+        &spec.input,
+        &params,
+        &opts,
+    )
+    .map_err(|e| run_error(e, &spec.input))?;
+    let warning = readout
+        .note
+        .is_warning()
+        .then(|| readout.message())
+        .flatten();
+    match (&warning, readout.message()) {
+        (Some(w), _) => tracing::warn!(input = %spec.input.display(), "{w}"),
+        (None, Some(line)) => tracing::info!(input = %spec.input.display(), "{line}"),
+        (None, None) => {}
+    }
+    params.shutter.readout_ms = readout.readout_ms;
+    let lens = lens.camera;
     engine::run(&RunConfig {
         input: &spec.input,
         output: Some(&spec.output),
@@ -155,7 +176,8 @@ pub fn stabilize(
         threads: limits.threads,
     })
     .map_err(|e| run_error(e, &spec.input))
-    .and_then(|summary| {
+    .and_then(|mut summary| {
+        summary.warnings.extend(warning);
         if summary.looks_truncated() {
             return Err(ApiError::Unsupported(format!(
                 "the video is truncated or damaged: only {} of the {} it declares could be decoded",

@@ -319,6 +319,11 @@ pub struct ServeArgs {
     /// With --live-zoom none: share cropped from each side of the live output (0..=0.45).
     #[arg(long, default_value_t = 0.125)]
     pub live_margin: f64,
+    /// Rolling-shutter readout time of the live camera (first row to last),
+    /// milliseconds, 0..=100 (0 = global shutter; default: the --live-lens
+    /// file's readout, else 0). `auto` needs a whole clip and is refused.
+    #[arg(long, value_name = "MS")]
+    pub live_readout_ms: Option<String>,
     /// Width of the live output in pixels (default: the cropped input width).
     #[arg(long)]
     pub live_width: Option<usize>,
@@ -491,6 +496,7 @@ impl ServeArgs {
             live_zoom: self.live_zoom,
             live_max_crop: self.live_max_crop,
             live_margin: self.live_margin,
+            live_readout_ms: self.live_readout_ms,
             live_width: self.live_width,
             live_jpeg_quality: self.live_jpeg_quality,
             log_json: self.log_json,
@@ -566,7 +572,8 @@ pub struct SynthArgs {
     pub pan_dps: f64,
 
     /// Rolling-shutter readout time (first to last row), ms; 0 = global
-    /// shutter. gt.csv holds the orientation at the first row's exposure.
+    /// shutter. gt.csv holds the mid-readout orientation (row v is exposed
+    /// at t + readout (v/H - 1/2)); lens.json states the readout (readout_ms).
     #[arg(
         long,
         default_value_t = 0.0,
@@ -777,6 +784,29 @@ mod tests {
             .unwrap()
             .to_string();
         assert!(e.contains("smooth, lock or follow"), "{e}");
+    }
+
+    #[test]
+    fn live_readout_is_a_number_and_auto_is_refused() {
+        let live = |argv: &[&str]| {
+            let Command::Serve(a) = parse(argv).unwrap().command else {
+                panic!("not serve")
+            };
+            a.config().unwrap().live()
+        };
+        let readout = |argv: &[&str]| live(argv).unwrap().params.shutter.readout_ms;
+        assert_eq!(readout(&["serve"]), 0.0);
+        assert_eq!(readout(&["serve", "--live-readout-ms", "16.5"]), 16.5);
+        for (value, needle) in [("auto", "whole clip"), ("200", "0..=100"), ("x", "0..=100")] {
+            let e = live(&["serve", "--live-readout-ms", value])
+                .err()
+                .unwrap()
+                .to_string();
+            assert!(
+                e.contains("--live-readout-ms") && e.contains(needle),
+                "{value}: {e}"
+            );
+        }
     }
 
     #[test]

@@ -15,6 +15,17 @@ use error::CliError;
 use std::process::ExitCode;
 use std::time::Duration;
 
+/// Tells the user how `--fov auto` and `--readout-ms auto` went (a readout
+/// fallback is a warning, shown even with `--quiet`).
+fn say_resolved(resolved: &engine::Resolved, quiet: bool) {
+    say_lens(resolved.lens_note(), quiet);
+    if let Some(line) = resolved.readout.message() {
+        if !quiet || resolved.readout.note.is_warning() {
+            eprintln!("{line}");
+        }
+    }
+}
+
 /// Tells the user how `--fov auto` went.
 fn say_lens(note: &LensNote, quiet: bool) {
     if quiet {
@@ -63,14 +74,13 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
     paths.extend(args.metrics.iter().map(|p| ("metrics", p.as_path())));
     engine::check_distinct(&paths)?;
     say_rate(&args.input, fps, timeout, args.quiet);
-    let lens = engine::resolve_lens(
-        &options.lens,
+    let resolved = engine::resolve(
+        &options,
         &args.input,
-        &options.params,
         &engine::input_options(fps, timeout),
         None,
     )?;
-    say_lens(&lens.note, args.quiet);
+    say_resolved(&resolved, args.quiet);
     let also: Vec<(&'static str, &std::path::Path)> = args
         .metrics
         .iter()
@@ -81,8 +91,8 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
     let run = engine::run(&RunConfig {
         input: &args.input,
         output: Some(&args.output),
-        params: options.params,
-        lens: lens.camera,
+        params: resolved.params,
+        lens: resolved.lens.camera,
         telemetry: args.telemetry.as_deref(),
         also_writes: &also,
         fps,
@@ -154,7 +164,7 @@ fn evaluate(a: args::EvalArgs) -> Result<(), CliError> {
         threads: a.run.input.threads(),
     };
     let bars = progress::Bars::new(!quiet);
-    let report = eval::run(&cfg, &|n| say_lens(n, quiet), &|mode, p| {
+    let report = eval::run(&cfg, &|r| say_resolved(r, quiet), &|mode, p| {
         bars.update(mode, p)
     })?;
     bars.finish();

@@ -146,6 +146,12 @@ pub struct JobMetrics {
     /// Share of pixels covered by every averaged frame: mean and lowest.
     pub valid_fraction: f64,
     pub min_valid_fraction: f64,
+    /// The rolling-shutter readout used, milliseconds (0 = global shutter).
+    #[serde(default)]
+    pub readout_ms: f64,
+    /// Warnings about the run (`readout_ms=auto` fell back to 0).
+    #[serde(default)]
+    pub warnings: Vec<String>,
 }
 
 /// The motion a finished job's telemetry shows.
@@ -172,6 +178,8 @@ impl JobMetrics {
             sharpness: image.map(|m| m.sharpness),
             valid_fraction: s.motion.valid_fraction,
             min_valid_fraction: s.motion.min_valid_fraction,
+            readout_ms: s.readout_ms,
+            warnings: s.warnings.clone(),
         }
     }
 }
