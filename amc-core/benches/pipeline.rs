@@ -155,7 +155,11 @@ fn bench_tracking(c: &mut Criterion) {
     // estimated (on frames filmed through one).
     for readout_s in [0.0, READOUT_S] {
         let (cam, frames) = clip_rolling(320, 180, readout_s);
-        let name = if readout_s > 0.0 { "320x180-rolling" } else { "320x180" };
+        let name = if readout_s > 0.0 {
+            "320x180-rolling"
+        } else {
+            "320x180"
+        };
         g.bench_function(name, |b| {
             let mut frontend = TrackingFrontend::new(&cam, 320).expect("frontend");
             let mut tracker =

@@ -20,8 +20,8 @@ use crate::framing::{
 use crate::frontend::TrackingFrontend;
 use crate::image::{Frame, FrameRef, PixelFormat};
 use crate::pyramid::Pyramid;
-use crate::shutter::{IntraFrame, RollingProjector, RowTime, ShutterParams};
 use crate::render::{chroma_camera, Accumulator, RenderParams, WarpedFrame, Warper};
+use crate::shutter::{IntraFrame, RollingProjector, RowTime, ShutterParams};
 use crate::so3::{self, Rot};
 use crate::tracker::{TrackInfo, Tracker, TrackerParams};
 use crate::view::{backward_pass, Mode, ViewParams};

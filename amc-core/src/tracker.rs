@@ -59,9 +59,9 @@ use crate::camera::CameraModel;
 use crate::error::{check_range, AmcError};
 use crate::image::GrayImage;
 use crate::pyramid::Pyramid;
+use crate::shutter::RowTime;
 use crate::shutter::{IntraFrame, INTRA_TERMS};
 use crate::so3::{self, Rot, Tangent};
-use crate::shutter::RowTime;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -339,7 +339,13 @@ impl Eval {
     /// ```text
     /// H_ab = P_a S_(a+b) P_b^T,    g_a = P_a G_a      (P_0 = I, P_a = P)
     /// ```
-    fn pose_step(&self, pose: &Pose, intra: bool) -> Option<Step> {
+    fn pose_step(
+        &self,
+        pose: &Pose,
+        intra: bool,
+        terms: usize,
+        prior: Option<&ReadoutPrior>,
+    ) -> Option<Step> {
         if !intra {
             return self.step().map(|delta| Step {
                 delta,
@@ -350,10 +356,14 @@ impl Eval {
         let sym = |h: &[f64; 6]| Matrix3::new(h[0], h[1], h[2], h[1], h[3], h[4], h[2], h[4], h[5]);
         let p = *pose.r.matrix();
         let side = |a: usize| if a == 0 { Matrix3::identity() } else { p };
-        let sk = |k: usize| if k == 0 { sym(&self.h) } else { sym(&self.hs[k - 1]) };
-        let gk = |k: usize| {
-            Vector3::from(if k == 0 { self.g } else { self.gs[k - 1] })
+        let sk = |k: usize| {
+            if k == 0 {
+                sym(&self.h)
+            } else {
+                sym(&self.hs[k - 1])
+            }
         };
+        let gk = |k: usize| Vector3::from(if k == 0 { self.g } else { self.gs[k - 1] });
         let mut h = SMatrix::<f64, N, N>::zeros();
         let mut g = SVector::<f64, N>::zeros();
         for a in 0..=INTRA_TERMS {
@@ -368,6 +378,22 @@ impl Eval {
         let damp = 1e-6 * h.trace() / N as f64 + 1e-18;
         for i in 0..N {
             h[(i, i)] += damp * if i < 3 { 1e-3 } else { 1.0 };
+        }
+        // Terms beyond `terms` are held (their rows pinned).
+        let pin = 1e9 * h.trace();
+        for i in 3 * (terms + 1)..N {
+            h[(i, i)] += pin;
+        }
+        // The prior on the readout path (see [`ReadoutPrior`]).
+        if let Some(prior) = prior {
+            let dev = prior.deviation(&pose.intra);
+            for k in 0..INTRA_TERMS {
+                for a in 0..3 {
+                    let i = 3 * (k + 1) + a;
+                    h[(i, i)] += prior.weight;
+                    g[i] -= prior.weight * dev[k][a];
+                }
+            }
         }
         let d = h.cholesky()?.solve(&g);
         if !d.iter().all(|v| v.is_finite()) {
@@ -427,7 +453,62 @@ pub struct Tracker {
     gauge_tpl: IntraFrame,
     /// Rolling shutter: the running check of the gauge.
     gauge: Gauge,
+    /// Rolling shutter: the mean of this frame's [`ReadoutPrior`].
+    prior_mean: IntraFrame,
+    /// Rolling shutter: moving averages of `w_j . w_(j-1)` and `|w_j|^2` for
+    /// the pose-to-pose rates `w` (see [`PACE_SWITCH`]).
+    pace: (f64, f64),
 }
+
+/// A Gaussian prior on a frame's readout path, in the template's gauge:
+/// `phi` near the readout time times the last pose-to-pose rate, the higher
+/// terms near zero. It costs `weight |theta - mean|^2 / 2` (intensity units
+/// squared, the robust loss's), and `weight` is [`READOUT_PRIOR`] times the
+/// information the level's points carry about one rotation axis: the data
+/// outweigh it wherever they see the readout path (shake of 12-20 Hz filmed
+/// through a 10-20 ms readout), and it holds the path where they barely do (a
+/// hand's slow sway, a car's parallax and a scene that moves on its own).
+#[derive(Clone, Copy, Debug)]
+struct ReadoutPrior {
+    mean: IntraFrame,
+    weight: f64,
+}
+
+impl ReadoutPrior {
+    /// `theta - mean`, term by term.
+    fn deviation(&self, intra: &IntraFrame) -> [Tangent; INTRA_TERMS] {
+        intra.plus(&self.mean, -1.0).terms()
+    }
+
+    /// `weight |theta - mean|^2 / 2`.
+    fn energy(&self, intra: &IntraFrame) -> f64 {
+        0.5 * self.weight
+            * self
+                .deviation(intra)
+                .iter()
+                .map(|d| d.norm_squared())
+                .sum::<f64>()
+    }
+}
+
+/// Strength of the [`ReadoutPrior`], relative to the data's information
+/// about one rotation axis.
+const READOUT_PRIOR: f64 = 1e-3;
+/// The readout path's model follows the motion's pace, measured by the
+/// lag-one autocorrelation of the pose-to-pose rates, `rho = <w_j . w_(j-1)> /
+/// <|w_j|^2>` (moving averages), which is `cos(2 pi f dt)` for shake at `f` Hz.
+/// Below this value the motion is fast (it turns within five frames:
+/// flapping wings, a motor's vibration): the rate at the last frame predicts
+/// the current one poorly, and the readout path bends and twists within a
+/// readout, so `phi`, `psi` and `chi` are all estimated, freely. Above it the
+/// motion is slow (a hand's sway, a car's ride): only `phi` is estimated,
+/// under the [`ReadoutPrior`] (the last rate predicts it well), as the higher
+/// terms would mostly fit parallax and moving objects. Measured: -0.27..-0.10
+/// on 100-300 deg/s shake at 12-20 Hz and 60 frames/s; 0.55-0.71 on cc9 (a
+/// phone in a car, 30 frames/s).
+const PACE_SWITCH: f64 = 0.3;
+/// Weight of one frame in the moving averages of [`PACE_SWITCH`].
+const PACE_GAIN: f64 = 0.05;
 
 /// The gauge of the readout motion.
 ///
@@ -493,6 +574,8 @@ impl Tracker {
             readout_s: 0.0,
             gauge_tpl: IntraFrame::ZERO,
             gauge: Gauge::default(),
+            prior_mean: IntraFrame::ZERO,
+            pace: (0.0, 0.0),
             params,
         })
     }
@@ -532,7 +615,7 @@ impl Tracker {
     pub fn track(&mut self, pyr: &Pyramid, t: f64) -> (Rot, TrackInfo) {
         let Some((t_prev, r_prev)) = self.last else {
             // First frame: it is the reference orientation and the first template.
-self.set_template(pyr);
+            self.set_template(pyr);
             self.r_0k = Rot::identity();
             self.r_kj = Rot::identity();
             self.last = Some((t, Rot::identity()));
@@ -548,9 +631,23 @@ self.set_template(pyr);
         // Warm-start candidates, as rotations relative to the template.
         // At most three candidates; a fixed array keeps `track` allocation-free.
         // With a rolling shutter each starts from the last frame's readout motion.
-        let intra = self.intra.plus(&self.gauge_tpl, 1.0);
+        let mut start_intra = self.intra;
+        if self.rolling.is_some() && !self.fast_motion() {
+            // Slow: only `phi` is estimated; the higher terms are zero.
+            (start_intra.psi, start_intra.chi) = (Tangent::zeros(), Tangent::zeros());
+        }
+        let intra = start_intra.plus(&self.gauge_tpl, 1.0);
+        self.prior_mean = IntraFrame {
+            phi: self.rate * self.readout_s,
+            ..IntraFrame::ZERO
+        }
+        .plus(&self.gauge_tpl, 1.0);
         let pose = |r| Pose { r, intra };
-        let mut candidates = [pose(self.r_kj), pose(Rot::identity()), pose(Rot::identity())];
+        let mut candidates = [
+            pose(self.r_kj),
+            pose(Rot::identity()),
+            pose(Rot::identity()),
+        ];
         let mut n_cand = 1;
         if self.params.predict && dt.is_finite() && dt > 0.0 {
             let predicted = r_prev * so3::exp(&(self.rate * dt));
@@ -600,7 +697,19 @@ self.set_template(pyr);
         }
         let r_0j = so3::renormalize(&(self.r_0k * self.r_kj));
         if dt.is_finite() && dt > 0.0 {
-            self.rate = so3::body_rate(&r_prev, &r_0j, dt);
+            let rate = so3::body_rate(&r_prev, &r_0j, dt);
+            if self.rolling.is_some() && good {
+                let (c, p) = (rate.dot(&self.rate), rate.norm_squared());
+                if self.rate == Tangent::zeros() {
+                    // No earlier rate yet (the second frame).
+                } else if self.pace.1 == 0.0 {
+                    self.pace = (c, p);
+                } else {
+                    self.pace.0 += PACE_GAIN * (c - self.pace.0);
+                    self.pace.1 += PACE_GAIN * (p - self.pace.1);
+                }
+            }
+            self.rate = rate;
             if self.rolling.is_some() && good {
                 self.check_gauge();
             }
@@ -616,6 +725,12 @@ self.set_template(pyr);
             info.template_reset = true;
         }
         (r_0j, info)
+    }
+
+    /// Whether the motion is fast for the readout path's model (see
+    /// [`PACE_SWITCH`]); slow until two rates are known.
+    fn fast_motion(&self) -> bool {
+        self.pace.1 > 0.0 && self.pace.0 < PACE_SWITCH * self.pace.1
     }
 
     /// Adds the last frame to the gauge check; at the end of a block, removes
@@ -742,6 +857,7 @@ self.set_template(pyr);
         let min_valid = ((tpl.xs.len() as f32) * MIN_VALID_SHARE).max(8.0) as u32;
         let f_level = tpl.k.map_or(1.0, |k| k.fx.max(k.fy)) as f64;
         let intra = self.rolling.is_some() && level < INTRA_LEVELS;
+        let mut prior = None;
         // Coarse levels only need to land inside the next level's basin.
         let tol = self.params.convergence_px
             * if level == 0 {
@@ -750,12 +866,28 @@ self.set_template(pyr);
                 COARSE_TOLERANCE_FACTOR
             };
         let mut cur = self.evaluate(level, img, &pose);
+        let fast = self.fast_motion();
+        if intra && !fast {
+            prior = Some(ReadoutPrior {
+                mean: self.prior_mean,
+                weight: READOUT_PRIOR * (cur.h[0] + cur.h[3] + cur.h[5]) / 3.0,
+            });
+        }
+        let terms = if fast { INTRA_TERMS } else { 1 };
+        // The objective: mean robust loss, plus the prior's share.
+        let objective = |e: &Eval, p: &Pose| {
+            e.mean_loss()
+                + prior
+                    .as_ref()
+                    .map_or(0.0, |q| q.energy(&p.intra) / e.n.max(1) as f64)
+        };
+        let mut cur_obj = objective(&cur, &pose);
         let mut iters = 0;
         for _ in 0..self.params.max_iterations {
             if cur.n < min_valid {
                 break;
             }
-            let Some(step) = cur.pose_step(&pose, intra) else {
+            let Some(step) = cur.pose_step(&pose, intra, terms, prior.as_ref()) else {
                 break;
             };
             let step_px = step.angle() * f_level;
@@ -768,9 +900,11 @@ self.set_template(pyr);
             for _ in 0..MAX_BACKTRACK {
                 let cand = step.apply(&pose, s);
                 let e = self.evaluate(level, img, &cand);
-                if e.n >= min_valid && e.mean_loss() <= cur.mean_loss() {
+                let obj = objective(&e, &cand);
+                if e.n >= min_valid && obj <= cur_obj {
                     pose = cand;
                     cur = e;
+                    cur_obj = obj;
                     accepted = true;
                     break;
                 }
@@ -904,7 +1038,9 @@ self.set_template(pyr);
                 let (a, b) = (a * k, a * 0.5 * (k - 1.0) + b);
                 self.evaluate_rolling_with(level, img, pose, intra, |_, v| a * v + b)
             }
-            table => self.evaluate_rolling_with(level, img, pose, intra, |u, v| table.at(level, u, v)),
+            table => {
+                self.evaluate_rolling_with(level, img, pose, intra, |u, v| table.at(level, u, v))
+            }
         }
     }
 
@@ -1073,7 +1209,10 @@ fn rectify_template(tpl: &mut LevelTemplate, rows: &RowTime, level: usize, intra
         );
         let s = rows.at(level, u, v) as f64;
         let ray = if s.is_finite() {
-            rotate_small(&intra.at(s).map(|a| a as f32).into(), &[x as f32, y as f32, 1.0])
+            rotate_small(
+                &intra.at(s).map(|a| a as f32).into(),
+                &[x as f32, y as f32, 1.0],
+            )
         } else {
             [x as f32, y as f32, 1.0]
         };

@@ -138,7 +138,13 @@ fn stabilize(
     })
     .expect("valid shake");
     let readout_s = params.shutter.readout_s();
-    let telemetry = stabilize_motion_rolling(case, pano_full, params, &|t| shake.orientation_at(t), readout_s);
+    let telemetry = stabilize_motion_rolling(
+        case,
+        pano_full,
+        params,
+        &|t| shake.orientation_at(t),
+        readout_s,
+    );
     (telemetry, shake)
 }
 
@@ -186,7 +192,12 @@ fn stabilize_measured(
     let mut out: Vec<Option<amc_core::Telemetry>> = vec![None; n];
     let mut record = |tel: amc_core::Telemetry, stab: &Stabilizer| {
         if let Some(m) = metrics.as_deref_mut() {
-            m.push(&stab.output(), stab.output_coverage(), tel.valid_fraction, Some(&tel));
+            m.push(
+                &stab.output(),
+                stab.output_coverage(),
+                tel.valid_fraction,
+                Some(&tel),
+            );
         }
         let j = tel.frame as usize;
         assert!(j < n && out[j].is_none(), "telemetry for frame {j} twice");
@@ -644,97 +655,301 @@ fn lock_holds_every_axis_within_the_budget() {
     assert!(view_motion < 0.3 * cam_motion);
 }
 
-/// Rolling shutter (experiment).
-#[test]
-fn rolling_shutter_experiment() {
-    let (w, h) = SIZE;
-    let pano = panorama();
-    let cam = if std::env::var("RS_FISHEYE").is_ok() {
-        CameraModel::fisheye_hfov(w, h, 150.0, [0.05, -0.01, 0.002, -0.0005]).unwrap()
-    } else {
-        CameraModel::pinhole_hfov(w, h, 90.0).unwrap()
-    };
-    let spec: Vec<(f64, f64, bool)> = std::env::var("RS_CASES")
-        .unwrap_or("100,15,1;100,15,0;100,0,0".into())
-        .split(';')
-        .map(|c| {
-            let v: Vec<f64> = c.split(',').map(|x| x.parse().unwrap()).collect();
-            (v[0], v[1], v[2] != 0.0)
-        })
+/// The shake of the rolling-shutter tests: `dps` deg/s RMS in 12-20 Hz.
+fn rs_shake(dps: f64, seed: u64) -> Shake {
+    Shake::new(&ShakeParams {
+        shake_dps: dps,
+        band_hz: (12.0, 20.0),
+        seed,
+        ..ShakeParams::default()
+    })
+    .expect("valid shake")
+}
+
+/// Per-frame and orientation errors of `telemetry` against `shake` (degrees).
+fn errors_of(telemetry: &[amc_core::Telemetry], shake: &Shake) -> Errors {
+    let est: Vec<Rot> = telemetry
+        .iter()
+        .map(|t| so3::exp(&Tangent::from(t.r_est)))
         .collect();
-    for (dps, ms, model) in spec {
-        let case = Case {
-            name: "rs",
-            camera: cam.clone(),
-            shake_dps: dps,
+    let gt: Vec<Rot> = (0..est.len())
+        .map(|j| shake.orientation_at(j as f64 / FPS))
+        .collect();
+    Errors {
+        frame: (1..est.len())
+            .map(|j| {
+                let d_gt = gt[j - 1].transpose() * gt[j];
+                let d_est = est[j - 1].transpose() * est[j];
+                so3::angle_between(&d_gt, &d_est).to_degrees()
+            })
+            .collect(),
+        orientation: gt
+            .iter()
+            .zip(&est)
+            .map(|(g, e)| so3::angle_between(g, e).to_degrees())
+            .collect(),
+    }
+}
+
+/// A rolling-shutter case: a camera, a shake, a readout and the bar on the
+/// median per-frame error as a multiple of the same motion's with a global
+/// shutter.
+struct RollingCase {
+    name: &'static str,
+    camera: CameraModel,
+    dps: f64,
+    readout_ms: f64,
+    max_ratio: f64,
+}
+
+/// Rolling shutter, from the pixels alone (`readout_ms` given, then `auto`):
+/// pinhole and fisheye, 100 and 300 deg/s of 12-20 Hz shake, readouts of 10
+/// and 20 ms at 60 frames/s, rows exposed at `t + readout (v / H - 1/2)` and
+/// the ground truth at mid-readout.
+///
+/// Measured (x86-64, 4 s clips; ratio = median per-frame error over the same
+/// motion's with a global shutter): pinhole 100 deg/s 1.5x (10 ms) and 3.5x
+/// (20 ms), 300 deg/s 2.4x and 14x; fisheye 1.6x, 2.0x, 1.9x and 4.4x.
+/// Without the model the error is 0.19-1.0 deg (70-800x). The bars leave
+/// about 1.3x. Orientation after 4 s: within 1.1x of the global shutter's on
+/// the pinhole at 100 deg/s and the fisheye at 100 deg/s, 1.2-1.7x on the
+/// pinhole at 300 deg/s, 3-5x on the fisheye at 300 deg/s (0.07-0.13 deg
+/// against 0.025); the bar is 1.5x plus 0.15 deg. The readout fit from the
+/// tracking pass (what `auto` runs) is within 4% (bar 10%).
+#[test]
+fn rolling_shutter_estimate_matches_ground_truth() {
+    let (w, h) = SIZE;
+    let pinhole = CameraModel::pinhole_hfov(w, h, 90.0).unwrap();
+    let fisheye = CameraModel::fisheye_hfov(w, h, 150.0, [0.05, -0.01, 0.002, -0.0005]).unwrap();
+    let case = |name, camera: &CameraModel, dps, readout_ms, max_ratio| RollingCase {
+        name,
+        camera: camera.clone(),
+        dps,
+        readout_ms,
+        max_ratio,
+    };
+    let cases = [
+        case("pinhole 100 deg/s, 10 ms", &pinhole, 100.0, 10.0, 2.2),
+        case("pinhole 100 deg/s, 20 ms", &pinhole, 100.0, 20.0, 4.5),
+        case("pinhole 300 deg/s, 10 ms", &pinhole, 300.0, 10.0, 3.2),
+        case("pinhole 300 deg/s, 20 ms", &pinhole, 300.0, 20.0, 18.0),
+        case("fisheye 100 deg/s, 10 ms", &fisheye, 100.0, 10.0, 2.2),
+        case("fisheye 100 deg/s, 20 ms", &fisheye, 100.0, 20.0, 2.8),
+        case("fisheye 300 deg/s, 10 ms", &fisheye, 300.0, 10.0, 2.6),
+        case("fisheye 300 deg/s, 20 ms", &fisheye, 300.0, 20.0, 6.0),
+    ];
+    let pano = panorama();
+    let mut failures = Vec::new();
+    let mut global: Vec<(String, Errors)> = Vec::new();
+    for c in &cases {
+        let shake = rs_shake(c.dps, 1);
+        let gs_case = Case {
+            name: c.name,
+            camera: c.camera.clone(),
+            shake_dps: c.dps,
             seed: 1,
             format: PixelFormat::Rgb8,
             max_median_frame_deg: 0.0,
             max_final_deg: 0.0,
             max_orientation_deg: 0.0,
         };
+        let motion = |t: f64| shake.orientation_at(t);
+        // The same motion through a global shutter (once per camera and speed).
+        let key = format!("{} {}", c.camera.is_pinhole(), c.dps);
+        if !global.iter().any(|(k, _)| *k == key) {
+            let tel = stabilize_motion(&gs_case, &pano, StabilizerParams::default(), &motion);
+            global.push((key.clone(), errors_of(&tel, &shake)));
+        }
+        let gs = &global.iter().find(|(k, _)| *k == key).unwrap().1;
+        let readout_s = c.readout_ms / 1000.0;
         let mut params = StabilizerParams::default();
-        params.view.mode = amc_core::Mode::None;
-        if let Ok(v) = std::env::var("RS_CONV") {
-            params.tracker.convergence_px = v.parse().unwrap();
+        params.shutter.readout_ms = c.readout_ms;
+        let tel = stabilize_motion_rolling(&gs_case, &pano, params, &motion, readout_s);
+        let rs = errors_of(&tel, &shake);
+        // `auto`: the readout from the same frames' tracking pass.
+        let est = amc_core::shutter::fit_readout(&tel).expect("enough frames");
+        eprintln!(
+            "[{}] median per-frame error {:.5} deg ({:.2}x the global shutter's {:.5}), \
+             final orientation {:.4} deg (global {:.4}); readout fit {:.2} ms",
+            c.name,
+            rs.median_frame(),
+            rs.median_frame() / gs.median_frame(),
+            gs.median_frame(),
+            rs.final_orientation(),
+            gs.final_orientation(),
+            est.readout_ms
+        );
+        if !(rs.median_frame() <= c.max_ratio * gs.median_frame()) {
+            failures.push(format!(
+                "[{}] median per-frame error {:.5} deg > {} x {:.5}",
+                c.name,
+                rs.median_frame(),
+                c.max_ratio,
+                gs.median_frame()
+            ));
         }
-        if let Ok(v) = std::env::var("RS_POINTS") {
-            params.tracker.max_points = v.parse().unwrap();
+        if !(rs.final_orientation() <= 1.5 * gs.final_orientation() + 0.15) {
+            failures.push(format!(
+                "[{}] drift {:.4} deg > 1.5 x {:.4} + 0.15",
+                c.name,
+                rs.final_orientation(),
+                gs.final_orientation()
+            ));
         }
-        if let Ok(v) = std::env::var("RS_NTRACK") {
-            params.tracker.n_track = v.parse().unwrap();
+        if !((est.readout_ms / c.readout_ms - 1.0).abs() <= 0.1 && est.confident) {
+            failures.push(format!(
+                "[{}] readout fit {:.2} ms (confident: {}), true {} ms",
+                c.name, est.readout_ms, est.confident, c.readout_ms
+            ));
         }
-        if model {
-            params.shutter.readout_ms = ms;
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// Without the readout (`readout_ms` 0) the same clip is tracked as today's
+/// global shutter would: 50x the error. And `auto`, end to end through
+/// [`amc_core::shutter::ReadoutEstimator`], finds 10 ms on it and 0 on the
+/// global-shutter clip, whose output is bit-identical with `readout_ms` 0.
+#[test]
+fn rolling_shutter_needs_its_readout_and_auto_finds_it() {
+    let (w, h) = SIZE;
+    let cam = CameraModel::pinhole_hfov(w, h, 90.0).unwrap();
+    let shake = rs_shake(100.0, 1);
+    let pano_full = panorama();
+    let pano = downsample_pano(
+        &pano_full.as_ref(),
+        pano_downsample_factor(pano_full.width, &cam),
+    );
+    let renderer = EquirectRenderer::new(&cam, SUPERSAMPLE).unwrap();
+    let n = (3.0 * FPS) as usize;
+    let clip = |readout_s: f64| -> Vec<Frame> {
+        (0..n)
+            .map(|j| {
+                let t = j as f64 / FPS;
+                let mut f = Frame::new(w, h, PixelFormat::Rgb8);
+                renderer
+                    .render_rolling_into(
+                        &pano.as_ref(),
+                        &|s| shake.orientation_at(t + readout_s * s),
+                        &mut f,
+                    )
+                    .unwrap();
+                f
+            })
+            .collect()
+    };
+    let estimate = |frames: &[Frame]| {
+        let mut e =
+            amc_core::shutter::ReadoutEstimator::new(&cam, w, h, &StabilizerParams::default())
+                .unwrap();
+        for (j, f) in frames.iter().enumerate() {
+            if e.is_full() {
+                break;
+            }
+            e.push(f.as_ref(), j as f64 / FPS).unwrap();
         }
-        let band: Vec<f64> = std::env::var("RS_BAND").unwrap_or("12,20".into()).split(',').map(|x| x.parse().unwrap()).collect();
-        let shake = Shake::new(&ShakeParams {
-            shake_dps: dps,
-            band_hz: (band[0], band[1]),
-            seed: 1,
-            ..ShakeParams::default()
-        })
-        .unwrap();
-        let tel = stabilize_motion_rolling(&case, &pano, params, &|t| shake.orientation_at(t), ms / 1000.0);
-        let n = tel.len();
-        let est: Vec<Rot> = tel.iter().map(|t| so3::exp(&Tangent::from(t.r_est))).collect();
-        let gt: Vec<Rot> = (0..n).map(|j| shake.orientation_at(j as f64 / FPS)).collect();
-        let mut fe: Vec<f64> = (1..n)
-            .map(|j| so3::angle_between(&(gt[j - 1].transpose() * gt[j]), &(est[j - 1].transpose() * est[j])).to_degrees())
-            .collect();
-        fe.sort_by(f64::total_cmp);
-        let fin = so3::angle_between(&gt[n - 1], &est[n - 1]).to_degrees();
-        // intra-frame truth: phi = log(R(t-τ/2)^T R(t+τ/2)) approx
-        let tau = ms / 1000.0;
-        let mut phi_err = Vec::new();
-        for j in 0..n {
-            let t = j as f64 / FPS;
-            let mid = shake.orientation_at(t);
-            let a = so3::log(&(mid.transpose() * shake.orientation_at(t + tau / 2.0)));
-            let b = so3::log(&(mid.transpose() * shake.orientation_at(t - tau / 2.0)));
-            let phi_gt = a - b;
-            let phi = Tangent::from(tel[j].readout_rotation);
-            phi_err.push(((phi - phi_gt).norm().to_degrees(), phi_gt.norm().to_degrees()));
-            if (j % 20 == 7 || j <= 1) && std::env::var("RS_DEBUG").is_ok() {
-                eprintln!("j {j}: phi est {:?} gt {:?}", phi.map(f64::to_degrees).as_slice(), phi_gt.map(f64::to_degrees).as_slice());
+        e.finish().unwrap()
+    };
+    let run = |frames: &[Frame], readout_ms: f64| {
+        let mut params = StabilizerParams::default();
+        params.shutter.readout_ms = readout_ms;
+        let mut stab = Stabilizer::new(&cam, w, h, params).unwrap();
+        let (mut tel, mut bytes) = (Vec::new(), Vec::new());
+        let mut take = |t: amc_core::Telemetry, s: &Stabilizer| {
+            bytes.extend_from_slice(s.output().data);
+            tel.push(t);
+        };
+        for (j, f) in frames.iter().enumerate() {
+            if let Some(t) = stab.push(f.as_ref(), j as f64 / FPS).unwrap() {
+                take(t, &stab);
             }
         }
-        let mpe = phi_err.iter().map(|p| p.0).sum::<f64>() / phi_err.len() as f64;
-        let mpg = phi_err.iter().map(|p| p.1).sum::<f64>() / phi_err.len() as f64;
-        let fit = amc_core::shutter::fit_readout(&tel).unwrap();
-        eprintln!("mean iterations {}", tel.iter().map(|t| t.track.iterations as f64).sum::<f64>() / n as f64);
-        let mut params = StabilizerParams::default();
-        params.view.mode = amc_core::Mode::Saccade;
-        params.render.n_avg = 1;
-        if std::env::var("RS_ZOOMNONE").is_ok() {
+        while let Some(t) = stab.finish() {
+            take(t, &stab);
+        }
+        (tel, bytes)
+    };
+    let rolling = clip(0.010);
+    let est = estimate(&rolling);
+    eprintln!("rolling 10 ms: {est:?}");
+    assert!(
+        est.confident && (est.readout_ms - 10.0).abs() <= 1.0,
+        "{est:?}"
+    );
+    let with = errors_of(&run(&rolling, 10.0).0, &shake).median_frame();
+    let without = errors_of(&run(&rolling, 0.0).0, &shake).median_frame();
+    eprintln!("median per-frame error: {with:.5} deg with the readout, {without:.5} without");
+    assert!(without > 20.0 * with, "{without} vs {with}");
+
+    let global = clip(0.0);
+    let est = estimate(&global);
+    eprintln!("global shutter: {est:?}");
+    assert!(est.readout_ms < 0.5, "{est:?}");
+    // `readout_ms` 0 is the global-shutter path, byte for byte.
+    let (tel0, out0) = run(&global, 0.0);
+    let mut p = StabilizerParams::default();
+    p.shutter = amc_core::shutter::ShutterParams::default();
+    assert_eq!(p, StabilizerParams::default());
+    assert!(tel0.iter().all(|t| t.readout_rotation == [0.0; 3]));
+    assert!(!out0.is_empty());
+}
+
+/// Saccade mode without averaging (`n_avg` 1, the paper's fixed margin) on
+/// rolling-shutter clips: every source row is rendered at its own
+/// orientation, so the view holds as still as with a global shutter.
+/// Measured: normal flow 1.24x (pinhole, 100 deg/s, 10 ms), 1.06x (fisheye)
+/// the global shutter's; without the readout, 3.7x and more.
+#[test]
+fn rolling_shutter_saccade_holds_still() {
+    let (w, h) = SIZE;
+    let cams = [
+        (
+            "pinhole",
+            CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
+            1.35,
+        ),
+        (
+            "fisheye",
+            CameraModel::fisheye_hfov(w, h, 150.0, [0.05, -0.01, 0.002, -0.0005]).unwrap(),
+            1.2,
+        ),
+    ];
+    let pano = panorama();
+    let shake = rs_shake(100.0, 1);
+    for (name, cam, bar) in cams {
+        let case = Case {
+            name,
+            camera: cam.clone(),
+            shake_dps: 100.0,
+            seed: 1,
+            format: PixelFormat::Rgb8,
+            max_median_frame_deg: 0.0,
+            max_final_deg: 0.0,
+            max_orientation_deg: 0.0,
+        };
+        let flow = |readout_s: f64, readout_ms: f64| {
+            let mut params = StabilizerParams::default();
+            params.view.mode = amc_core::Mode::Saccade;
+            params.render.n_avg = 1;
             params.framing.zoom = amc_core::Zoom::None;
-        }
-        if model {
-            params.shutter.readout_ms = ms;
-        }
-        let mut m = amc_core::metrics::MetricsAccumulator::new();
-        stabilize_measured(&case, &pano, params, &|t| shake.orientation_at(t), ms / 1000.0, Some(&mut m));
-        eprintln!("saccade n_avg 1: {:?}", m.summary());
-        eprintln!("dps {dps} readout {ms} model {model}: median frame err {:.5} deg, p90 {:.5}, final {:.4} deg; phi err mean {mpe:.4} of {mpg:.4} deg; fit {:?}", fe[fe.len()/2], fe[fe.len()*9/10], fin, fit);
+            params.shutter.readout_ms = readout_ms;
+            let mut m = amc_core::metrics::MetricsAccumulator::new();
+            let motion = |t: f64| shake.orientation_at(t);
+            stabilize_measured(&case, &pano, params, &motion, readout_s, Some(&mut m));
+            m.summary().rms_normal_flow
+        };
+        let global = flow(0.0, 0.0);
+        let rolling = flow(0.010, 10.0);
+        let blind = flow(0.010, 0.0);
+        eprintln!(
+            "[{name}] saccade, n_avg 1: normal flow {rolling:.4} px ({:.2}x the global shutter's \
+             {global:.4}); without the readout {blind:.4} px",
+            rolling / global
+        );
+        assert!(
+            rolling <= bar * global,
+            "[{name}] {rolling} > {bar} x {global}"
+        );
+        assert!(blind > 2.0 * rolling, "[{name}] {blind} vs {rolling}");
     }
 }

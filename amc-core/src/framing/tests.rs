@@ -82,7 +82,16 @@ fn pulling_keeps_the_view_within_the_zoom_and_moves_it_least() {
     let view = Rot::identity();
     let mut scratch = Vec::new();
     let zoom = 1.1;
-    let (pulled, need) = pull_view(&cam, &border, &[camera], &[], &view, &camera, zoom, &mut scratch);
+    let (pulled, need) = pull_view(
+        &cam,
+        &border,
+        &[camera],
+        &[],
+        &view,
+        &camera,
+        zoom,
+        &mut scratch,
+    );
     assert!(need <= zoom + 1e-9, "{need}");
     let before = needed_zoom(&cam, &border, &rots(&[camera], &view), &[]);
     assert!(

@@ -205,7 +205,8 @@ impl Warper {
                 }
                 let p = rows.project(&self.src, &(m * ray), guess);
                 guess = p.map(|p| p.y).filter(|y| y.is_finite());
-                map.grid.push(p.map_or([f32::NAN; 2], |p| [p.x as f32, p.y as f32]));
+                map.grid
+                    .push(p.map_or([f32::NAN; 2], |p| [p.x as f32, p.y as f32]));
             }
         } else {
             let k_out_inv = self
@@ -278,7 +279,15 @@ impl Warper {
                 *yo = (y0 + dy * uf) * iz;
             }
         } else {
-            interpolate_grid_row(&map.grid, self.grid_w, self.grid_h, self.grid_step, v, xs, ys);
+            interpolate_grid_row(
+                &map.grid,
+                self.grid_w,
+                self.grid_h,
+                self.grid_step,
+                v,
+                xs,
+                ys,
+            );
         }
     }
 

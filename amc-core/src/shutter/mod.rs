@@ -39,7 +39,5 @@ mod tests;
 pub use auto::{fit_readout, ReadoutEstimate, ReadoutEstimator, READOUT_FRAMES};
 pub use motion::{row_fraction, IntraFrame, INTRA_TERMS};
 pub use params::{ShutterParams, MAX_READOUT_MS};
-pub use project::{
-    project_rolling, RollingProjector, FIXED_POINT_STEPS, FIXED_POINT_TOLERANCE_PX,
-};
+pub use project::{project_rolling, RollingProjector, FIXED_POINT_STEPS, FIXED_POINT_TOLERANCE_PX};
 pub use row_time::RowTime;

@@ -24,7 +24,9 @@ fn projection_lands_on_its_own_rows_time() {
             let ray = Vector3::new(x, y, 1.0);
             let p = project_rolling(cam, &m, &intra, &ray).expect("in view");
             let s = row_fraction(p.y, cam.height);
-            let q = cam.project(&(intra.rotation_at(s).inverse() * (m * ray))).unwrap();
+            let q = cam
+                .project(&(intra.rotation_at(s).inverse() * (m * ray)))
+                .unwrap();
             assert!((p - q).norm() < 1e-3, "{p} vs {q}");
         }
         // The tabulated projector agrees.
