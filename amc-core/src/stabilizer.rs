@@ -599,7 +599,14 @@ impl Rendering {
         let zoom = if !zoomed {
             1.0
         } else if mode == Mode::None {
-            self.camera_zoom
+            if params.shutter.is_rolling() {
+                // Rows rendered at their own orientations no longer fill the
+                // frame: the least zoom that shows no border, per frame.
+                let need = self.need(&r_view);
+                self.camera_zoom.max(need).min(params.framing.max_zoom())
+            } else {
+                self.camera_zoom
+            }
         } else {
             let need = self.need(&r_view);
             self.max_need = self.max_need.max(need);

@@ -54,6 +54,23 @@
 //! * Per level, only the strongest-gradient pixel of each small block is used
 //!   (at most `max_points`): low-gradient pixels carry almost no information
 //!   about the rotation, and skipping them makes tracking several times faster.
+//!
+//! ## Rolling shutter
+//! With [`Tracker::set_rolling`], each frame's motion during its readout,
+//! `a(s) = s phi + s^2 psi + s^3 chi` ([`IntraFrame`], `s` the readout
+//! fraction of a row), is estimated with its mid-readout rotation:
+//! * template rays are rectified into the template's mid-readout camera,
+//!   `y = exp(a_k(s_p)) x_p`;
+//! * a ray lands in the current frame at `pi(K exp(-a(s)) R^T y)`, `s` the
+//!   readout fraction of the landing row (a fixed point, two steps from the
+//!   mid-readout projection);
+//! * the Gauss-Newton step has 12 parameters ([`Eval::pose_step`]): the
+//!   rotation's inverse-compositional step and additive steps of the terms,
+//!   whose Jacobians are the rotation's times `s^k` (turned into the current
+//!   camera), on the finest [`INTRA_LEVELS`] levels;
+//! * alignment sees only differences of readout motion between a frame and
+//!   its template: the absolute value is pinned by time ([`Gauge`]);
+//! * slow motion estimates `phi` only, under a prior ([`PACE_SWITCH`]).
 
 use crate::camera::CameraModel;
 use crate::error::{check_range, AmcError};

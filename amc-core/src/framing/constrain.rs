@@ -21,6 +21,7 @@ const PULL_STEPS: usize = 12;
 /// for the averaged frames `window` (their orientations `R_hat_{0,i}`), and
 /// its need. `view` itself when it needs no more than `zoom`; the camera when
 /// even it needs more. `scratch` holds the rotations (reused).
+#[allow(clippy::too_many_arguments)]
 pub fn pull_view(
     src: &CameraModel,
     border: &Border,

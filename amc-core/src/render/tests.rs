@@ -4,6 +4,7 @@ use super::kernels::FRAME_PADDING;
 use super::*;
 use crate::camera::CameraModel;
 use crate::image::{Frame, PixelFormat};
+use crate::shutter::{IntraFrame, RollingProjector};
 use crate::so3::{self, Tangent};
 use nalgebra::Matrix3;
 
@@ -38,9 +39,34 @@ fn rounding_the_output_size_never_stretches() {
 }
 
 fn render(src: &CameraModel, vectorized: bool, format: PixelFormat) -> (Vec<u8>, Vec<u8>, f64) {
+    render_rolling(src, vectorized, format, false)
+}
+
+/// [`render`], with a rolling shutter's readout motion on every frame when `rolling`.
+fn render_rolling(
+    src: &CameraModel,
+    vectorized: bool,
+    format: PixelFormat,
+    rolling: bool,
+) -> (Vec<u8>, Vec<u8>, f64) {
     let out = RenderParams::default().output_camera(src).unwrap();
     let mut warper = Warper::new(src, &out);
     warper.set_vectorized(vectorized);
+    if rolling {
+        let rows: Vec<RollingProjector> = (0..4)
+            .map(|i| {
+                let intra = IntraFrame {
+                    phi: Tangent::new(0.03, -0.02 * i as f64, 0.01),
+                    psi: Tangent::new(-0.01, 0.005, 0.002 * i as f64),
+                    chi: Tangent::new(0.002, 0.0, -0.001),
+                };
+                let mut p = RollingProjector::default();
+                p.set(&intra, src.height);
+                p
+            })
+            .collect();
+        warper.set_readout_rows(&rows);
+    }
     let frames: Vec<Frame> = (0..4)
         .map(|i| noise_frame(src.width, src.height, format, i))
         .collect();
@@ -59,7 +85,8 @@ fn render(src: &CameraModel, vectorized: bool, format: PixelFormat) -> (Vec<u8>,
     (img, cov, vf)
 }
 
-/// The AVX2 kernel must be bit-exact with the scalar sampler.
+/// The AVX2 kernel must be bit-exact with the scalar sampler, with a global
+/// and a rolling shutter.
 #[test]
 fn vectorized_matches_scalar() {
     for format in [PixelFormat::Rgb8, PixelFormat::Rgba8] {
@@ -71,9 +98,18 @@ fn vectorized_matches_scalar() {
             k3: 0.0,
             k4: 0.0,
         };
-        for cam in [pinhole, fisheye] {
-            let a = render(&cam, false, format);
-            let b = render(&cam, true, format);
+        for (cam, rolling) in [
+            (&pinhole, false),
+            (&fisheye, false),
+            (&pinhole, true),
+            (&fisheye, true),
+        ] {
+            let a = render_rolling(cam, false, format, rolling);
+            let b = render_rolling(cam, true, format, rolling);
+            if rolling {
+                // The readout motion moves the picture.
+                assert_ne!(a.0, render(cam, false, format).0);
+            }
             if let Some(i) = a.0.iter().zip(&b.0).position(|(x, y)| x != y) {
                 let c = format.channels();
                 panic!(

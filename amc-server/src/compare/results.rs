@@ -17,6 +17,14 @@ pub struct Clip {
     /// What `amc stabilize` reads: a video file or an image folder.
     pub input: PathBuf,
     pub lens: CameraModel,
+    /// Rolling-shutter readout, ms (0: global shutter): a clip folder's
+    /// lens.json states it (the synthetic rolling-shutter clips do).
+    pub readout_ms: f64,
+    /// The same motion filmed through a global shutter (the synthetic
+    /// rolling-shutter clips' twins): cropping and distortion are measured
+    /// from its frames to the outputs, so undoing the rolling shutter's skew
+    /// counts as removing distortion, not as adding it.
+    pub reference: Option<PathBuf>,
     /// Frame rate of image folders.
     pub fps: Option<f64>,
     /// Ground-truth orientations (synthetic clips).

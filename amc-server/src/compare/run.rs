@@ -62,6 +62,19 @@ fn decode_input(clip: &Clip, args: &CompareConfig) -> Result<DecodedInput, Compa
     if out.times.is_empty() {
         return Err(CompareError::NoFrames(clip.input.clone()));
     }
+    if let Some(reference) = &clip.reference {
+        // The fits run from the global-shutter twin's frames.
+        let mut src = video::open_input(reference, &input_options(clip, args))?;
+        let mut pyramids = Vec::with_capacity(out.pyramids.len());
+        while let Some(_t) = src.next_frame(&mut frame)? {
+            masked_luma_into(&frame.as_ref(), &all, &mut luma);
+            pyramids.push(homography::Pyramid::new(&luma));
+        }
+        if pyramids.len() != out.pyramids.len() {
+            return Err(CompareError::NoFrames(reference.clone()));
+        }
+        out.pyramids = pyramids;
+    }
     Ok(out)
 }
 
@@ -106,7 +119,8 @@ fn measure_ours(
     input: &DecodedInput,
     args: &CompareConfig,
 ) -> Result<OursMeasured, CompareError> {
-    let params = our_params(method, args.lookahead);
+    let mut params = our_params(method, args.lookahead);
+    params.shutter.readout_ms = clip.readout_ms;
     let mut src = video::open_input(&clip.input, &input_options(clip, args))?;
     let (w, h) = input.size;
     let mut stab = Stabilizer::new(&clip.lens, w, h, params)?;
@@ -210,7 +224,12 @@ fn compare_clip(
     let input = decode_input(clip, args)?;
     let fps = fps_of(&input);
     let lens_json = dir.join("lens.json");
-    std::fs::write(&lens_json, amc_core::lens::to_project_json(&clip.lens))
+    // Our timed runs read the readout from it, as `amc stabilize --lens` does.
+    let lens_file = amc_core::lens::LensFile {
+        camera: clip.lens.clone(),
+        readout_ms: (clip.readout_ms > 0.0).then_some(clip.readout_ms),
+    };
+    std::fs::write(&lens_json, lens_file.to_project_json())
         .map_err(|e| CompareError::io(&lens_json, e))?;
     let ff_input = if clip.input.is_dir() {
         let list = dir.join("frames.ffconcat");
@@ -307,10 +326,12 @@ fn resolve_clip(path: &Path, args: &CompareConfig) -> Result<Clip, CompareError>
         let lens_path = path.join("lens.json");
         let text =
             std::fs::read_to_string(&lens_path).map_err(|e| CompareError::io(&lens_path, e))?;
-        let lens = amc_core::lens::parse_lens(&text).map_err(|source| CompareError::Lens {
-            path: lens_path.clone(),
-            source,
-        })?;
+        let lens_file =
+            amc_core::lens::parse_lens_file(&text).map_err(|source| CompareError::Lens {
+                path: lens_path.clone(),
+                source,
+            })?;
+        let (lens, readout_ms) = (lens_file.camera, lens_file.readout_ms.unwrap_or(0.0));
         let frames = if path.join("frames").is_dir() {
             path.join("frames")
         } else {
@@ -328,6 +349,8 @@ fn resolve_clip(path: &Path, args: &CompareConfig) -> Result<Clip, CompareError>
             name: stem(path),
             input: frames,
             lens,
+            readout_ms,
+            reference: None,
             fps: fps.or(args.fps),
             gt,
             description: format!("`{}` (lens from lens.json)", path.display()),
@@ -354,6 +377,8 @@ fn resolve_clip(path: &Path, args: &CompareConfig) -> Result<Clip, CompareError>
         name: stem(path),
         input: path.to_path_buf(),
         lens: lens.clone(),
+        readout_ms: 0.0,
+        reference: None,
         fps,
         gt: None,
         description: format!(
@@ -396,8 +421,9 @@ pub fn run(args: &CompareConfig) -> Result<(), CompareError> {
             if !args.quiet {
                 eprintln!("rendering synthetic sequence {}", spec.name);
             }
-            let dir = synthetic::render(spec, args, work.path())?;
+            let (dir, twin) = synthetic::render(spec, args, work.path())?;
             let mut clip = resolve_clip(&dir, args)?;
+            clip.reference = twin;
             clip.name = spec.name.to_string();
             clip.description = spec.describe(args);
             clips.push(clip);

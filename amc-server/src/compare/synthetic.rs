@@ -67,7 +67,10 @@ impl Sequence {
             self.shake_dps,
             self.seed,
             if self.rolling_shutter {
-                format!("rolling shutter ({READOUT_MS} ms readout)")
+                format!(
+                    "rolling shutter ({READOUT_MS} ms readout; cropping and distortion measured \
+                     against its global-shutter twin)"
+                )
             } else {
                 "global shutter".to_string()
             }
@@ -75,10 +78,16 @@ impl Sequence {
     }
 }
 
-/// Renders `seq` into `work/<name>-src` and returns that folder.
-pub fn render(seq: &Sequence, args: &CompareConfig, work: &Path) -> Result<PathBuf, CompareError> {
+/// Renders `seq` into `work/<name>-src` and returns that folder, and for a
+/// rolling-shutter sequence its global-shutter twin (the same motion, each
+/// frame at its mid-readout pose) in `work/<name>-gs`.
+pub fn render(
+    seq: &Sequence,
+    args: &CompareConfig,
+    work: &Path,
+) -> Result<(PathBuf, Option<PathBuf>), CompareError> {
     let out = work.join(format!("{}-src", seq.name));
-    let synth = SynthConfig {
+    let mut synth = SynthConfig {
         panorama: args.panorama.clone(),
         output: out.clone(),
         fov: if seq.fisheye { 150.0 } else { 90.0 },
@@ -95,5 +104,12 @@ pub fn render(seq: &Sequence, args: &CompareConfig, work: &Path) -> Result<PathB
         supersample: 2,
     };
     synth::run(&synth, &|_, _| {})?;
-    Ok(out)
+    if !seq.rolling_shutter {
+        return Ok((out, None));
+    }
+    let twin = work.join(format!("{}-gs", seq.name));
+    synth.output = twin.clone();
+    synth.rolling_shutter_ms = 0.0;
+    synth::run(&synth, &|_, _| {})?;
+    Ok((out, Some(twin)))
 }
