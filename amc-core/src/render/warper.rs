@@ -102,6 +102,11 @@ pub struct Warper {
     /// Readout rotations of the frames of the next render, in the order of
     /// its rotations ([`Warper::set_readout_rows`]); empty for a global shutter.
     rows: Vec<RollingProjector>,
+    /// The rotations `maps` were last prepared for, and whether the readout
+    /// rows changed since: the U and V planes of a frame share one geometry,
+    /// so the second plane reuses the first one's maps.
+    maps_for: Vec<Matrix3<f64>>,
+    rows_changed: bool,
     /// Row buffers of the sequential path.
     scratch: RowScratch,
     /// Row buffers of the bands of the parallel path (one per band, kept so
@@ -161,6 +166,8 @@ impl Warper {
             maps: Vec::new(),
             kernel: Kernel::detect(),
             rows: Vec::new(),
+            maps_for: Vec::new(),
+            rows_changed: false,
             scratch: RowScratch::default(),
             band_scratch: Vec::new(),
         }
@@ -188,6 +195,7 @@ impl Warper {
         for (dst, src) in self.rows.iter_mut().zip(rows) {
             dst.clone_from(src);
         }
+        self.rows_changed = true;
     }
 
     /// Prepares `map` for rotation `m` (output ray -> source ray) and the
@@ -221,6 +229,12 @@ impl Warper {
     /// Maps for `rotations`, in `self.maps` (taken out: give them back after).
     fn prepare_maps(&mut self, rotations: &[Matrix3<f64>]) -> Vec<RowMap> {
         let mut maps = std::mem::take(&mut self.maps);
+        if !self.rows_changed && self.maps_for == rotations && maps.len() == rotations.len() {
+            return maps;
+        }
+        self.rows_changed = false;
+        self.maps_for.clear();
+        self.maps_for.extend_from_slice(rotations);
         maps.resize_with(rotations.len(), RowMap::default);
         let global = RollingProjector::default();
         for (i, (map, m)) in maps.iter_mut().zip(rotations).enumerate() {
