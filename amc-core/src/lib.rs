@@ -22,6 +22,7 @@ pub mod frontend;
 pub mod metrics;
 pub mod options;
 pub mod pyramid;
+pub mod readout;
 pub mod render;
 pub mod selfcal;
 pub mod shutter;

@@ -257,7 +257,7 @@ pub enum ReadoutSpec {
     #[default]
     FromLens,
     /// Estimate it from the footage (`readout_ms=auto`, see
-    /// [`crate::shutter::ReadoutEstimator`]).
+    /// [`crate::readout::ReadoutEstimator`]).
     Auto,
     /// This readout, milliseconds, in `0..=100`.
     Ms(f64),

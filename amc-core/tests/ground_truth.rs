@@ -767,7 +767,7 @@ fn rolling_shutter_estimate_matches_ground_truth() {
         let tel = stabilize_motion_rolling(&gs_case, &pano, params, &motion, readout_s);
         let rs = errors_of(&tel, &shake);
         // `auto`: the readout from the same frames' tracking pass.
-        let est = amc_core::shutter::fit_readout(&tel).expect("enough frames");
+        let est = amc_core::readout::fit_readout(&tel).expect("enough frames");
         eprintln!(
             "[{}] median per-frame error {:.5} deg ({:.2}x the global shutter's {:.5}), \
              final orientation {:.4} deg (global {:.4}); readout fit {:.2} ms",
@@ -808,7 +808,7 @@ fn rolling_shutter_estimate_matches_ground_truth() {
 
 /// Without the readout (`readout_ms` 0) the same clip is tracked as today's
 /// global shutter would: 50x the error. And `auto`, end to end through
-/// [`amc_core::shutter::ReadoutEstimator`], finds 10 ms on it and 0 on the
+/// [`amc_core::readout::ReadoutEstimator`], finds 10 ms on it and 0 on the
 /// global-shutter clip, whose output is bit-identical with `readout_ms` 0.
 #[test]
 fn rolling_shutter_needs_its_readout_and_auto_finds_it() {
@@ -840,7 +840,7 @@ fn rolling_shutter_needs_its_readout_and_auto_finds_it() {
     };
     let estimate = |frames: &[Frame]| {
         let mut e =
-            amc_core::shutter::ReadoutEstimator::new(&cam, w, h, &StabilizerParams::default())
+            amc_core::readout::ReadoutEstimator::new(&cam, w, h, &StabilizerParams::default())
                 .unwrap();
         for (j, f) in frames.iter().enumerate() {
             if e.is_full() {

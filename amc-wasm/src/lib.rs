@@ -366,13 +366,13 @@ impl Stabilizer {
 }
 
 /// `readout_ms: "auto"`: estimates the rolling-shutter readout time from a
-/// clip's first frames ([`amc_core::shutter::ReadoutEstimator`]), the first
+/// clip's first frames ([`amc_core::readout::ReadoutEstimator`]), the first
 /// pass before the [`Stabilizer`] is made with the estimate. Same arguments
 /// as `new Stabilizer`; push frames until [`ReadoutEstimator::is_full`] or the
 /// clip ends, then [`ReadoutEstimator::finish`].
 #[wasm_bindgen]
 pub struct ReadoutEstimator {
-    inner: Option<amc_core::shutter::ReadoutEstimator>,
+    inner: Option<amc_core::readout::ReadoutEstimator>,
     width: usize,
     height: usize,
     format: InputFormat,
@@ -397,7 +397,7 @@ impl ReadoutEstimator {
         })
         .map_err(err)?;
         let inner =
-            amc_core::shutter::ReadoutEstimator::new(&c.camera, c.width, c.height, &c.params)
+            amc_core::readout::ReadoutEstimator::new(&c.camera, c.width, c.height, &c.params)
                 .map_err(err)?;
         Ok(ReadoutEstimator {
             inner: Some(inner),
@@ -484,7 +484,7 @@ impl ReadoutEstimator {
 /// Tracks the frame `data` (`format`, `width x height`; NV12 de-interleaved
 /// into `planar`) at `t` seconds with `est`, unless it is finished.
 fn track(
-    est: &mut Option<amc_core::shutter::ReadoutEstimator>,
+    est: &mut Option<amc_core::readout::ReadoutEstimator>,
     (format, width, height): (InputFormat, usize, usize),
     data: &[u8],
     planar: &mut Vec<u8>,

@@ -26,9 +26,8 @@
 //! ([`project_rolling`]).
 //!
 //! The readout time itself is given (`readout_ms`, [`ShutterParams`]) or
-//! estimated from the footage ([`ReadoutEstimator`]).
+//! estimated from the footage (`crate::readout`, above the stabilizer).
 
-mod auto;
 mod motion;
 mod params;
 mod project;
@@ -36,7 +35,6 @@ mod row_time;
 #[cfg(test)]
 mod tests;
 
-pub use auto::{fit_readout, ReadoutEstimate, ReadoutEstimator, READOUT_FRAMES};
 pub use motion::{row_fraction, IntraFrame, INTRA_TERMS};
 pub use params::{ShutterParams, MAX_READOUT_MS};
 pub use project::{project_rolling, RollingProjector, FIXED_POINT_STEPS, FIXED_POINT_TOLERANCE_PX};

@@ -4,7 +4,7 @@
 
 use super::lens::{resolve_lens, LensNote, ResolvedLens};
 use super::RunError;
-use amc_core::shutter::{ReadoutEstimate, ReadoutEstimator};
+use amc_core::readout::{ReadoutEstimate, ReadoutEstimator};
 use amc_core::{AmcError, Frame, PixelFormat, ReadoutSpec, StabilizerOptions, StabilizerParams};
 use amc_video::{self as video, InputOptions};
 use std::path::Path;
@@ -80,7 +80,7 @@ impl ResolvedReadout {
 
 /// Resolves `spec` against the lens (`lens.readout_ms`, the file's readout):
 /// the option's readout, else the lens file's, else 0; `auto` tracks up to
-/// [`READOUT_FRAMES`](amc_core::shutter::READOUT_FRAMES) frames of `input` through `lens.camera` and uses the
+/// [`READOUT_FRAMES`](amc_core::readout::READOUT_FRAMES) frames of `input` through `lens.camera` and uses the
 /// estimate when it is confident, else 0 ([`ReadoutNote::FellBack`]).
 pub fn resolve_readout(
     spec: &ReadoutSpec,

@@ -1,4 +1,7 @@
-//! The readout time from the footage (`readout_ms = auto`).
+//! The rolling-shutter readout time from the footage (`readout_ms = auto`).
+//!
+//! Above the stabilizer (it tracks with one), as `selfcal` is above the
+//! tracker; the model it fits is [`crate::shutter`]'s.
 //!
 //! With a rolling shutter on, the tracker measures each frame's rotation
 //! during its readout, `phi_j`, from the intensities alone, whatever the
