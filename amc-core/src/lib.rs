@@ -20,6 +20,7 @@ pub mod synth;
 pub use error::AmcError;
 pub mod frontend;
 pub mod metrics;
+pub mod minimize;
 pub mod options;
 pub mod pyramid;
 pub mod readout;

@@ -29,6 +29,7 @@
 use crate::camera::CameraModel;
 use crate::error::AmcError;
 use crate::image::FrameRef;
+use crate::minimize::golden_section;
 use crate::so3::{self, Rot, Tangent};
 use crate::stabilizer::{Stabilizer, StabilizerParams, Telemetry};
 use crate::view::Mode;
@@ -212,7 +213,7 @@ pub fn fit_readout(telemetry: &[Telemetry]) -> Result<ReadoutEstimate, AmcError>
             .map(|s| (s.phi - s.predicted(x)).norm_squared())
             .sum()
     };
-    // x = tau / (2 dt): grid over the frame period, then golden section.
+    // x = tau / (2 dt): grid over two frame periods of readout, then golden section.
     let steps = 400;
     let x_max = 1.0;
     let (mut best_x, mut best) = (0.0, sse(0.0));
@@ -224,17 +225,13 @@ pub fn fit_readout(telemetry: &[Telemetry]) -> Result<ReadoutEstimate, AmcError>
         }
     }
     let h = x_max / steps as f64;
-    let (mut lo, mut hi) = ((best_x - h).max(0.0), (best_x + h).min(x_max));
-    let g = (5f64.sqrt() - 1.0) / 2.0;
-    for _ in 0..40 {
-        let (a, b) = (hi - g * (hi - lo), lo + g * (hi - lo));
-        if sse(a) < sse(b) {
-            hi = b;
-        } else {
-            lo = a;
-        }
-    }
-    let x = 0.5 * (lo + hi);
+    let x = golden_section(
+        |x| Ok::<_, std::convert::Infallible>(sse(x)),
+        (best_x - h).max(0.0),
+        (best_x + h).min(x_max),
+        40,
+    )
+    .unwrap_or(best_x);
     let best = sse(x).min(best);
     let total: f64 = samples.iter().map(|s| s.phi.norm_squared()).sum();
     let explained = if total > 0.0 {

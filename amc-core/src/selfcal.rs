@@ -19,6 +19,7 @@ use crate::camera::CameraModel;
 use crate::error::AmcError;
 use crate::frontend::TrackingFrontend;
 use crate::image::FrameRef;
+use crate::minimize::golden_section;
 use crate::pyramid::Pyramid;
 use crate::tracker::{Tracker, TrackerParams};
 
@@ -112,32 +113,12 @@ pub fn estimate_hfov(
         .enumerate()
         .min_by(|a, b| a.1 .1.total_cmp(&b.1 .1))
         .map_or(0, |(i, _)| i);
-    let (mut a, mut b) = (
+    let (a, b) = (
         grid[best.saturating_sub(1)].0,
         grid[(best + 1).min(GRID - 1)].0,
     );
     // Golden-section refinement in log focal length.
-    let g = (5f64.sqrt() - 1.0) / 2.0;
-    let mut c = b - g * (b - a);
-    let mut d = a + g * (b - a);
-    let mut fc = score(to_hfov(c.exp()))?;
-    let mut fd = score(to_hfov(d.exp()))?;
-    for _ in 0..12 {
-        if fc < fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - g * (b - a);
-            fc = score(to_hfov(c.exp()))?;
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + g * (b - a);
-            fd = score(to_hfov(d.exp()))?;
-        }
-    }
-    let lf_best = (a + b) / 2.0;
+    let lf_best = golden_section(|lf: f64| score(to_hfov(lf.exp())), a, b, 12)?;
     let hfov_deg = to_hfov(lf_best.exp());
     let best_score = score(hfov_deg)?;
     let wider = score(to_hfov(lf_best.exp() / 1.2))?;
