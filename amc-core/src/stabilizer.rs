@@ -176,8 +176,6 @@ struct Rendering {
     border: Border,
     /// Orientations of the averaged frames (reused).
     window_rots: Vec<Rot>,
-    /// Their rows' readout rotations (reused; empty with a global shutter).
-    window_rows: Vec<RollingProjector>,
     /// Rotations of the framing's coverage test (reused).
     need_rots: Vec<nalgebra::Matrix3<f64>>,
     /// Whether pixels are rendered (off: views and zoom needs only).
@@ -304,7 +302,6 @@ impl Stabilizer {
                 framer,
                 border,
                 window_rots: Vec::new(),
-                window_rows: Vec::new(),
                 need_rots: Vec::new(),
                 render: true,
                 locked_view: None,
@@ -571,11 +568,10 @@ impl Rendering {
         self.window_rots
             .extend(ring.range(first..=pos).map(|b| b.r_est));
         if params.shutter.is_rolling() {
-            let n = pos + 1 - first;
-            self.window_rows.resize_with(n, RollingProjector::default);
-            for (dst, b) in self.window_rows.iter_mut().zip(ring.range(first..=pos)) {
-                dst.clone_from(&b.rows);
-            }
+            // The window's readout rows, for the coverage test and the render.
+            self.warper
+                .set_readout_rows(ring.range(first..=pos).map(|b| &b.rows));
+            self.chroma.set_readout_rows(self.warper.readout_rows());
         }
         let mut r_view = match mode {
             Mode::None => r_est,
@@ -620,7 +616,7 @@ impl Rendering {
                         &self.src_cam,
                         &self.border,
                         &self.window_rots,
-                        &self.window_rows,
+                        self.warper.readout_rows(),
                         &r_view,
                         &r_est,
                         z,
@@ -673,8 +669,6 @@ impl Rendering {
                 ring.range(first..=pos)
                     .map(|b| b.r_est.matrix().transpose() * r_view.matrix() * zinv),
             );
-            self.warper.set_readout_rows(&self.window_rows);
-            self.chroma.set_readout_rows(&self.window_rows);
             valid_fraction = if format.is_planar() {
                 // One geometry, three planes: Y through the luma cameras, U and V
                 // through the chroma cameras, all with the same rotations.
@@ -760,7 +754,7 @@ impl Rendering {
             &self.src_cam,
             &self.border,
             &self.window_rots,
-            &self.window_rows,
+            self.warper.readout_rows(),
             view,
             &mut self.need_rots,
         )

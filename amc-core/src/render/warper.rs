@@ -190,12 +190,22 @@ impl Warper {
     /// [`crate::shutter::project_rolling`]; exact at the grid nodes, bilinear
     /// between them). Empty (the default) for a global shutter. Frames beyond
     /// the list, or with empty tables, are sampled as with a global shutter.
-    pub fn set_readout_rows(&mut self, rows: &[RollingProjector]) {
-        self.rows.resize_with(rows.len(), RollingProjector::default);
-        for (dst, src) in self.rows.iter_mut().zip(rows) {
-            dst.clone_from(src);
+    pub fn set_readout_rows<'r>(&mut self, rows: impl IntoIterator<Item = &'r RollingProjector>) {
+        let mut n = 0;
+        for src in rows {
+            if n == self.rows.len() {
+                self.rows.push(RollingProjector::default());
+            }
+            self.rows[n].clone_from(src);
+            n += 1;
         }
+        self.rows.truncate(n);
         self.rows_changed = true;
+    }
+
+    /// The readout rotations set by [`Warper::set_readout_rows`].
+    pub fn readout_rows(&self) -> &[RollingProjector] {
+        &self.rows
     }
 
     /// Prepares `map` for rotation `m` (output ray -> source ray) and the
