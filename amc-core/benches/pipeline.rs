@@ -198,6 +198,7 @@ fn bench_stabilize(c: &mut Criterion) {
         // The paper's framing (`zoom = none`: the central 75%) as the numbers
         // in the README; `-zoom-auto` is the default framing (the input's
         // size, a zoom and its coverage test per frame).
+        // `-deghost`: the ghost-free average (`deghost` 6) instead of the plain one.
         // `-rolling`: the same motion through a rolling shutter, its readout
         // given (`readout_ms` 15): tracking with the readout motion, every
         // source row rendered at its own orientation.
@@ -205,6 +206,12 @@ fn bench_stabilize(c: &mut Criterion) {
             (format!("{w}x{h}-rgb"), Mode::Stabilize, Zoom::None, &rgb),
             (
                 format!("{w}x{h}-yuv420p"),
+                Mode::Stabilize,
+                Zoom::None,
+                &yuv,
+            ),
+            (
+                format!("{w}x{h}-yuv420p-deghost"),
                 Mode::Stabilize,
                 Zoom::None,
                 &yuv,
@@ -243,6 +250,9 @@ fn bench_stabilize(c: &mut Criterion) {
                 let mut params = StabilizerParams::default();
                 params.view.mode = mode;
                 params.framing.zoom = zoom;
+                if name.ends_with("-deghost") {
+                    params.render.deghost = amc_core::render::SUGGESTED_DEGHOST;
+                }
                 if name.ends_with("-rolling") {
                     params.shutter.readout_ms = READOUT_S * 1000.0;
                 }

@@ -120,6 +120,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         allowed: Allowed::Integer { min: 1, max: 64 },
     },
     OptionSpec {
+        name: "deghost",
+        flag: "deghost",
+        value_name: "LEVELS",
+        help: "ghost-free averaging: an averaged frame's pixel counts fully where it differs from the newest frame's by at most LEVELS (of 255), not at all from twice that, so what moves in the scene is not smeared and edges stay sharp; 0..=64, 6 suits compressed video (default 0: the plain average)",
+        allowed: Allowed::range(0.0, crate::render::MAX_DEGHOST),
+    },
+    OptionSpec {
         name: "n_track",
         flag: "n-track",
         value_name: "N",
@@ -328,6 +335,7 @@ impl StabilizerOptions {
             "fov" => self.lens = LensSpec::parse_fov(value)?,
             "readout_ms" => self.readout = ReadoutSpec::parse(value)?,
             "n_avg" => p.render.n_avg = parse_value(spec, value)?,
+            "deghost" => p.render.deghost = parse_value(spec, value)?,
             "n_track" => p.tracker.n_track = parse_value(spec, value)?,
             "margin" => p.render.margin = parse_value(spec, value)?,
             "zoom" => p.framing.zoom = value.trim().parse()?,

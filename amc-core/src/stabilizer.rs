@@ -20,7 +20,8 @@ use crate::framing::{
 use crate::frontend::TrackingFrontend;
 use crate::image::{Frame, FrameRef, PixelFormat};
 use crate::pyramid::Pyramid;
-use crate::render::{chroma_camera, Accumulator, RenderParams, WarpedFrame, Warper};
+use crate::render::robust::weighted_average;
+use crate::render::{chroma_camera, Accumulator, Deghost, RenderParams, WarpedFrame, Warper};
 use crate::shutter::{IntraFrame, RollingProjector, RowTime, ShutterParams};
 use crate::so3::{self, Rot};
 use crate::tracker::{TrackInfo, Tracker, TrackerParams};
@@ -161,6 +162,13 @@ struct Rendering {
     slots: VecDeque<WarpedFrame>,
     spare_slots: Vec<WarpedFrame>,
     acc: Accumulator,
+    /// Ghost-free averaging of the saccade slots (the running sum `acc` is the
+    /// plain average; the weights change with every newest frame, so the
+    /// weighted one is merged from the slots per output): its weights, and
+    /// its weighted sums and weights' sums (reused).
+    deghost: Option<Deghost>,
+    merged_sum: Vec<u32>,
+    merged_weight: Vec<u32>,
     rotations: Vec<nalgebra::Matrix3<f64>>,
     /// Forward-filtered views of the lookahead window (reused).
     window: Vec<(f64, Rot)>,
@@ -187,6 +195,9 @@ struct Rendering {
     /// Highest need of a smoothed view so far.
     max_need: f64,
 }
+
+/// Most saccade slots merged at once (the range of `n_avg`).
+const MAX_SLOTS: usize = 64;
 
 /// The streaming stabilizer (one per clip).
 pub struct Stabilizer {
@@ -272,8 +283,10 @@ impl Stabilizer {
         } else {
             needed_zoom(&cam, &border, &[nalgebra::Matrix3::identity()], &[])
         };
-        let warper = Warper::new(&cam, &out_cam);
-        let chroma = Warper::new(&chroma_camera(&cam), &chroma_camera(&out_cam));
+        let mut warper = Warper::new(&cam, &out_cam);
+        let mut chroma = Warper::new(&chroma_camera(&cam), &chroma_camera(&out_cam));
+        warper.set_deghost(params.render.deghost());
+        chroma.set_deghost(params.render.deghost());
         Ok(Self {
             width,
             height,
@@ -292,6 +305,9 @@ impl Stabilizer {
                 slots: VecDeque::new(),
                 spare_slots: Vec::new(),
                 acc: Accumulator::default(),
+                deghost: params.render.deghost(),
+                merged_sum: Vec::new(),
+                merged_weight: Vec::new(),
                 rotations: Vec::new(),
                 window: Vec::new(),
                 output: Frame::new(0, 0, PixelFormat::Rgb8),
@@ -764,13 +780,91 @@ impl Rendering {
     /// pixels covered by `full` frames.
     fn finish_saccade(&mut self, full: u8) -> f64 {
         let (ow, oh) = (self.out_cam.width, self.out_cam.height);
-        if self.output.format.is_planar() {
+        if let Some(deghost) = self.deghost.filter(|_| self.slots.len() > 1) {
+            self.finish_saccade_merged(deghost, full)
+        } else if self.output.format.is_planar() {
             self.acc
                 .finish_yuv420_into(&mut self.output.data, ow, oh, full)
         } else {
             let channels = self.output.format.channels();
             self.acc.finish_into(&mut self.output.data, channels, full)
         }
+    }
+
+    /// [`Rendering::finish_saccade`] with ghost-free averaging: merges the
+    /// slots against the newest one, plane by plane (or the three interleaved
+    /// channels at once), into the output frame.
+    fn finish_saccade_merged(&mut self, deghost: Deghost, full: u8) -> f64 {
+        let (ow, oh) = (self.out_cam.width, self.out_cam.height);
+        let n_px = ow * oh;
+        let n = self.slots.len().min(MAX_SLOTS);
+        let reference = n - 1;
+        let slots = &self.slots;
+        let (sum, weight) = (&mut self.merged_sum, &mut self.merged_weight);
+        if self.output.format.is_planar() {
+            let (cw, ch) = crate::image::chroma_size(ow, oh);
+            let nc = cw * ch;
+            sum.resize(n_px, 0);
+            weight.resize(n_px, 0);
+            let (oy, ou, ov) = crate::image::yuv_planes_mut(ow, oh, &mut self.output.data);
+            // (output plane, its values' offset in a slot, its coverage's, size, fill)
+            let planes = [
+                (oy, 0, 0, n_px, 16u8),
+                (ou, n_px, n_px, nc, 128),
+                (ov, n_px + nc, n_px, nc, 128),
+            ];
+            for (out, at, cov_at, len, fill) in planes {
+                let mut values: [&[u16]; MAX_SLOTS] = [&[]; MAX_SLOTS];
+                let mut covered: [&[u8]; MAX_SLOTS] = [&[]; MAX_SLOTS];
+                for (f, slot) in slots.iter().take(n).enumerate() {
+                    values[f] = &slot.value[at..at + len];
+                    covered[f] = &slot.covered[cov_at..cov_at + len];
+                }
+                deghost.merge_plane(&values[..n], &covered[..n], reference, len, sum, weight);
+                for ((o, &s), &w) in out.iter_mut().zip(&sum[..len]).zip(&weight[..len]) {
+                    *o = weighted_average(s, w, fill);
+                }
+            }
+        } else {
+            let channels = self.output.format.channels();
+            sum.resize(3 * n_px, 0);
+            weight.resize(n_px, 0);
+            let mut values: [[&[u16]; 3]; MAX_SLOTS] = [[&[]; 3]; MAX_SLOTS];
+            let mut covered: [&[u8]; MAX_SLOTS] = [&[]; MAX_SLOTS];
+            for (f, slot) in slots.iter().take(n).enumerate() {
+                let v = &slot.value[..];
+                values[f] = [v, &v[1..], &v[2..]];
+                covered[f] = &slot.covered;
+            }
+            let (sr, rest) = sum.split_at_mut(n_px);
+            let (sg, sb) = rest.split_at_mut(n_px);
+            deghost.merge_rgb(
+                &values[..n],
+                3,
+                &covered[..n],
+                reference,
+                n_px,
+                [sr, sg, sb],
+                weight,
+            );
+            for (i, px) in self.output.data[..channels * n_px]
+                .chunks_exact_mut(channels)
+                .enumerate()
+            {
+                let w = weight[i];
+                px[0] = weighted_average(sr[i], w, 0);
+                px[1] = weighted_average(sg[i], w, 0);
+                px[2] = weighted_average(sb[i], w, 0);
+                if channels == 4 {
+                    px[3] = 255;
+                }
+            }
+        }
+        let complete = self.acc.count[..n_px]
+            .iter()
+            .filter(|&&k| k >= full)
+            .count();
+        complete as f64 / n_px.max(1) as f64
     }
 
     /// Saccade mode's recursive update: keeps one warped slot per frame of the

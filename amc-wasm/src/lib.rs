@@ -503,7 +503,8 @@ fn track(
 /// (wasm `simd128` when the module was built with it) and with the scalar
 /// reference, and returns whether the images, coverage and valid share are
 /// identical, for RGBA and RGB frames and for one plane of a planar (I420)
-/// frame. `fisheye` exercises the coordinate-table path.
+/// frame, averaged plainly and without ghosts. `fisheye` exercises the
+/// coordinate-table path.
 #[wasm_bindgen(js_name = simdMatchesScalar)]
 pub fn simd_matches_scalar(
     width: f64,
@@ -511,7 +512,7 @@ pub fn simd_matches_scalar(
     seed: u32,
     fisheye: bool,
 ) -> Result<bool, JsError> {
-    use amc_core::render::{RenderParams, Warper};
+    use amc_core::render::{Deghost, RenderParams, Warper};
     use amc_core::so3::{self, Tangent};
     let (w, h) = (
         args::dimension("width", width).map_err(err)?,
@@ -542,6 +543,9 @@ pub fn simd_matches_scalar(
             .matrix()
         })
         .collect();
+    // The plain average and the ghost-free one (random frames differ by up
+    // to 255 levels: a 60-level threshold gives every weight from 0 to 16).
+    let deghosts = [None, Deghost::new(60.0)];
     // Both pixel formats (the kernel has an RGBA and an RGB path).
     for format in [PixelFormat::Rgba8, PixelFormat::Rgb8] {
         let c = format.channels();
@@ -558,9 +562,10 @@ pub fn simd_matches_scalar(
                 f
             })
             .collect();
-        let render = |vectorized: bool| {
+        let render = |vectorized: bool, deghost: Option<Deghost>| {
             let mut warper = Warper::new(&cam, &out);
             warper.set_vectorized(vectorized);
+            warper.set_deghost(deghost);
             let mut img = vec![0u8; out.width * out.height * c];
             let mut cov = Vec::new();
             let vf = warper.average_into(
@@ -577,8 +582,10 @@ pub fn simd_matches_scalar(
             );
             (img, cov, vf)
         };
-        if render(false) != render(true) {
-            return Ok(false);
+        for deghost in deghosts {
+            if render(false, deghost) != render(true, deghost) {
+                return Ok(false);
+            }
         }
     }
     // One plane of a planar frame (the single-channel kernel of I420 input).
@@ -595,16 +602,19 @@ pub fn simd_matches_scalar(
             f
         })
         .collect();
-    let render = |vectorized: bool| {
+    let render = |vectorized: bool, deghost: Option<Deghost>| {
         let mut warper = Warper::new(&cam, &out);
         warper.set_vectorized(vectorized);
+        warper.set_deghost(deghost);
         let mut img = vec![0u8; out.width * out.height];
         let mut cov = Vec::new();
         let complete =
             warper.average_plane_into(|i| &planes[i][..], w, h, &rots, &mut img, &mut cov, 16);
         (img, cov, complete)
     };
-    Ok(render(false) == render(true))
+    Ok(deghosts
+        .into_iter()
+        .all(|deghost| render(false, deghost) == render(true, deghost)))
 }
 
 /// Whether this module was built with the WebAssembly `simd128` kernel.

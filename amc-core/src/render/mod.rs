@@ -20,17 +20,20 @@
 //!
 //! `params.rs` sizes the output view, `warper.rs` maps output rows to source
 //! coordinates and samples them, `accumulator.rs` holds the integer sums and the
-//! saccade slots, and `kernels/` the row kernels (scalar reference, AVX2, `simd128`)
-//! behind one dispatcher. The warper uses the kernels and the accumulator (it
+//! saccade slots, `robust.rs` the ghost-free average (each frame weighted by
+//! its agreement with the newest), and `kernels/` the row kernels (scalar
+//! reference, AVX2, `simd128`) behind one dispatcher. The warper uses the kernels and the accumulator (it
 //! fills the saccade slots); neither uses the warper.
 
 mod accumulator;
 pub mod kernels;
 mod params;
+pub mod robust;
 #[cfg(test)]
 mod tests;
 mod warper;
 
 pub use accumulator::{Accumulator, WarpedFrame};
-pub use params::RenderParams;
+pub use params::{RenderParams, DEFAULT_DEGHOST, SUGGESTED_DEGHOST};
+pub use robust::{Deghost, MAX_DEGHOST};
 pub use warper::{chroma_camera, Warper, GRID_STEP};

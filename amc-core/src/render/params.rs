@@ -19,6 +19,12 @@ pub struct RenderParams {
     pub output_width: Option<usize>,
     /// Output height in pixels; default: keeps the cropped aspect ratio. Range 16..=16384.
     pub output_height: Option<usize>,
+    /// Ghost-free averaging threshold, intensity levels of 255: each averaged
+    /// frame's pixel counts fully where it differs from the newest frame's by
+    /// at most this, not at all from twice this (so whatever moves in the
+    /// scene comes from the newest frame only); 0 (the default) = the plain
+    /// average. Range 0..=64 (see [`super::robust`]; 6 suits compressed video).
+    pub deghost: f64,
 }
 
 impl Default for RenderParams {
@@ -28,9 +34,22 @@ impl Default for RenderParams {
             margin: 0.125,
             output_width: None,
             output_height: None,
+            deghost: DEFAULT_DEGHOST,
         }
     }
 }
+
+/// Default ghost-free averaging threshold: 0, the plain average of the
+/// paper. On real footage the plain average's smoothing of frame change
+/// comes largely from blending what a rotation cannot align (parallax, the
+/// rolling shutter): with `deghost` those pixels come from the newest frame,
+/// sharp but unsmoothed (README, "Averaging without ghosts").
+pub const DEFAULT_DEGHOST: f64 = 0.0;
+
+/// A threshold that suits compressed 8-bit video: about 1-2 standard
+/// deviations of the difference of two frames' noise, so the static scene
+/// keeps most of the averaging's noise reduction.
+pub const SUGGESTED_DEGHOST: f64 = 6.0;
 
 impl RenderParams {
     /// Checks every field against its documented range.
@@ -45,6 +64,13 @@ impl RenderParams {
             0.45,
             "0..=0.45 (share of each side)",
         )?;
+        check_range(
+            "deghost",
+            self.deghost,
+            0.0,
+            super::robust::MAX_DEGHOST,
+            "0..=64 intensity levels (0 = plain average)",
+        )?;
         for (name, v) in [
             ("output_width", self.output_width),
             ("output_height", self.output_height),
@@ -56,6 +82,11 @@ impl RenderParams {
             }
         }
         Ok(())
+    }
+
+    /// The ghost-free averaging weights; `None` for the plain average.
+    pub fn deghost(&self) -> Option<super::Deghost> {
+        super::Deghost::new(self.deghost)
     }
 
     /// The output camera for a source camera: a pinhole with the source's focal

@@ -12,7 +12,10 @@
 //! of its own); the bytes are the same whatever the number of threads.
 
 use super::accumulator::WarpedFrame;
-use super::kernels::{Geometry, Kernel, RowCoords, FRAME_PADDING};
+use super::kernels::{
+    merge_row_gray_scalar, merge_row_scalar, Geometry, Kernel, RowCoords, FRAME_PADDING,
+};
+use super::robust::{weighted_average, Deghost};
 use crate::camera::CameraModel;
 use crate::image::FrameRef;
 use crate::shutter::RollingProjector;
@@ -66,11 +69,15 @@ struct RowScratch {
     sums: [Vec<u32>; 3],
     /// Frames covering each pixel of the row.
     count: Vec<u32>,
+    /// Ghost-free averaging: the weights' sum per pixel (`sums` then holds
+    /// the weighted sums).
+    weight: Vec<u32>,
 }
 
 impl RowScratch {
-    /// Sizes the buffers for `frames` frames of rows `width` wide.
-    fn fit(&mut self, frames: usize, width: usize, tables: bool) {
+    /// Sizes the buffers for `frames` frames of rows `width` wide (with the
+    /// weights when `merged`).
+    fn fit(&mut self, frames: usize, width: usize, tables: bool, merged: bool) {
         if tables {
             self.xs.resize_with(frames, Vec::new);
             self.ys.resize_with(frames, Vec::new);
@@ -80,6 +87,9 @@ impl RowScratch {
         }
         for buf in self.sums.iter_mut().chain(std::iter::once(&mut self.count)) {
             buf.resize(width, 0);
+        }
+        if merged {
+            self.weight.resize(width, 0);
         }
     }
 }
@@ -107,6 +117,8 @@ pub struct Warper {
     /// so the second plane reuses the first one's maps.
     maps_for: Vec<Matrix3<f64>>,
     rows_changed: bool,
+    /// Ghost-free averaging ([`Warper::set_deghost`]); `None`: the plain average.
+    deghost: Option<Deghost>,
     /// Row buffers of the sequential path.
     scratch: RowScratch,
     /// Row buffers of the bands of the parallel path (one per band, kept so
@@ -168,6 +180,7 @@ impl Warper {
             rows: Vec::new(),
             maps_for: Vec::new(),
             rows_changed: false,
+            deghost: None,
             scratch: RowScratch::default(),
             band_scratch: Vec::new(),
         }
@@ -176,6 +189,14 @@ impl Warper {
     /// Disables the vectorized path (for testing the scalar one against it).
     pub fn set_vectorized(&mut self, on: bool) {
         self.kernel = if on { Kernel::detect() } else { Kernel::Scalar };
+    }
+
+    /// Averages of several frames ([`Warper::average_into`],
+    /// [`Warper::average_plane_into`]) weight each frame's pixel by its
+    /// agreement with the last frame's (see [`super::robust`]); `None` (the
+    /// default) averages plainly.
+    pub fn set_deghost(&mut self, deghost: Option<Deghost>) {
+        self.deghost = deghost;
     }
 
     /// Output size.
@@ -327,24 +348,8 @@ impl Warper {
         if pass.n8 == 0 {
             return;
         }
-        let mut coords = [RowCoords::Table(&[], &[]); MAX_FRAMES];
+        let coords = Self::row_coords(pass, v, &scratch.xs, &scratch.ys);
         let n = pass.maps.len().min(pass.datas.len()).min(MAX_FRAMES);
-        let vf = v as f32;
-        for (f, map) in pass.maps.iter().enumerate().take(n) {
-            coords[f] = if !map.gridded {
-                let h = &map.h;
-                RowCoords::Homography {
-                    x0: h[(0, 1)] * vf + h[(0, 2)],
-                    y0: h[(1, 1)] * vf + h[(1, 2)],
-                    z0: h[(2, 1)] * vf + h[(2, 2)],
-                    dx: h[(0, 0)],
-                    dy: h[(1, 0)],
-                    dz: h[(2, 0)],
-                }
-            } else {
-                RowCoords::Table(&scratch.xs[f], &scratch.ys[f])
-            };
-        }
         let [r, g, b] = &mut scratch.sums;
         // SAFETY: `self.kernel` comes from `Kernel::detect` (vectorized only when
         // `n8 > 0`, a multiple of 8); `pass` checked every buffer's padding (the
@@ -370,6 +375,105 @@ impl Warper {
                     g,
                     b,
                     &mut scratch.count,
+                );
+            }
+        }
+    }
+
+    /// Each frame's source coordinates along row `v` for the kernels: its
+    /// homography row (pinhole maps) or its table in `xs`/`ys` (grids).
+    fn row_coords<'s>(
+        pass: &Pass<'_, '_>,
+        v: usize,
+        xs: &'s [Vec<f32>],
+        ys: &'s [Vec<f32>],
+    ) -> [RowCoords<'s>; MAX_FRAMES] {
+        let mut coords = [RowCoords::Table(&[], &[]); MAX_FRAMES];
+        let vf = v as f32;
+        for (f, map) in pass.maps.iter().enumerate().take(MAX_FRAMES) {
+            coords[f] = if !map.gridded {
+                let h = &map.h;
+                RowCoords::Homography {
+                    x0: h[(0, 1)] * vf + h[(0, 2)],
+                    y0: h[(1, 1)] * vf + h[(1, 2)],
+                    z0: h[(2, 1)] * vf + h[(2, 2)],
+                    dx: h[(0, 0)],
+                    dy: h[(1, 0)],
+                    dz: h[(2, 0)],
+                }
+            } else {
+                RowCoords::Table(&xs[f], &ys[f])
+            };
+        }
+        coords
+    }
+
+    /// The ghost-free row (see [`super::robust`]): every frame of `pass` sampled
+    /// along row `v` and weighted by its agreement with the last (newest)
+    /// frame, by the vector kernel for the first `n8` pixels and the scalar
+    /// reference for the rest: weighted sums in `scratch.sums` (three channels,
+    /// or one when `gray`), the weights' sum in `scratch.weight` and the
+    /// covering frames in `scratch.count`, for every pixel.
+    fn merge_row(
+        &self,
+        pass: &Pass<'_, '_>,
+        v: usize,
+        scratch: &mut RowScratch,
+        gray: bool,
+        deghost: Deghost,
+    ) {
+        let ow = self.out.width;
+        if pass.tables {
+            for (f, map) in pass.maps.iter().enumerate() {
+                self.fill_row(map, v, &mut scratch.xs[f], &mut scratch.ys[f]);
+            }
+        }
+        let n = pass.maps.len().min(pass.datas.len()).min(MAX_FRAMES);
+        let coords = Self::row_coords(pass, v, &scratch.xs, &scratch.ys);
+        let (datas, coords, geom) = (&pass.datas[..n], &coords[..n], &pass.geom);
+        let [r, g, b] = &mut scratch.sums;
+        let (weight, count) = (&mut scratch.weight, &mut scratch.count);
+        // SAFETY: as in `accumulate_row`: the kernel comes from `Kernel::detect`
+        // (vectorized only when `n8 > 0`, a multiple of 8), `pass` checked the
+        // padding, every row buffer holds `ow >= n8` values, and `n >= 2`.
+        unsafe {
+            if gray {
+                if pass.n8 > 0 {
+                    self.kernel
+                        .merge_row_gray(datas, geom, coords, deghost, pass.n8, r, weight, count);
+                }
+            } else if pass.n8 > 0 {
+                self.kernel.merge_row(
+                    datas,
+                    geom,
+                    coords,
+                    deghost,
+                    pass.n8,
+                    [&mut *r, &mut *g, &mut *b],
+                    weight,
+                    count,
+                );
+            }
+        }
+        // The rest of the row through the tables (`pass.tables` whenever `n8 < ow`).
+        if pass.n8 < ow {
+            let mut table = [RowCoords::Table(&[], &[]); MAX_FRAMES];
+            for (t, (xs, ys)) in table.iter_mut().zip(scratch.xs.iter().zip(&scratch.ys)) {
+                *t = RowCoords::Table(xs, ys);
+            }
+            let span = (pass.n8, ow);
+            if gray {
+                merge_row_gray_scalar(datas, geom, &table[..n], deghost, span, r, weight, count);
+            } else {
+                merge_row_scalar(
+                    datas,
+                    geom,
+                    &table[..n],
+                    deghost,
+                    span,
+                    [r, g, b],
+                    weight,
+                    count,
                 );
             }
         }
@@ -465,14 +569,20 @@ impl Warper {
             Geometry::of(&first),
             first.height,
         );
+        let merged = self.deghost.filter(|_| n_frames > 1);
         let complete = self.for_each_row(
             out,
             ow * channels,
             coverage,
             |w, scratch, v, out_row, cov_row| {
-                scratch.fit(n_frames, ow, pass.tables);
-                w.accumulate_row(&pass, v, scratch, false);
-                finish_rgb_row(w.kernel, &pass, scratch, out_row, cov_row, channels, full)
+                scratch.fit(n_frames, ow, pass.tables, merged.is_some());
+                if let Some(deghost) = merged {
+                    w.merge_row(&pass, v, scratch, false, deghost);
+                    finish_merged_rgb_row(w.kernel, scratch, out_row, cov_row, channels, full)
+                } else {
+                    w.accumulate_row(&pass, v, scratch, false);
+                    finish_rgb_row(w.kernel, &pass, scratch, out_row, cov_row, channels, full)
+                }
             },
         );
         self.maps = maps;
@@ -516,10 +626,16 @@ impl Warper {
             Geometry::plane(width, height, 1),
             height,
         );
+        let merged = self.deghost.filter(|_| n_frames > 1);
         let complete = self.for_each_row(out, ow, coverage, |w, scratch, v, out_row, cov_row| {
-            scratch.fit(n_frames, ow, pass.tables);
-            w.accumulate_row(&pass, v, scratch, true);
-            finish_gray_row(&pass, scratch, out_row, cov_row, full, fill)
+            scratch.fit(n_frames, ow, pass.tables, merged.is_some());
+            if let Some(deghost) = merged {
+                w.merge_row(&pass, v, scratch, true, deghost);
+                finish_merged_gray_row(scratch, out_row, cov_row, full, fill)
+            } else {
+                w.accumulate_row(&pass, v, scratch, true);
+                finish_gray_row(&pass, scratch, out_row, cov_row, full, fill)
+            }
         });
         self.maps = maps;
         complete
@@ -574,7 +690,7 @@ impl Warper {
         let datas = [frame.data];
         let pass = self.pass(&maps, &datas, Geometry::of(frame), frame.height);
         let mut scratch = std::mem::take(&mut self.scratch);
-        scratch.fit(1, ow, pass.tables);
+        scratch.fit(1, ow, pass.tables, false);
         for v in 0..oh {
             self.accumulate_row(&pass, v, &mut scratch, false);
             let vals = &mut slot.value[3 * v * ow..3 * (v + 1) * ow];
@@ -620,7 +736,7 @@ impl Warper {
         let datas = [plane];
         let pass = self.pass(&maps, &datas, Geometry::plane(width, height, 1), height);
         let mut scratch = std::mem::take(&mut self.scratch);
-        scratch.fit(1, ow, pass.tables);
+        scratch.fit(1, ow, pass.tables, false);
         for (v, (vals, cov)) in values
             .chunks_mut(ow)
             .zip(covered.chunks_mut(ow))
@@ -748,6 +864,70 @@ fn finish_gray_row(
         complete += (c as u8 == full) as usize;
     }
     complete
+}
+
+/// Writes one interleaved output row from [`Warper::merge_row`]'s weighted
+/// sums (every pixel); returns the pixels every frame covers.
+fn finish_merged_rgb_row(
+    kernel: Kernel,
+    scratch: &RowScratch,
+    out_row: &mut [u8],
+    cov_row: &mut [u8],
+    channels: usize,
+    full: u8,
+) -> usize {
+    let ow = cov_row.len();
+    let [r, g, b] = &scratch.sums;
+    let (w, n) = (&scratch.weight, &scratch.count);
+    // The RGBA finisher divides by its "count": here the weights' sum, which
+    // is 0 exactly where no frame covers the pixel.
+    let n4 = ow / 8 * 8;
+    // SAFETY: the row sums hold `ow >= n4` values, `out_row` `4 ow` bytes.
+    let finished =
+        channels == 4 && n4 > 0 && unsafe { kernel.finish_row_rgba(r, g, b, w, out_row, n4) };
+    let start = if finished { n4 } else { 0 };
+    for (u, px) in out_row[..channels * ow]
+        .chunks_exact_mut(channels)
+        .enumerate()
+        .skip(start)
+    {
+        px[0] = weighted_average(r[u], w[u], 0);
+        px[1] = weighted_average(g[u], w[u], 0);
+        px[2] = weighted_average(b[u], w[u], 0);
+        if channels == 4 {
+            px[3] = 255;
+        }
+    }
+    let mut complete = 0usize;
+    for (c, &k) in cov_row.iter_mut().zip(&n[..ow]) {
+        *c = k as u8;
+        complete += (*c == full) as usize;
+    }
+    complete
+}
+
+/// Writes one single-channel output row from [`Warper::merge_row`]'s weighted
+/// sums (uncovered pixels `fill`); returns the pixels every frame covers.
+fn finish_merged_gray_row(
+    scratch: &RowScratch,
+    out_row: &mut [u8],
+    cov_row: &mut [u8],
+    full: u8,
+    fill: u8,
+) -> usize {
+    let ow = cov_row.len();
+    let (sum, w, n) = (
+        &scratch.sums[0][..ow],
+        &scratch.weight[..ow],
+        &scratch.count[..ow],
+    );
+    for ((o, &s), &k) in out_row[..ow].iter_mut().zip(sum).zip(w) {
+        *o = weighted_average(s, k, fill);
+    }
+    for (c, &k) in cov_row.iter_mut().zip(n) {
+        *c = k as u8;
+    }
+    n.iter().filter(|&&k| k == full as u32).count()
 }
 
 /// Bilinear interpolation of a node grid (`grid_w x grid_h`, spacing

@@ -8,6 +8,7 @@
 //! frame are masked off and contribute nothing.
 
 use super::common::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
+use crate::render::robust::{Deghost, FULL_WEIGHT};
 use std::arch::x86_64::*;
 
 /// Accumulates the samples of several frames along one output row: for
@@ -33,12 +34,6 @@ pub(super) unsafe fn accumulate_row(
 ) {
     debug_assert!(n8 & 7 == 0 && datas.len() == coords.len());
     debug_assert!(acc_r.len() >= n8 && acc_g.len() >= n8 && acc_b.len() >= n8 && count.len() >= n8);
-    let stride = _mm256_set1_epi32(g.stride);
-    let chans = _mm256_set1_epi32(g.channels);
-    let i128 = _mm256_set1_epi32(128);
-    let byte = _mm256_set1_epi32(0xFF);
-    // Byte 2 of each lane (bits 16..24): where the right-hand tap goes.
-    let hi_byte = _mm256_set1_epi32(0xFF_0000);
     let one = _mm256_set1_epi32(1);
     let mut u = 0;
     while u < n8 {
@@ -48,63 +43,257 @@ pub(super) unsafe fn accumulate_row(
             _mm256_setzero_si256(),
             _mm256_setzero_si256(),
         );
-        for f in 0..datas.len() {
-            let base = datas[f].as_ptr() as *const i32;
-            let Some(Taps8 {
-                mask,
-                x0,
-                y0,
-                ax,
-                ay,
-                bx,
-                by,
-            }) = taps8(&g, row_coords8(&coords[f], u))
-            else {
+        for (data, coord) in datas.iter().zip(coords) {
+            let Some(([r, gg, b], mask)) = sample_rgb8(data, &g, coord, u) else {
                 continue;
             };
-            let i00 = _mm256_add_epi32(
-                _mm256_mullo_epi32(y0, stride),
-                _mm256_mullo_epi32(x0, chans),
-            );
-            let i01 = _mm256_add_epi32(i00, chans);
-            let i10 = _mm256_add_epi32(i00, stride);
-            let i11 = _mm256_add_epi32(i10, chans);
-            let z = _mm256_setzero_si256();
-            let p00 = _mm256_mask_i32gather_epi32::<1>(z, base, i00, mask);
-            let p01 = _mm256_mask_i32gather_epi32::<1>(z, base, i01, mask);
-            let p10 = _mm256_mask_i32gather_epi32::<1>(z, base, i10, mask);
-            let p11 = _mm256_mask_i32gather_epi32::<1>(z, base, i11, mask);
-            // Horizontal step with one madd per row: lanes hold the 16-bit pairs
-            // (left, right) and (bx, ax), so madd gives left*bx + right*ax.
-            let wx = _mm256_or_si256(bx, _mm256_slli_epi32::<16>(ax));
-            macro_rules! channel {
-                ($shift:expr, $up:expr) => {{
-                    let top = _mm256_or_si256(
-                        _mm256_and_si256(_mm256_srli_epi32::<$shift>(p00), byte),
-                        _mm256_and_si256(_mm256_slli_epi32::<$up>(p01), hi_byte),
-                    );
-                    let bot = _mm256_or_si256(
-                        _mm256_and_si256(_mm256_srli_epi32::<$shift>(p10), byte),
-                        _mm256_and_si256(_mm256_slli_epi32::<$up>(p11), hi_byte),
-                    );
-                    let top = _mm256_madd_epi16(top, wx);
-                    let bot = _mm256_madd_epi16(bot, wx);
-                    let v = _mm256_add_epi32(
-                        _mm256_add_epi32(_mm256_mullo_epi32(top, by), _mm256_mullo_epi32(bot, ay)),
-                        i128,
-                    );
-                    _mm256_and_si256(_mm256_srli_epi32::<8>(v), mask)
-                }};
-            }
-            sum_r = _mm256_add_epi32(sum_r, channel!(0, 16));
-            sum_g = _mm256_add_epi32(sum_g, channel!(8, 8));
-            sum_b = _mm256_add_epi32(sum_b, channel!(16, 0));
+            sum_r = _mm256_add_epi32(sum_r, r);
+            sum_g = _mm256_add_epi32(sum_g, gg);
+            sum_b = _mm256_add_epi32(sum_b, b);
             sum_n = _mm256_add_epi32(sum_n, _mm256_and_si256(mask, one));
         }
         _mm256_storeu_si256(acc_r.as_mut_ptr().add(u) as *mut __m256i, sum_r);
         _mm256_storeu_si256(acc_g.as_mut_ptr().add(u) as *mut __m256i, sum_g);
         _mm256_storeu_si256(acc_b.as_mut_ptr().add(u) as *mut __m256i, sum_b);
         _mm256_storeu_si256(count.as_mut_ptr().add(u) as *mut __m256i, sum_n);
+        u += 8;
+    }
+}
+
+/// The 8.8 fixed-point R, G, B samples of eight output pixels `u..u + 8` of one
+/// frame (0 in lanes outside it) and the lanes inside it (all bits set); `None`
+/// when no lane is inside.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn sample_rgb8(
+    data: &[u8],
+    g: &KernelGeometry,
+    coord: &RowCoords<'_>,
+    u: usize,
+) -> Option<([__m256i; 3], __m256i)> {
+    let stride = _mm256_set1_epi32(g.stride);
+    let chans = _mm256_set1_epi32(g.channels);
+    let i128 = _mm256_set1_epi32(128);
+    let byte = _mm256_set1_epi32(0xFF);
+    // Byte 2 of each lane (bits 16..24): where the right-hand tap goes.
+    let hi_byte = _mm256_set1_epi32(0xFF_0000);
+    let base = data.as_ptr() as *const i32;
+    let Taps8 {
+        mask,
+        x0,
+        y0,
+        ax,
+        ay,
+        bx,
+        by,
+    } = taps8(g, row_coords8(coord, u))?;
+    let i00 = _mm256_add_epi32(
+        _mm256_mullo_epi32(y0, stride),
+        _mm256_mullo_epi32(x0, chans),
+    );
+    let i01 = _mm256_add_epi32(i00, chans);
+    let i10 = _mm256_add_epi32(i00, stride);
+    let i11 = _mm256_add_epi32(i10, chans);
+    let z = _mm256_setzero_si256();
+    let p00 = _mm256_mask_i32gather_epi32::<1>(z, base, i00, mask);
+    let p01 = _mm256_mask_i32gather_epi32::<1>(z, base, i01, mask);
+    let p10 = _mm256_mask_i32gather_epi32::<1>(z, base, i10, mask);
+    let p11 = _mm256_mask_i32gather_epi32::<1>(z, base, i11, mask);
+    // Horizontal step with one madd per row: lanes hold the 16-bit pairs
+    // (left, right) and (bx, ax), so madd gives left*bx + right*ax.
+    let wx = _mm256_or_si256(bx, _mm256_slli_epi32::<16>(ax));
+    macro_rules! channel {
+        ($shift:expr, $up:expr) => {{
+            let top = _mm256_or_si256(
+                _mm256_and_si256(_mm256_srli_epi32::<$shift>(p00), byte),
+                _mm256_and_si256(_mm256_slli_epi32::<$up>(p01), hi_byte),
+            );
+            let bot = _mm256_or_si256(
+                _mm256_and_si256(_mm256_srli_epi32::<$shift>(p10), byte),
+                _mm256_and_si256(_mm256_slli_epi32::<$up>(p11), hi_byte),
+            );
+            let top = _mm256_madd_epi16(top, wx);
+            let bot = _mm256_madd_epi16(bot, wx);
+            let v = _mm256_add_epi32(
+                _mm256_add_epi32(_mm256_mullo_epi32(top, by), _mm256_mullo_epi32(bot, ay)),
+                i128,
+            );
+            _mm256_and_si256(_mm256_srli_epi32::<8>(v), mask)
+        }};
+    }
+    Some(([channel!(0, 16), channel!(8, 8), channel!(16, 0)], mask))
+}
+
+/// The 8.8 fixed-point samples of eight output pixels `u..u + 8` of one plane
+/// (0 in lanes outside it) and the lanes inside it; `None` when no lane is inside.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn sample_gray8(
+    data: &[u8],
+    g: &KernelGeometry,
+    coord: &RowCoords<'_>,
+    u: usize,
+) -> Option<(__m256i, __m256i)> {
+    let stride = _mm256_set1_epi32(g.stride);
+    let i128 = _mm256_set1_epi32(128);
+    let byte = _mm256_set1_epi32(0xFF);
+    let hi_byte = _mm256_set1_epi32(0xFF_0000);
+    let base = data.as_ptr() as *const i32;
+    let Taps8 {
+        mask,
+        x0,
+        y0,
+        ax,
+        ay,
+        bx,
+        by,
+    } = taps8(g, row_coords8(coord, u))?;
+    let i0 = _mm256_add_epi32(_mm256_mullo_epi32(y0, stride), x0);
+    let i1 = _mm256_add_epi32(i0, stride);
+    let z = _mm256_setzero_si256();
+    let p0 = _mm256_mask_i32gather_epi32::<1>(z, base, i0, mask);
+    let p1 = _mm256_mask_i32gather_epi32::<1>(z, base, i1, mask);
+    // Bytes (left, right) of each dword spread to 16-bit lanes for madd.
+    let wx = _mm256_or_si256(bx, _mm256_slli_epi32::<16>(ax));
+    let pair = |p: __m256i| {
+        _mm256_or_si256(
+            _mm256_and_si256(p, byte),
+            _mm256_and_si256(_mm256_slli_epi32::<8>(p), hi_byte),
+        )
+    };
+    let top = _mm256_madd_epi16(pair(p0), wx);
+    let bot = _mm256_madd_epi16(pair(p1), wx);
+    let v = _mm256_add_epi32(
+        _mm256_add_epi32(_mm256_mullo_epi32(top, by), _mm256_mullo_epi32(bot, ay)),
+        i128,
+    );
+    Some((_mm256_and_si256(_mm256_srli_epi32::<8>(v), mask), mask))
+}
+
+/// The ghost-free weights of eight samples differing by `d` from the
+/// reference's: [`Deghost::weight`] lane by lane (`d <= 65280`, so the scalar
+/// clamp to `2^16` never acts), 16 where the reference does not cover the
+/// pixel (`reference` lanes clear), 0 where the frame does not (`mask` clear).
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn weights8(deghost: Deghost, d: __m256i, reference: __m256i, mask: __m256i) -> __m256i {
+    let (zero_at, slope) = deghost.constants();
+    let full = _mm256_set1_epi32(FULL_WEIGHT as i32);
+    let ramp = _mm256_max_epi32(
+        _mm256_sub_epi32(_mm256_set1_epi32(zero_at), d),
+        _mm256_setzero_si256(),
+    );
+    let w = _mm256_min_epi32(
+        _mm256_srli_epi32::<16>(_mm256_mullo_epi32(ramp, _mm256_set1_epi32(slope))),
+        full,
+    );
+    _mm256_and_si256(_mm256_blendv_epi8(full, w, reference), mask)
+}
+
+/// The ghost-free twin of [`accumulate_row`] (see `scalar::merge_row`, the
+/// reference): for `u in 0..n8`, the last frame's samples are taken first and
+/// every frame's then weighted by its agreement with them, in registers;
+/// `sum_{r,g,b}`, `weight` and `count` are stored once per chunk.
+///
+/// # Safety
+/// As [`accumulate_row`].
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe fn merge_row(
+    datas: &[&[u8]],
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    deghost: Deghost,
+    n8: usize,
+    sum: [&mut [u32]; 3],
+    weight: &mut [u32],
+    count: &mut [u32],
+) {
+    debug_assert!(n8 & 7 == 0 && datas.len() == coords.len() && !datas.is_empty());
+    let [sum_r, sum_g, sum_b] = sum;
+    debug_assert!(sum_r.len() >= n8 && sum_g.len() >= n8 && sum_b.len() >= n8);
+    debug_assert!(weight.len() >= n8 && count.len() >= n8);
+    let last = datas.len() - 1;
+    let one = _mm256_set1_epi32(1);
+    let full = _mm256_set1_epi32(FULL_WEIGHT as i32);
+    let z = _mm256_setzero_si256();
+    let mut u = 0;
+    while u < n8 {
+        let ([r0, g0, b0], m0) =
+            sample_rgb8(datas[last], &g, &coords[last], u).unwrap_or(([z; 3], z));
+        let w0 = _mm256_and_si256(m0, full);
+        let (mut acc_r, mut acc_g, mut acc_b) = (
+            _mm256_mullo_epi32(w0, r0),
+            _mm256_mullo_epi32(w0, g0),
+            _mm256_mullo_epi32(w0, b0),
+        );
+        let (mut acc_w, mut acc_n) = (w0, _mm256_and_si256(m0, one));
+        for (data, coord) in datas[..last].iter().zip(coords) {
+            let Some(([r, gg, b], mask)) = sample_rgb8(data, &g, coord, u) else {
+                continue;
+            };
+            let absdiff = |a: __m256i, b: __m256i| _mm256_abs_epi32(_mm256_sub_epi32(a, b));
+            let d = _mm256_max_epi32(
+                _mm256_max_epi32(absdiff(r, r0), absdiff(gg, g0)),
+                absdiff(b, b0),
+            );
+            let w = weights8(deghost, d, m0, mask);
+            acc_r = _mm256_add_epi32(acc_r, _mm256_mullo_epi32(w, r));
+            acc_g = _mm256_add_epi32(acc_g, _mm256_mullo_epi32(w, gg));
+            acc_b = _mm256_add_epi32(acc_b, _mm256_mullo_epi32(w, b));
+            acc_w = _mm256_add_epi32(acc_w, w);
+            acc_n = _mm256_add_epi32(acc_n, _mm256_and_si256(mask, one));
+        }
+        _mm256_storeu_si256(sum_r.as_mut_ptr().add(u) as *mut __m256i, acc_r);
+        _mm256_storeu_si256(sum_g.as_mut_ptr().add(u) as *mut __m256i, acc_g);
+        _mm256_storeu_si256(sum_b.as_mut_ptr().add(u) as *mut __m256i, acc_b);
+        _mm256_storeu_si256(weight.as_mut_ptr().add(u) as *mut __m256i, acc_w);
+        _mm256_storeu_si256(count.as_mut_ptr().add(u) as *mut __m256i, acc_n);
+        u += 8;
+    }
+}
+
+/// The single-channel twin of [`merge_row`] (reference: `scalar::merge_row_gray`).
+///
+/// # Safety
+/// As [`accumulate_row_gray`].
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe fn merge_row_gray(
+    datas: &[&[u8]],
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    deghost: Deghost,
+    n8: usize,
+    sum: &mut [u32],
+    weight: &mut [u32],
+    count: &mut [u32],
+) {
+    debug_assert!(n8 & 7 == 0 && datas.len() == coords.len() && !datas.is_empty());
+    debug_assert!(sum.len() >= n8 && weight.len() >= n8 && count.len() >= n8);
+    let last = datas.len() - 1;
+    let one = _mm256_set1_epi32(1);
+    let full = _mm256_set1_epi32(FULL_WEIGHT as i32);
+    let z = _mm256_setzero_si256();
+    let mut u = 0;
+    while u < n8 {
+        let (v0, m0) = sample_gray8(datas[last], &g, &coords[last], u).unwrap_or((z, z));
+        let w0 = _mm256_and_si256(m0, full);
+        let mut acc = _mm256_mullo_epi32(w0, v0);
+        let (mut acc_w, mut acc_n) = (w0, _mm256_and_si256(m0, one));
+        for (data, coord) in datas[..last].iter().zip(coords) {
+            let Some((v, mask)) = sample_gray8(data, &g, coord, u) else {
+                continue;
+            };
+            let d = _mm256_abs_epi32(_mm256_sub_epi32(v, v0));
+            let w = weights8(deghost, d, m0, mask);
+            acc = _mm256_add_epi32(acc, _mm256_mullo_epi32(w, v));
+            acc_w = _mm256_add_epi32(acc_w, w);
+            acc_n = _mm256_add_epi32(acc_n, _mm256_and_si256(mask, one));
+        }
+        _mm256_storeu_si256(sum.as_mut_ptr().add(u) as *mut __m256i, acc);
+        _mm256_storeu_si256(weight.as_mut_ptr().add(u) as *mut __m256i, acc_w);
+        _mm256_storeu_si256(count.as_mut_ptr().add(u) as *mut __m256i, acc_n);
         u += 8;
     }
 }
@@ -164,50 +353,15 @@ pub(super) unsafe fn accumulate_row_gray(
 ) {
     debug_assert!(n8 & 7 == 0 && datas.len() == coords.len());
     debug_assert!(acc.len() >= n8 && count.len() >= n8);
-    let stride = _mm256_set1_epi32(g.stride);
-    let i128 = _mm256_set1_epi32(128);
-    let byte = _mm256_set1_epi32(0xFF);
-    let hi_byte = _mm256_set1_epi32(0xFF_0000);
     let one = _mm256_set1_epi32(1);
     let mut u = 0;
     while u < n8 {
         let (mut sum, mut sum_n) = (_mm256_setzero_si256(), _mm256_setzero_si256());
         for (data, coord) in datas.iter().zip(coords) {
-            let base = data.as_ptr() as *const i32;
-            let Some(Taps8 {
-                mask,
-                x0,
-                y0,
-                ax,
-                ay,
-                bx,
-                by,
-            }) = taps8(&g, row_coords8(coord, u))
-            else {
+            let Some((v, mask)) = sample_gray8(data, &g, coord, u) else {
                 continue;
             };
-            let i0 = _mm256_add_epi32(_mm256_mullo_epi32(y0, stride), x0);
-            let i1 = _mm256_add_epi32(i0, stride);
-            let z = _mm256_setzero_si256();
-            let p0 = _mm256_mask_i32gather_epi32::<1>(z, base, i0, mask);
-            let p1 = _mm256_mask_i32gather_epi32::<1>(z, base, i1, mask);
-            // Bytes (left, right) of each dword spread to 16-bit lanes for madd.
-            let wx = _mm256_or_si256(bx, _mm256_slli_epi32::<16>(ax));
-            macro_rules! pair {
-                ($p:expr) => {
-                    _mm256_or_si256(
-                        _mm256_and_si256($p, byte),
-                        _mm256_and_si256(_mm256_slli_epi32::<8>($p), hi_byte),
-                    )
-                };
-            }
-            let top = _mm256_madd_epi16(pair!(p0), wx);
-            let bot = _mm256_madd_epi16(pair!(p1), wx);
-            let v = _mm256_add_epi32(
-                _mm256_add_epi32(_mm256_mullo_epi32(top, by), _mm256_mullo_epi32(bot, ay)),
-                i128,
-            );
-            sum = _mm256_add_epi32(sum, _mm256_and_si256(_mm256_srli_epi32::<8>(v), mask));
+            sum = _mm256_add_epi32(sum, v);
             sum_n = _mm256_add_epi32(sum_n, _mm256_and_si256(mask, one));
         }
         _mm256_storeu_si256(acc.as_mut_ptr().add(u) as *mut __m256i, sum);

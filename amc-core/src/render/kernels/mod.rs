@@ -1,6 +1,10 @@
 //! Row kernels: bilinear sampling of several frames along one output row, summed
 //! in 8.8 fixed point.
 //!
+//! Two operations, each in a plain and a ghost-free form: the sum of the
+//! frames' samples (`accumulate_row`), and their sum weighted by agreement with
+//! the last frame's (`merge_row`, see [`crate::render::robust`]).
+//!
 //! `scalar.rs` is the reference; `avx2.rs` (x86-64, chosen at run time when the
 //! CPU has AVX2) and `simd128.rs` (wasm32, chosen at compile time with the
 //! `simd128` target feature) are bit-exact with it. [`Kernel`] is the one
@@ -17,8 +21,10 @@ mod scalar;
 #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
 mod simd128;
 
+use crate::render::robust::Deghost;
 pub(crate) use common::{Geometry, RowCoords};
 pub use common::{EDGE_TOLERANCE, FRAME_PADDING};
+pub(crate) use scalar::{merge_row as merge_row_scalar, merge_row_gray as merge_row_gray_scalar};
 
 /// Whether the AVX2 kernel can run on this CPU.
 pub fn avx2_available() -> bool {
@@ -173,6 +179,102 @@ impl Kernel {
         }
     }
 
+    /// The ghost-free form of [`Kernel::accumulate_row`] (see
+    /// [`crate::render::robust`]): for `u in 0..n`, with the last frame the
+    /// reference, `sum_{r,g,b}[u] = sum_f w_f sample_f`, `weight[u] = sum_f w_f`
+    /// and `count[u]` = frames whose coordinate lies inside the frame.
+    ///
+    /// # Safety
+    /// As [`Kernel::accumulate_row`], and `datas` must not be empty.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub(crate) unsafe fn merge_row(
+        self,
+        datas: &[&[u8]],
+        geom: &Geometry,
+        coords: &[RowCoords<'_>],
+        deghost: Deghost,
+        n: usize,
+        sum: [&mut [u32]; 3],
+        weight: &mut [u32],
+        count: &mut [u32],
+    ) {
+        match self {
+            Kernel::Scalar => {
+                scalar::merge_row(datas, geom, coords, deghost, (0, n), sum, weight, count)
+            }
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2 => avx2::merge_row(
+                datas,
+                common::KernelGeometry::of(geom),
+                coords,
+                deghost,
+                n,
+                sum,
+                weight,
+                count,
+            ),
+            #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+            Kernel::Simd128 => simd128::merge_row(
+                datas,
+                common::KernelGeometry::of(geom),
+                coords,
+                deghost,
+                n,
+                sum,
+                weight,
+                count,
+            ),
+        }
+    }
+
+    /// The single-channel form of [`Kernel::merge_row`], for the planes of planar frames.
+    ///
+    /// # Safety
+    /// As [`Kernel::accumulate_row_gray`], and `datas` must not be empty.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub(crate) unsafe fn merge_row_gray(
+        self,
+        datas: &[&[u8]],
+        geom: &Geometry,
+        coords: &[RowCoords<'_>],
+        deghost: Deghost,
+        n: usize,
+        sum: &mut [u32],
+        weight: &mut [u32],
+        count: &mut [u32],
+    ) {
+        debug_assert_eq!(geom.channels, 1);
+        match self {
+            Kernel::Scalar => {
+                scalar::merge_row_gray(datas, geom, coords, deghost, (0, n), sum, weight, count)
+            }
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2 => avx2::merge_row_gray(
+                datas,
+                common::KernelGeometry::of(geom),
+                coords,
+                deghost,
+                n,
+                sum,
+                weight,
+                count,
+            ),
+            #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+            Kernel::Simd128 => simd128::merge_row_gray(
+                datas,
+                common::KernelGeometry::of(geom),
+                coords,
+                deghost,
+                n,
+                sum,
+                weight,
+                count,
+            ),
+        }
+    }
+
     /// Finishes `n` pixels of an RGBA output row from [`Kernel::accumulate_row`]'s
     /// sums when this kernel has a finishing pass (`simd128`): `round(sum / (256 n))`
     /// per channel, alpha 255, 0 where no frame covers the pixel. Returns whether it
@@ -301,6 +403,43 @@ mod tests {
                 "gray {:?}",
                 Kernel::detect()
             );
+            // The ghost-free forms: random frames differ by up to 255 levels, so
+            // a threshold of 60 levels gives weights from 0 to 16 (3: mostly 0).
+            for levels in [3.0, 60.0] {
+                let deghost = Deghost::new(levels).unwrap();
+                let run_merge = |kernel: Kernel| {
+                    let mut sums = vec![vec![0u32; n]; 5];
+                    let [r, g, b, w, c] = &mut sums[..] else {
+                        unreachable!()
+                    };
+                    // SAFETY: as above.
+                    unsafe {
+                        kernel.merge_row(&datas, &geom, &coords, deghost, n, [r, g, b], w, c)
+                    };
+                    sums
+                };
+                let reference = run_merge(Kernel::Scalar);
+                if levels > 10.0 {
+                    let partial = reference[3].iter().any(|&w| w % 16 != 0);
+                    assert!(partial, "{levels}: some partial weights");
+                }
+                assert_eq!(run_merge(Kernel::detect()), reference, "merge {levels}");
+                let run_merge_gray = |kernel: Kernel| {
+                    let mut sums = vec![vec![0u32; n]; 3];
+                    let [s, w, c] = &mut sums[..] else {
+                        unreachable!()
+                    };
+                    // SAFETY: as above.
+                    unsafe { kernel.merge_row_gray(&datas, &gray, &coords, deghost, n, s, w, c) };
+                    sums
+                };
+                let reference = run_merge_gray(Kernel::Scalar);
+                assert_eq!(
+                    run_merge_gray(Kernel::detect()),
+                    reference,
+                    "merge gray {levels}"
+                );
+            }
         }
     }
 }

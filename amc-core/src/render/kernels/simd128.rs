@@ -2,6 +2,7 @@
 //! module is built with `+simd128`).
 
 use super::common::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
+use crate::render::robust::{Deghost, FULL_WEIGHT};
 use core::arch::wasm32::*;
 
 /// The WebAssembly `simd128` twin of the AVX2 kernel (`avx2.rs`): four output
@@ -30,13 +31,48 @@ pub(super) unsafe fn accumulate_row(
 ) {
     debug_assert!(n8 % 4 == 0 && datas.len() == coords.len());
     debug_assert!(acc_r.len() >= n8 && acc_g.len() >= n8 && acc_b.len() >= n8 && count.len() >= n8);
+    let one = i32x4_splat(1);
+    // Frame-outer (unlike the AVX2 kernel): each frame's row is read as one
+    // stream and the row sums (a few KiB) stay in L1; at 720p this is ~30%
+    // faster in V8 than keeping sums in registers across frames.
+    for acc in [&mut *acc_r, &mut *acc_g, &mut *acc_b, &mut *count] {
+        acc[..n8].fill(0);
+    }
+    for (data, coord) in datas.iter().zip(coords) {
+        let mut u = 0;
+        while u < n8 {
+            if let Some(([r, gg, b], valid)) = sample_rgb4(data, &g, coord, u) {
+                for (acc, v) in [
+                    (acc_r.as_mut_ptr(), r),
+                    (acc_g.as_mut_ptr(), gg),
+                    (acc_b.as_mut_ptr(), b),
+                    (count.as_mut_ptr(), v128_and(valid, one)),
+                ] {
+                    let p = acc.add(u) as *mut v128;
+                    v128_store(p, i32x4_add(v128_load(p), v));
+                }
+            }
+            u += 4;
+        }
+    }
+}
+
+/// The 8.8 fixed-point R, G, B samples of four output pixels `u..u + 4` of one
+/// frame (0 in lanes outside it) and the lanes inside it (all bits set); `None`
+/// when no lane is inside.
+#[inline(always)]
+unsafe fn sample_rgb4(
+    data: &[u8],
+    g: &KernelGeometry,
+    coord: &RowCoords<'_>,
+    u: usize,
+) -> Option<([v128; 3], v128)> {
     let stride = i32x4_splat(g.stride);
     let chans = i32x4_splat(g.channels);
     let i128 = i32x4_splat(128);
     let byte = i32x4_splat(0xFF);
     let hi_byte = i32x4_splat(0xFF_0000);
     let lo_bytes = i16x8_splat(0x00FF);
-    let one = i32x4_splat(1);
     let (s, c) = (g.stride as usize, g.channels as usize);
     let rgba = c == 4;
     let stride_f = f32x4_splat(g.stride as f32);
@@ -44,130 +80,216 @@ pub(super) unsafe fn accumulate_row(
     // Largest offset computed: (max_y0 * stride + max_x0 * channels).
     let small_frame =
         (g.max_y0 as i64 * g.stride as i64 + g.max_x0 as i64 * g.channels as i64) < (1 << 23);
-    // Frame-outer (unlike the AVX2 kernel): each frame's row is read as one
-    // stream and the row sums (a few KiB) stay in L1; at 720p this is ~30%
-    // faster in V8 than keeping sums in registers across frames.
-    for acc in [&mut *acc_r, &mut *acc_g, &mut *acc_b, &mut *count] {
-        acc[..n8].fill(0);
+    let base = data.as_ptr();
+    let Taps4 {
+        valid,
+        x0f,
+        y0f,
+        ax,
+        ay,
+        bx,
+        by,
+    } = taps4(g, row_coords4(coord, u))?;
+    // Byte offsets: in f32 when every offset is below 2^23 (exact,
+    // and no 32-bit multiplies), else in integers.
+    let i00 = if small_frame {
+        to_int(f32x4_add(f32x4_mul(y0f, stride_f), f32x4_mul(x0f, chans_f)))
+    } else {
+        i32x4_add(
+            i32x4_mul(to_int(y0f), stride),
+            i32x4_mul(to_int(x0f), chans),
+        )
+    };
+    // Lanes hold 16-bit pairs (left, right) and (bx, ax): the signed
+    // 16-bit dot product gives left*bx + right*ax. Invalid lanes get
+    // zero weights, so they come out as (0 + 0 + 128) >> 8 = 0.
+    let wx = v128_and(v128_or(bx, i32x4_shl(ax, 16)), valid);
+    let vertical = |top: v128, bot: v128| {
+        let top = i32x4_dot_i16x8(top, wx);
+        let bot = i32x4_dot_i16x8(bot, wx);
+        let v = i32x4_add(i32x4_add(i32x4_mul(top, by), i32x4_mul(bot, ay)), i128);
+        u32x4_shr(v, 8)
+    };
+    let (r, gg, b);
+    if rgba {
+        // A pixel and its right neighbour are one 8-byte load:
+        // bytes r0 g0 b0 a0 r1 g1 b1 a1.
+        let load2 = |i: usize| (base.add(i) as *const u64).read_unaligned();
+        let i0 = i32x4_extract_lane::<0>(i00) as usize;
+        let i1 = i32x4_extract_lane::<1>(i00) as usize;
+        let i2 = i32x4_extract_lane::<2>(i00) as usize;
+        let i3 = i32x4_extract_lane::<3>(i00) as usize;
+        let top01 = u64x2(load2(i0), load2(i1));
+        let top23 = u64x2(load2(i2), load2(i3));
+        let bot01 = u64x2(load2(i0 + s), load2(i1 + s));
+        let bot23 = u64x2(load2(i2 + s), load2(i3 + s));
+        // Per 64-bit half (one lane's two pixels), 16-bit words
+        // (r0 g0) (b0 a0) (r1 g1) (b1 a1): masking the low or high
+        // bytes and swapping the middle words gives the 32-bit pairs
+        // (r0, r1) (b0, b1) or (g0, g1) (a0, a1); then lanes are
+        // gathered per channel. Only single-input word shuffles and
+        // `shufps`-like dword shuffles: cheap in wasm engines.
+        let swap = |v: v128| i16x8_shuffle::<0, 2, 1, 3, 4, 6, 5, 7>(v, v);
+        let split = |p01: v128, p23: v128| {
+            let rb01 = swap(v128_and(p01, lo_bytes));
+            let rb23 = swap(v128_and(p23, lo_bytes));
+            let ga01 = swap(u16x8_shr(p01, 8));
+            let ga23 = swap(u16x8_shr(p23, 8));
+            (
+                i32x4_shuffle::<0, 2, 4, 6>(rb01, rb23),
+                i32x4_shuffle::<0, 2, 4, 6>(ga01, ga23),
+                i32x4_shuffle::<1, 3, 5, 7>(rb01, rb23),
+            )
+        };
+        let (tr, tg, tb) = split(top01, top23);
+        let (br, bg, bb) = split(bot01, bot23);
+        r = vertical(tr, br);
+        gg = vertical(tg, bg);
+        b = vertical(tb, bb);
+    } else {
+        let load = |i: usize| (base.add(i) as *const u32).read_unaligned();
+        macro_rules! taps {
+            ($l:literal) => {{
+                let i = i32x4_extract_lane::<$l>(i00) as usize;
+                (load(i), load(i + c), load(i + s), load(i + s + c))
+            }};
+        }
+        let (a00, a01, a10, a11) = taps!(0);
+        let (b00, b01, b10, b11) = taps!(1);
+        let (c00, c01, c10, c11) = taps!(2);
+        let (d00, d01, d10, d11) = taps!(3);
+        let p00 = u32x4(a00, b00, c00, d00);
+        let p01 = u32x4(a01, b01, c01, d01);
+        let p10 = u32x4(a10, b10, c10, d10);
+        let p11 = u32x4(a11, b11, c11, d11);
+        macro_rules! channel {
+            ($shift:expr, $up:expr) => {{
+                let top = v128_or(
+                    v128_and(u32x4_shr(p00, $shift), byte),
+                    v128_and(i32x4_shl(p01, $up), hi_byte),
+                );
+                let bot = v128_or(
+                    v128_and(u32x4_shr(p10, $shift), byte),
+                    v128_and(i32x4_shl(p11, $up), hi_byte),
+                );
+                vertical(top, bot)
+            }};
+        }
+        r = channel!(0, 16);
+        gg = channel!(8, 8);
+        b = channel!(16, 0);
     }
-    for f in 0..datas.len() {
-        let base = datas[f].as_ptr();
-        let coord = coords[f];
-        let mut u = 0;
-        while u < n8 {
-            let Some(Taps4 {
-                valid,
-                x0f,
-                y0f,
-                ax,
-                ay,
-                bx,
-                by,
-            }) = taps4(&g, row_coords4(&coord, u))
-            else {
-                u += 4;
+    Some(([r, gg, b], valid))
+}
+
+/// The ghost-free weights of four samples differing by `d` from the
+/// reference's: `Deghost::weight` lane by lane (`d <= 65280`), 16 where the
+/// reference does not cover the pixel (`reference` lanes clear), 0 where the
+/// frame does not (`valid` clear).
+#[inline(always)]
+fn weights4(deghost: Deghost, d: v128, reference: v128, valid: v128) -> v128 {
+    let (zero_at, slope) = deghost.constants();
+    let full = i32x4_splat(FULL_WEIGHT as i32);
+    let ramp = i32x4_max(i32x4_sub(i32x4_splat(zero_at), d), i32x4_splat(0));
+    let w = i32x4_min(u32x4_shr(i32x4_mul(ramp, i32x4_splat(slope)), 16), full);
+    v128_and(v128_bitselect(w, full, reference), valid)
+}
+
+/// The ghost-free twin of [`accumulate_row`] (reference: `scalar::merge_row`):
+/// four pixels at a time, frame-inner (the last frame's samples stay in
+/// registers while the others are weighted against them).
+///
+/// # Safety
+/// As [`accumulate_row`], and `datas` must not be empty.
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe fn merge_row(
+    datas: &[&[u8]],
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    deghost: Deghost,
+    n8: usize,
+    sum: [&mut [u32]; 3],
+    weight: &mut [u32],
+    count: &mut [u32],
+) {
+    debug_assert!(n8 % 4 == 0 && datas.len() == coords.len() && !datas.is_empty());
+    let [sum_r, sum_g, sum_b] = sum;
+    debug_assert!(sum_r.len() >= n8 && sum_g.len() >= n8 && sum_b.len() >= n8);
+    debug_assert!(weight.len() >= n8 && count.len() >= n8);
+    let last = datas.len() - 1;
+    let one = i32x4_splat(1);
+    let full = i32x4_splat(FULL_WEIGHT as i32);
+    let z = i32x4_splat(0);
+    let absdiff = |a: v128, b: v128| i32x4_abs(i32x4_sub(a, b));
+    let mut u = 0;
+    while u < n8 {
+        let ([r0, g0, b0], m0) =
+            sample_rgb4(datas[last], &g, &coords[last], u).unwrap_or(([z; 3], z));
+        let w0 = v128_and(m0, full);
+        let (mut acc_r, mut acc_g, mut acc_b) =
+            (i32x4_mul(w0, r0), i32x4_mul(w0, g0), i32x4_mul(w0, b0));
+        let (mut acc_w, mut acc_n) = (w0, v128_and(m0, one));
+        for (data, coord) in datas[..last].iter().zip(coords) {
+            let Some(([r, gg, b], valid)) = sample_rgb4(data, &g, coord, u) else {
                 continue;
             };
-            // Byte offsets: in f32 when every offset is below 2^23 (exact,
-            // and no 32-bit multiplies), else in integers.
-            let i00 = if small_frame {
-                to_int(f32x4_add(f32x4_mul(y0f, stride_f), f32x4_mul(x0f, chans_f)))
-            } else {
-                i32x4_add(
-                    i32x4_mul(to_int(y0f), stride),
-                    i32x4_mul(to_int(x0f), chans),
-                )
-            };
-            // Lanes hold 16-bit pairs (left, right) and (bx, ax): the signed
-            // 16-bit dot product gives left*bx + right*ax. Invalid lanes get
-            // zero weights, so they come out as (0 + 0 + 128) >> 8 = 0.
-            let wx = v128_and(v128_or(bx, i32x4_shl(ax, 16)), valid);
-            let vertical = |top: v128, bot: v128| {
-                let top = i32x4_dot_i16x8(top, wx);
-                let bot = i32x4_dot_i16x8(bot, wx);
-                let v = i32x4_add(i32x4_add(i32x4_mul(top, by), i32x4_mul(bot, ay)), i128);
-                u32x4_shr(v, 8)
-            };
-            let (r, gg, b);
-            if rgba {
-                // A pixel and its right neighbour are one 8-byte load:
-                // bytes r0 g0 b0 a0 r1 g1 b1 a1.
-                let load2 = |i: usize| (base.add(i) as *const u64).read_unaligned();
-                let i0 = i32x4_extract_lane::<0>(i00) as usize;
-                let i1 = i32x4_extract_lane::<1>(i00) as usize;
-                let i2 = i32x4_extract_lane::<2>(i00) as usize;
-                let i3 = i32x4_extract_lane::<3>(i00) as usize;
-                let top01 = u64x2(load2(i0), load2(i1));
-                let top23 = u64x2(load2(i2), load2(i3));
-                let bot01 = u64x2(load2(i0 + s), load2(i1 + s));
-                let bot23 = u64x2(load2(i2 + s), load2(i3 + s));
-                // Per 64-bit half (one lane's two pixels), 16-bit words
-                // (r0 g0) (b0 a0) (r1 g1) (b1 a1): masking the low or high
-                // bytes and swapping the middle words gives the 32-bit pairs
-                // (r0, r1) (b0, b1) or (g0, g1) (a0, a1); then lanes are
-                // gathered per channel. Only single-input word shuffles and
-                // `shufps`-like dword shuffles: cheap in wasm engines.
-                let swap = |v: v128| i16x8_shuffle::<0, 2, 1, 3, 4, 6, 5, 7>(v, v);
-                let split = |p01: v128, p23: v128| {
-                    let rb01 = swap(v128_and(p01, lo_bytes));
-                    let rb23 = swap(v128_and(p23, lo_bytes));
-                    let ga01 = swap(u16x8_shr(p01, 8));
-                    let ga23 = swap(u16x8_shr(p23, 8));
-                    (
-                        i32x4_shuffle::<0, 2, 4, 6>(rb01, rb23),
-                        i32x4_shuffle::<0, 2, 4, 6>(ga01, ga23),
-                        i32x4_shuffle::<1, 3, 5, 7>(rb01, rb23),
-                    )
-                };
-                let (tr, tg, tb) = split(top01, top23);
-                let (br, bg, bb) = split(bot01, bot23);
-                r = vertical(tr, br);
-                gg = vertical(tg, bg);
-                b = vertical(tb, bb);
-            } else {
-                let load = |i: usize| (base.add(i) as *const u32).read_unaligned();
-                macro_rules! taps {
-                    ($l:literal) => {{
-                        let i = i32x4_extract_lane::<$l>(i00) as usize;
-                        (load(i), load(i + c), load(i + s), load(i + s + c))
-                    }};
-                }
-                let (a00, a01, a10, a11) = taps!(0);
-                let (b00, b01, b10, b11) = taps!(1);
-                let (c00, c01, c10, c11) = taps!(2);
-                let (d00, d01, d10, d11) = taps!(3);
-                let p00 = u32x4(a00, b00, c00, d00);
-                let p01 = u32x4(a01, b01, c01, d01);
-                let p10 = u32x4(a10, b10, c10, d10);
-                let p11 = u32x4(a11, b11, c11, d11);
-                macro_rules! channel {
-                    ($shift:expr, $up:expr) => {{
-                        let top = v128_or(
-                            v128_and(u32x4_shr(p00, $shift), byte),
-                            v128_and(i32x4_shl(p01, $up), hi_byte),
-                        );
-                        let bot = v128_or(
-                            v128_and(u32x4_shr(p10, $shift), byte),
-                            v128_and(i32x4_shl(p11, $up), hi_byte),
-                        );
-                        vertical(top, bot)
-                    }};
-                }
-                r = channel!(0, 16);
-                gg = channel!(8, 8);
-                b = channel!(16, 0);
-            }
-            for (acc, v) in [
-                (acc_r.as_mut_ptr(), r),
-                (acc_g.as_mut_ptr(), gg),
-                (acc_b.as_mut_ptr(), b),
-                (count.as_mut_ptr(), v128_and(valid, one)),
-            ] {
-                let p = acc.add(u) as *mut v128;
-                v128_store(p, i32x4_add(v128_load(p), v));
-            }
-            u += 4;
+            let d = i32x4_max(i32x4_max(absdiff(r, r0), absdiff(gg, g0)), absdiff(b, b0));
+            let w = weights4(deghost, d, m0, valid);
+            acc_r = i32x4_add(acc_r, i32x4_mul(w, r));
+            acc_g = i32x4_add(acc_g, i32x4_mul(w, gg));
+            acc_b = i32x4_add(acc_b, i32x4_mul(w, b));
+            acc_w = i32x4_add(acc_w, w);
+            acc_n = i32x4_add(acc_n, v128_and(valid, one));
         }
+        v128_store(sum_r.as_mut_ptr().add(u) as *mut v128, acc_r);
+        v128_store(sum_g.as_mut_ptr().add(u) as *mut v128, acc_g);
+        v128_store(sum_b.as_mut_ptr().add(u) as *mut v128, acc_b);
+        v128_store(weight.as_mut_ptr().add(u) as *mut v128, acc_w);
+        v128_store(count.as_mut_ptr().add(u) as *mut v128, acc_n);
+        u += 4;
+    }
+}
+
+/// The single-channel twin of [`merge_row`] (reference: `scalar::merge_row_gray`).
+///
+/// # Safety
+/// As [`accumulate_row_gray`], and `datas` must not be empty.
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe fn merge_row_gray(
+    datas: &[&[u8]],
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    deghost: Deghost,
+    n8: usize,
+    sum: &mut [u32],
+    weight: &mut [u32],
+    count: &mut [u32],
+) {
+    debug_assert!(n8 % 4 == 0 && datas.len() == coords.len() && !datas.is_empty());
+    debug_assert!(sum.len() >= n8 && weight.len() >= n8 && count.len() >= n8);
+    let last = datas.len() - 1;
+    let one = i32x4_splat(1);
+    let full = i32x4_splat(FULL_WEIGHT as i32);
+    let z = i32x4_splat(0);
+    let mut u = 0;
+    while u < n8 {
+        let (v0, m0) = sample_gray4(datas[last], &g, &coords[last], u).unwrap_or((z, z));
+        let w0 = v128_and(m0, full);
+        let mut acc = i32x4_mul(w0, v0);
+        let (mut acc_w, mut acc_n) = (w0, v128_and(m0, one));
+        for (data, coord) in datas[..last].iter().zip(coords) {
+            let Some((v, valid)) = sample_gray4(data, &g, coord, u) else {
+                continue;
+            };
+            let w = weights4(deghost, i32x4_abs(i32x4_sub(v, v0)), m0, valid);
+            acc = i32x4_add(acc, i32x4_mul(w, v));
+            acc_w = i32x4_add(acc_w, w);
+            acc_n = i32x4_add(acc_n, v128_and(valid, one));
+        }
+        v128_store(sum.as_mut_ptr().add(u) as *mut v128, acc);
+        v128_store(weight.as_mut_ptr().add(u) as *mut v128, acc_w);
+        v128_store(count.as_mut_ptr().add(u) as *mut v128, acc_n);
+        u += 4;
     }
 }
 
@@ -238,70 +360,79 @@ pub(super) unsafe fn accumulate_row_gray(
 ) {
     debug_assert!(n8 % 4 == 0 && datas.len() == coords.len());
     debug_assert!(acc.len() >= n8 && count.len() >= n8);
-    let stride = i32x4_splat(g.stride);
-    let i128 = i32x4_splat(128);
-    let byte = i32x4_splat(0xFF);
-    let hi_byte = i32x4_splat(0xFF_0000);
     let one = i32x4_splat(1);
-    let s = g.stride as usize;
-    let stride_f = f32x4_splat(g.stride as f32);
-    let small_frame = (g.max_y0 as i64 * g.stride as i64 + g.max_x0 as i64) < (1 << 23);
     acc[..n8].fill(0);
     count[..n8].fill(0);
-    for f in 0..datas.len() {
-        let base = datas[f].as_ptr();
-        let coord = coords[f];
+    for (data, coord) in datas.iter().zip(coords) {
         let mut u = 0;
         while u < n8 {
-            let Some(Taps4 {
-                valid,
-                x0f,
-                y0f,
-                ax,
-                ay,
-                bx,
-                by,
-            }) = taps4(&g, row_coords4(&coord, u))
-            else {
-                u += 4;
-                continue;
-            };
-            let i00 = if small_frame {
-                to_int(f32x4_add(f32x4_mul(y0f, stride_f), x0f))
-            } else {
-                i32x4_add(i32x4_mul(to_int(y0f), stride), to_int(x0f))
-            };
-            let load = |i: usize| (base.add(i) as *const u16).read_unaligned() as u32;
-            macro_rules! taps {
-                ($l:literal) => {{
-                    let i = i32x4_extract_lane::<$l>(i00) as usize;
-                    (load(i), load(i + s))
-                }};
-            }
-            let (a0, a1) = taps!(0);
-            let (b0, b1) = taps!(1);
-            let (c0, c1) = taps!(2);
-            let (d0, d1) = taps!(3);
-            // (left, right) bytes to 16-bit lanes, then the dot product with
-            // (bx, ax); invalid lanes get zero weights and come out 0.
-            let spread = |p: v128| v128_or(v128_and(p, byte), v128_and(i32x4_shl(p, 8), hi_byte));
-            let wx = v128_and(v128_or(bx, i32x4_shl(ax, 16)), valid);
-            let top = i32x4_dot_i16x8(spread(u32x4(a0, b0, c0, d0)), wx);
-            let bot = i32x4_dot_i16x8(spread(u32x4(a1, b1, c1, d1)), wx);
-            let v = u32x4_shr(
-                i32x4_add(i32x4_add(i32x4_mul(top, by), i32x4_mul(bot, ay)), i128),
-                8,
-            );
-            for (dst, v) in [
-                (acc.as_mut_ptr(), v),
-                (count.as_mut_ptr(), v128_and(valid, one)),
-            ] {
-                let p = dst.add(u) as *mut v128;
-                v128_store(p, i32x4_add(v128_load(p), v));
+            if let Some((v, valid)) = sample_gray4(data, &g, coord, u) {
+                for (dst, v) in [
+                    (acc.as_mut_ptr(), v),
+                    (count.as_mut_ptr(), v128_and(valid, one)),
+                ] {
+                    let p = dst.add(u) as *mut v128;
+                    v128_store(p, i32x4_add(v128_load(p), v));
+                }
             }
             u += 4;
         }
     }
+}
+
+/// The 8.8 fixed-point samples of four output pixels `u..u + 4` of one plane
+/// (0 in lanes outside it) and the lanes inside it; `None` when no lane is inside.
+#[inline(always)]
+unsafe fn sample_gray4(
+    data: &[u8],
+    g: &KernelGeometry,
+    coord: &RowCoords<'_>,
+    u: usize,
+) -> Option<(v128, v128)> {
+    let stride = i32x4_splat(g.stride);
+    let i128 = i32x4_splat(128);
+    let byte = i32x4_splat(0xFF);
+    let hi_byte = i32x4_splat(0xFF_0000);
+    let s = g.stride as usize;
+    let stride_f = f32x4_splat(g.stride as f32);
+    let small_frame = (g.max_y0 as i64 * g.stride as i64 + g.max_x0 as i64) < (1 << 23);
+    let base = data.as_ptr();
+    let Taps4 {
+        valid,
+        x0f,
+        y0f,
+        ax,
+        ay,
+        bx,
+        by,
+    } = taps4(g, row_coords4(coord, u))?;
+    let i00 = if small_frame {
+        to_int(f32x4_add(f32x4_mul(y0f, stride_f), x0f))
+    } else {
+        i32x4_add(i32x4_mul(to_int(y0f), stride), to_int(x0f))
+    };
+    let load = |i: usize| (base.add(i) as *const u16).read_unaligned() as u32;
+    macro_rules! taps {
+        ($l:literal) => {{
+            let i = i32x4_extract_lane::<$l>(i00) as usize;
+            (load(i), load(i + s))
+        }};
+    }
+    let (a0, a1) = taps!(0);
+    let (b0, b1) = taps!(1);
+    let (c0, c1) = taps!(2);
+    let (d0, d1) = taps!(3);
+    // (left, right) bytes to 16-bit lanes, then the dot product with
+    // (bx, ax); invalid lanes get zero weights and come out 0.
+    let spread = |p: v128| v128_or(v128_and(p, byte), v128_and(i32x4_shl(p, 8), hi_byte));
+    let wx = v128_and(v128_or(bx, i32x4_shl(ax, 16)), valid);
+    let top = i32x4_dot_i16x8(spread(u32x4(a0, b0, c0, d0)), wx);
+    let bot = i32x4_dot_i16x8(spread(u32x4(a1, b1, c1, d1)), wx);
+    let v = u32x4_shr(
+        i32x4_add(i32x4_add(i32x4_mul(top, by), i32x4_mul(bot, ay)), i128),
+        8,
+    );
+    Some((v, valid))
 }
 
 /// Source coordinates of output pixels `u..u + 4` of one frame's row: loaded
