@@ -9,12 +9,13 @@ import { $, showError, setPageState } from './state.js';
  * The number fields: input id, label, the parameter's name in amc-core, its
  * default, range (inclusive, except the minimum when `openMin`), whole numbers
  * only, unit. Ranges: amc-core's option table (amc-core/src/options.rs) and the
- * params' validate(): n_avg, margin, max_crop, rate_a, rate_b, lookahead, readout_ms, and fov (0 < DEG <= 179).
+ * params' validate(): n_avg, deghost, margin, max_crop, rate_a, rate_b, lookahead, readout_ms, and fov (0 < DEG <= 179).
  * `words`: words accepted instead of a number; `unset`: an empty field is not
  * sent (readout_ms: the lens file's readout applies, else 0).
  */
 export const FIELDS = [
   { id: 'n_avg', label: 'Averaging window', def: 6, min: 1, max: 64, int: true, unit: 'frames' },
+  { id: 'deghost', label: 'Deghost', def: 0, min: 0, max: 64, unit: 'levels of 255' },
   { id: 'margin', label: 'Margin', def: 0.125, min: 0, max: 0.45, unit: 'share of each side' },
   { id: 'max_crop', label: 'Max crop', def: 0.15, min: 0, max: 0.5, unit: 'share of the width' },
   { id: 'rate_a', label: 'Smoothing a', def: 2, min: 0, max: 1000, unit: 'per second' },
@@ -65,7 +66,7 @@ export function settings() {
         mode: $('mode').value, roll: $('roll').value,
         rate_a: values.rate_a, rate_b: values.rate_b, lookahead: values.lookahead,
       },
-      render: { n_avg: values.n_avg, margin: values.margin },
+      render: { n_avg: values.n_avg, margin: values.margin, deghost: values.deghost },
       framing: { zoom: $('zoom').value, max_crop: values.max_crop },
       ...(typeof values.readout_ms === 'number' ? { shutter: { readout_ms: values.readout_ms } } : {}),
     },
@@ -139,6 +140,9 @@ export function serverQuery(s) {
   const { zoom, max_crop: maxCrop } = s.params.framing || {};
   if (zoom && zoom !== 'auto') q.set('zoom', zoom);
   if (maxCrop != null && maxCrop !== def.max_crop) q.set('max_crop', maxCrop);
+  // Sent only when not the default (older servers do not know it).
+  const deghost = s.params.render.deghost;
+  if (deghost != null && deghost !== def.deghost) q.set('deghost', deghost);
   // Sent only when set (empty: the lens file's readout, else 0; older servers do not know it).
   if (s.readout != null) q.set('readout_ms', s.readout);
   return q;

@@ -398,9 +398,9 @@ test("the page's telemetry CSV has the CLI's header, column order and number for
 test("the page's form ranges are the core's, and the server query sends smoothing only when changed", () => {
   // Each field's range, as the WASM API (amc-core's validate) enforces it.
   const field = Object.fromEntries(FIELDS.map((f) => [f.id, f]));
-  const stage = (id) => (id === 'n_avg' || id === 'margin' ? 'render' : id === 'max_crop' ? 'framing' : 'view');
+  const stage = (id) => (['n_avg', 'margin', 'deghost'].includes(id) ? 'render' : id === 'max_crop' ? 'framing' : 'view');
   const params = (id, v) => ({ [stage(id)]: { [id]: v } });
-  for (const id of ['n_avg', 'margin', 'max_crop', 'rate_a', 'rate_b', 'lookahead']) {
+  for (const id of ['n_avg', 'deghost', 'margin', 'max_crop', 'rate_a', 'rate_b', 'lookahead']) {
     const f = field[id];
     const step = f.int ? 1 : 1e-6;
     for (const ok of [f.min, f.max]) assert.doesNotThrow(() => new Stabilizer(64, 48, JSON.stringify(params(id, ok)), 70).free(), `${id} ${ok}`);
@@ -418,6 +418,11 @@ test("the page's form ranges are the core's, and the server query sends smoothin
   assert.equal(serverQuery(s(2, 20)).toString(), 'mode=stabilize&n_avg=6&margin=0.125&lookahead=0&format=mp4&fov=70');
   assert.equal(serverQuery(s(1.5, 20)).get('rate_a'), '1.5');
   assert.equal(serverQuery(s(1.5, 20)).has('rate_b'), false);
+  // deghost: sent only when not the default (the plain average).
+  assert.equal(serverQuery(s(2, 20)).has('deghost'), false);
+  const ghostFree = s(2, 20);
+  ghostFree.params.render.deghost = 6;
+  assert.equal(serverQuery(ghostFree).get('deghost'), '6');
   assert.equal(serverQuery(s(2, 80)).get('rate_b'), '80');
   assert.equal(serverQuery({ ...s(2, 20), lensFile: {} }).has('fov'), false);
   const locked = s(2, 20);
