@@ -230,12 +230,9 @@ fn bench_stabilize(c: &mut Criterion) {
             ),
         ];
         if w == 320 {
-            runs.push((
-                format!("{w}x{h}-saccade-yuv420p"),
-                Mode::Saccade,
-                Zoom::None,
-                &yuv,
-            ));
+            for name in ["saccade-yuv420p", "saccade-yuv420p-deghost"] {
+                runs.push((format!("{w}x{h}-{name}"), Mode::Saccade, Zoom::None, &yuv));
+            }
         }
         if let Some(real) = real.as_deref() {
             runs.push((
