@@ -123,7 +123,7 @@ def intrinsics(args, width, height):
         model = lens.get("model", "pinhole")
         if model == "fisheye":
             return K, np.array((dist + [0.0] * 4)[:4]), "fisheye"
-        if model != "pinhole":
+        if model not in ("pinhole", "opencv"):  # amc's names: opencv = k1 k2 p1 p2 k3
             raise SystemExit(f"run_paper.py: lens model {model!r} is not one the paper's code takes")
         return K, np.array((dist + [0.0] * 5)[:5]), "planar"
     f = (width / 2) / np.tan(np.radians(args.fov) / 2)
@@ -328,7 +328,7 @@ def main():
     p.add_argument("--valid", help="output validity (one byte per pixel per frame)")
     p.add_argument("--mode", choices=sorted(N_FRAMES), default="stabilize")
     p.add_argument("--fps", type=float, help="frame rate (default: the video's; 30 for folders)")
-    p.add_argument("--lens", help="amc lens.json (pinhole or fisheye)")
+    p.add_argument("--lens", help="amc lens.json (pinhole, opencv or fisheye)")
     p.add_argument("--fov", type=float, default=40.0,
                    help="horizontal field of view of a centred pinhole, degrees (without --lens)")
     p.add_argument("--frames", type=int, help="only the first N frames")
