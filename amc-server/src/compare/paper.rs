@@ -22,7 +22,7 @@
 //! --margin 0.125`) and the same output size as the paper's crop.
 
 use super::error::CompareError;
-use super::peers::{run_timed, Method, Usage};
+use super::peers::{best_of, run_timed, Method, Usage};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
@@ -266,18 +266,8 @@ pub fn run(
         .arg(lens_json)
         .arg("--work")
         .arg(work);
-    let mut best: Option<Usage> = None;
-    for _ in 0..repeat.max(1) {
-        let u = run_timed(label, &mut cmd, &outs.log, limit)?;
-        best = Some(match best {
-            None => u,
-            Some(b) => Usage {
-                seconds: b.seconds.min(u.seconds),
-                peak_mib: b.peak_mib.max(u.peak_mib),
-            },
-        });
-    }
-    Ok((best.unwrap_or_default(), outs))
+    let usage = best_of(repeat, || run_timed(label, &mut cmd, &outs.log, limit))?;
+    Ok((usage, outs))
 }
 
 /// Seconds the paper's own loop took (without decoding the clip and writing

@@ -202,7 +202,7 @@ impl Usage {
 
 /// Runs `timed` `repeat` times (at least once): the fastest time, the largest peak
 /// memory (on a shared machine the fastest run is the least disturbed one).
-fn best_of(
+pub(super) fn best_of(
     repeat: usize,
     mut timed: impl FnMut() -> Result<Usage, CompareError>,
 ) -> Result<Usage, CompareError> {

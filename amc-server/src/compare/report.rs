@@ -676,7 +676,8 @@ const METHODS_TEXT: &str = r#"## How it is measured
   filter steps 1/60 s per frame whatever the clip's rate, `--rate-a 2 --rate-b 40` (its
   gains), `--zoom none --margin 0.125`, its output size). Its speed is that of the whole
   Python process (decoding the clip into its recording layout, JAX start-up and
-  compilation, its loop; "its loop" alone in brackets); its valid pixels are those its own
+  compilation, its loop; in brackets "its loop": its `stabilize()` call alone, JAX's
+  compilation on the first frames included); its valid pixels are those its own
   renderer marks covered by every averaged frame, less the one-pixel band its bilinear
   warp mixes with its black border.
 - **Speed**: input frames / wall time of the whole child process (decode, stabilize, write
