@@ -39,4 +39,7 @@ pub struct CompareConfig {
     pub per_frame: bool,
     /// No progress messages.
     pub quiet: bool,
+    /// With `--peer paper`: the paper's environment made by
+    /// `tools/paper-peer/setup.sh` (run beside ours when usable, else skipped).
+    pub paper_env: Option<PathBuf>,
 }

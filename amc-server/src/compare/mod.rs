@@ -3,6 +3,7 @@
 //! speed and quality, written as one Markdown report with plots.
 //!
 //! * [`peers`]: the methods and how each runs as a timed child process;
+//! * [`paper`]: the paper's own implementation as a peer (`--peer paper`);
 //! * [`measure`]: per-frame measurement of an output against the input;
 //! * [`homography`]: the direct homography fit the Liu et al. metrics need;
 //! * [`liu`]: cropping, distortion, stability, ITF;
@@ -20,6 +21,7 @@ mod error;
 pub mod homography;
 pub mod liu;
 pub mod measure;
+pub mod paper;
 pub mod peers;
 pub mod report;
 mod results;

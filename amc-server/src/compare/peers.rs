@@ -44,6 +44,18 @@ pub enum Method {
     VidStabTripod,
     /// ffmpeg deshake (one pass, online).
     Deshake,
+    /// The paper's own code (github.com/prgumd/AMC), no stabilization: its crop.
+    PaperNone,
+    /// The paper's own code, `--rotstab2` (its stabilize mode).
+    PaperStabilize,
+    /// The paper's own code, `--rotstab2 --saccade`.
+    PaperSaccade,
+    /// Ours, `--mode none` at the paper's framing and output size (see [`super::paper`]).
+    MatchedNone,
+    /// Ours, `--mode stabilize` at the paper's smoothing, framing and output size.
+    MatchedStabilize,
+    /// Ours, `--mode saccade` at the paper's framing and output size.
+    MatchedSaccade,
 }
 
 impl Method {
@@ -58,6 +70,17 @@ impl Method {
         Method::Deshake,
     ];
 
+    /// Run besides [`Method::ALL`] with `--peer paper`: the paper's code in its
+    /// three modes and ours at matched settings.
+    pub const PAPER: [Method; 6] = [
+        Method::PaperNone,
+        Method::PaperStabilize,
+        Method::PaperSaccade,
+        Method::MatchedNone,
+        Method::MatchedStabilize,
+        Method::MatchedSaccade,
+    ];
+
     /// Short name used in tables, plots and file names.
     pub fn label(self) -> &'static str {
         match self {
@@ -69,6 +92,12 @@ impl Method {
             Method::VidStab30 => "vidstab-s30",
             Method::VidStabTripod => "vidstab-tripod",
             Method::Deshake => "deshake",
+            Method::PaperNone => "paper-none",
+            Method::PaperStabilize => "paper-stabilize",
+            Method::PaperSaccade => "paper-saccade",
+            Method::MatchedNone => "ours-matched-none",
+            Method::MatchedStabilize => "ours-matched-stabilize",
+            Method::MatchedSaccade => "ours-matched-saccade",
         }
     }
 
@@ -76,16 +105,42 @@ impl Method {
     pub fn is_ours(self) -> bool {
         matches!(
             self,
-            Method::None | Method::Stabilize | Method::Saccade | Method::StabilizeLookahead
+            Method::None
+                | Method::Stabilize
+                | Method::Saccade
+                | Method::StabilizeLookahead
+                | Method::MatchedNone
+                | Method::MatchedStabilize
+                | Method::MatchedSaccade
         )
+    }
+
+    /// Ours at the paper's settings.
+    pub fn is_matched(self) -> bool {
+        matches!(
+            self,
+            Method::MatchedNone | Method::MatchedStabilize | Method::MatchedSaccade
+        )
+    }
+
+    /// The paper's code in this mode (`run_paper.py --mode`).
+    pub fn paper_mode(self) -> Option<&'static str> {
+        match self {
+            Method::PaperNone => Some("none"),
+            Method::PaperStabilize => Some("stabilize"),
+            Method::PaperSaccade => Some("saccade"),
+            _ => None,
+        }
     }
 
     /// Our `--mode` value.
     pub fn our_mode(self) -> Option<&'static str> {
         match self {
-            Method::None => Some("none"),
-            Method::Stabilize | Method::StabilizeLookahead => Some("stabilize"),
-            Method::Saccade => Some("saccade"),
+            Method::None | Method::MatchedNone => Some("none"),
+            Method::Stabilize | Method::StabilizeLookahead | Method::MatchedStabilize => {
+                Some("stabilize")
+            }
+            Method::Saccade | Method::MatchedSaccade => Some("saccade"),
             _ => None,
         }
     }
@@ -147,7 +202,7 @@ impl Usage {
 
 /// Runs `timed` `repeat` times (at least once): the fastest time, the largest peak
 /// memory (on a shared machine the fastest run is the least disturbed one).
-fn best_of(
+pub(super) fn best_of(
     repeat: usize,
     mut timed: impl FnMut() -> Result<Usage, CompareError>,
 ) -> Result<Usage, CompareError> {
@@ -403,6 +458,7 @@ pub fn run_ours(
     lens_json: &Path,
     fps: Option<f64>,
     lookahead: usize,
+    input_size: (usize, usize),
     work: &Path,
     limit: Duration,
     repeat: usize,
@@ -425,7 +481,19 @@ pub fn run_ours(
     if method == Method::StabilizeLookahead {
         cmd.args(["--lookahead", &lookahead.to_string()]);
     }
-    if let Some(f) = fps {
+    if method.is_matched() {
+        // The paper's smoothing per frame, framing and output size.
+        let (w, h) = input_size;
+        for (name, value) in super::paper::matched_options(w, h) {
+            let flag = amc_core::options::OPTIONS
+                .iter()
+                .find(|o| o.name == name)
+                .ok_or_else(|| CompareError::Internal(format!("no stabilizer option {name}")))?
+                .flag;
+            cmd.arg(format!("--{flag}")).arg(value);
+        }
+        cmd.args(["--fps", &super::paper::matched_fps().to_string()]);
+    } else if let Some(f) = fps {
         cmd.args(["--fps", &f.to_string()]);
     }
     let usage = best_of(repeat, || run_timed(label, &mut cmd, &log, limit))?;

@@ -5,6 +5,8 @@
 
 use super::config::CompareConfig;
 use super::error::CompareError;
+use super::paper::PaperStatus;
+use super::peers::Method;
 use super::results::{ClipResult, MethodResult};
 use crate::plot::{self, ModeSeries};
 use amc_core::image::Frame;
@@ -85,6 +87,13 @@ fn opt(v: Option<f64>, digits: usize) -> String {
         Some(x) if x.is_finite() => format!("{x:.digits$}"),
         _ => "-".into(),
     }
+}
+
+/// Whether `label` is one of ours at the paper's settings.
+fn is_matched(label: &str) -> bool {
+    Method::PAPER
+        .iter()
+        .any(|m| m.is_matched() && m.label() == label)
 }
 
 fn find<'a>(c: &'a ClipResult, label: &str) -> Option<&'a MethodResult> {
@@ -199,7 +208,9 @@ pub fn bars(c: &ClipResult) -> Vec<Bar> {
 /// `smoothing=10` (frame change, and normal flow in input px).
 pub fn framing_bars(c: &ClipResult) -> Vec<Bar> {
     let mut out = Vec::new();
-    for m in &c.methods {
+    // The matched runs keep the paper's fixed margin, not the default framing.
+    let default_framing = |m: &&MethodResult| !is_matched(m.method);
+    for m in c.methods.iter().filter(default_framing) {
         if let Some(n) = m.frames_with_border {
             out.push(Bar {
                 what: format!("{}: no output frame with an uncovered pixel", m.method),
@@ -442,7 +453,87 @@ fn write_frames_csv(dir: &Path, c: &ClipResult) -> Result<(), CompareError> {
 }
 
 /// Writes the report for the clips done so far.
-pub fn write(dir: &Path, results: &[ClipResult], args: &CompareConfig) -> Result<(), CompareError> {
+/// The paper's code beside ours at matched settings, on one clip: frame change
+/// and normal flow (output px; both outputs have the paper's crop size) and
+/// their ratios to the same implementation's `none`.
+pub fn paper_table(c: &ClipResult) -> Option<String> {
+    let pairs = [
+        ("paper-none", "ours-matched-none"),
+        ("paper-stabilize", "ours-matched-stabilize"),
+        ("paper-saccade", "ours-matched-saccade"),
+    ];
+    let (pn, on) = (find(c, pairs[0].0)?, find(c, pairs[0].1)?);
+    let ratio = |v: f64, base: f64| {
+        if base > 0.0 {
+            format!("{:.3}", v / base)
+        } else {
+            "-".into()
+        }
+    };
+    let mut s = String::new();
+    s += "| mode | frame change: paper | ratio to none | ours matched | ratio to none | normal flow (px): paper | ratio to none | ours matched | ratio to none | frames/s: paper (its loop) | ours matched | peak MiB: paper | ours matched |\n";
+    s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    for (mode, (paper_label, ours_label)) in ["none", "stabilize", "saccade"].iter().zip(pairs) {
+        let (Some(p), Some(o)) = (find(c, paper_label), find(c, ours_label)) else {
+            continue;
+        };
+        let (pp, op) = (&p.measured.paper, &o.measured.paper);
+        let _ = writeln!(
+            s,
+            "| {mode} | {:.4} | {} | {:.4} | {} | {:.3} | {} | {:.3} | {} | {:.1} ({}) | {:.0} | {:.0} | {:.0} |",
+            pp.rms_change,
+            ratio(pp.rms_change, pn.measured.paper.rms_change),
+            op.rms_change,
+            ratio(op.rms_change, on.measured.paper.rms_change),
+            pp.rms_normal_flow,
+            ratio(pp.rms_normal_flow, pn.measured.paper.rms_normal_flow),
+            op.rms_normal_flow,
+            ratio(op.rms_normal_flow, on.measured.paper.rms_normal_flow),
+            p.frames_per_second,
+            opt(p.loop_frames_per_second, 1),
+            o.frames_per_second,
+            p.usage.peak_mib,
+            o.usage.peak_mib,
+        );
+    }
+    let borders: Vec<String> = pairs
+        .iter()
+        .filter_map(|(_, ours)| find(c, ours))
+        .filter_map(|m| {
+            Some(format!(
+                "{} {} of {}",
+                m.method, m.frames_with_border?, m.frames
+            ))
+        })
+        .collect();
+    let _ = writeln!(
+        s,
+        "\nOutput frames with an uncovered pixel at the paper's fixed margin (ours, from the renderer's coverage): {}.",
+        borders.join(", ")
+    );
+    Some(s)
+}
+
+/// The report's line on the paper's code (none when it was not asked for).
+fn paper_line(paper: &PaperStatus) -> Option<String> {
+    match paper {
+        PaperStatus::NotRequested => None,
+        PaperStatus::Skipped(why) => Some(format!(
+            "The paper's code (`--peer paper`) was **skipped**: {why}.\n"
+        )),
+        PaperStatus::Ready(env) => Some(format!(
+            "The paper's code (`--peer paper`): {}.\n",
+            env.versions.describe()
+        )),
+    }
+}
+
+pub fn write(
+    dir: &Path,
+    results: &[ClipResult],
+    args: &CompareConfig,
+    paper: &PaperStatus,
+) -> Result<(), CompareError> {
     let mut s = String::new();
     s += "# amc compare: our stabilizer against vid.stab and deshake\n\n";
     let _ = writeln!(
@@ -453,6 +544,10 @@ pub fn write(dir: &Path, results: &[ClipResult], args: &CompareConfig) -> Result
         machine_description(args.machine.as_deref()),
         ffmpeg_version()
     );
+    if let Some(line) = paper_line(paper) {
+        s += &line;
+        s += "\n";
+    }
     s += "A reading of these numbers, written by hand after the run, is in [NOTES.md](NOTES.md) \
           next to this file (where present).\n\n";
     s += METHODS_TEXT;
@@ -465,6 +560,14 @@ pub fn write(dir: &Path, results: &[ClipResult], args: &CompareConfig) -> Result
             c.description, c.input_size.0, c.input_size.1, c.frames, c.fps, c.hfov_deg
         );
         s += &clip_table(c);
+        if let Some(why) = &c.paper_skipped {
+            let _ = writeln!(s, "\nThe paper's code was skipped on this clip: {why}.");
+        }
+        if let Some(t) = paper_table(c) {
+            s += "\nThe paper's code beside ours at its settings (dt 1/60 s per frame, its gains, \
+                  its 12.5% margin, its output size):\n\n";
+            s += &t;
+        }
         for m in &c.methods {
             if let Some(g) = &m.ground_truth {
                 if m.method == "stabilize" {
@@ -564,7 +667,19 @@ const METHODS_TEXT: &str = r#"## How it is measured
   --lookahead N` (default 30, the frames vid.stab `smoothing=30` uses on each side); ffmpeg's vid.stab in two passes (`vidstabdetect`, then `vidstabtransform`
   with `smoothing=10`, `smoothing=30`, and `tripod=1` (detect and transform), the peer of
   our saccade mode), all other options at their defaults (so vid.stab zooms to hide most
-  borders, `optzoom=1`); ffmpeg's `deshake=rx=48:ry=48` (online).
+  borders, `optzoom=1`); ffmpeg's `deshake=rx=48:ry=48` (online). With `--peer paper`:
+  the paper's own code (github.com/prgumd/AMC, `rotation_stabilize.py`, set up by
+  `tools/paper-peer/setup.sh`) at its own settings (`--downsample 2 --stride 1 --margins
+  0.125`; `paper-none`: `--N_frames 1`; `paper-stabilize`: `--N_frames 6 --rotstab2`;
+  `paper-saccade`: adds `--saccade`), its exported crop read back at its processing
+  resolution, and ours at matched settings (`ours-matched-*`: `--fps 60`, since its view
+  filter steps 1/60 s per frame whatever the clip's rate, `--rate-a 2 --rate-b 40` (its
+  gains), `--zoom none --margin 0.125`, its output size). Its speed is that of the whole
+  Python process (decoding the clip into its recording layout, JAX start-up and
+  compilation, its loop; in brackets "its loop": its `stabilize()` call alone, JAX's
+  compilation on the first frames included); its valid pixels are those its own
+  renderer marks covered by every averaged frame, less the one-pixel band its bilinear
+  warp mixes with its black border.
 - **Speed**: input frames / wall time of the whole child process (decode, stabilize, write
   raw `.y4m`; vid.stab's two passes summed), and its peak resident memory (`ru_maxrss`).
   "x vid.stab s10" is the frame-rate ratio to vid.stab's two passes with `smoothing=10`.

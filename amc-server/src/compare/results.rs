@@ -40,6 +40,10 @@ pub struct MethodResult {
     pub frames: usize,
     pub usage: Usage,
     pub frames_per_second: f64,
+    /// The paper's code: input frames per second of its own loop, without the
+    /// loader decoding the clip into its recording layout.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loop_frames_per_second: Option<f64>,
     pub measured: Measured,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ground_truth: Option<GtReport>,
@@ -66,6 +70,9 @@ pub struct ClipResult {
     /// Whether the bars apply (synthetic clips and `cup`).
     pub has_bars: bool,
     pub methods: Vec<MethodResult>,
+    /// With `--peer paper`: why the paper's code did not run on this clip.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub paper_skipped: Option<String>,
     #[serde(skip)]
     pub input_middle: Option<Frame>,
 }

@@ -3,6 +3,7 @@
 
 use super::config::{CompareConfig, MAX_LOOKAHEAD};
 use super::error::CompareError;
+use super::paper::{self, PaperStatus};
 use super::results::{Clip, ClipResult, MethodResult};
 use super::{homography, measure, peers, report, synthetic};
 use crate::engine;
@@ -78,18 +79,30 @@ fn decode_input(clip: &Clip, args: &CompareConfig) -> Result<DecodedInput, Compa
     Ok(out)
 }
 
-/// The stabilizer parameters `amc stabilize` uses by default for `method`.
-fn our_params(method: Method, lookahead: usize) -> StabilizerParams {
+/// The stabilizer parameters `amc stabilize` uses for `method` (its defaults,
+/// or the paper's settings for an input of `input_size` for the matched runs).
+fn our_params(
+    method: Method,
+    lookahead: usize,
+    input_size: (usize, usize),
+) -> Result<StabilizerParams, CompareError> {
     let mode = match method {
-        Method::None => Mode::None,
-        Method::Saccade => Mode::Saccade,
+        Method::None | Method::MatchedNone => Mode::None,
+        Method::Saccade | Method::MatchedSaccade => Mode::Saccade,
         _ => Mode::Stabilize,
     };
-    let mut p = amc_core::StabilizerOptions::with_mode(mode).params;
+    let mut o = amc_core::StabilizerOptions::with_mode(mode);
+    if method.is_matched() {
+        for (name, value) in paper::matched_options(input_size.0, input_size.1) {
+            o.set(name, &value)?;
+        }
+        o.validate()?;
+    }
+    let mut p = o.params;
     if method == Method::StabilizeLookahead {
         p.view.lookahead = lookahead;
     }
-    p
+    Ok(p)
 }
 
 fn fps_of(input: &DecodedInput) -> f64 {
@@ -119,9 +132,14 @@ fn measure_ours(
     input: &DecodedInput,
     args: &CompareConfig,
 ) -> Result<OursMeasured, CompareError> {
-    let mut params = our_params(method, args.lookahead);
+    let mut params = our_params(method, args.lookahead, input.size)?;
     params.shutter.readout_ms = clip.readout_ms;
-    let mut src = video::open_input(&clip.input, &input_options(clip, args))?;
+    let mut opts = input_options(clip, args);
+    if method.is_matched() {
+        // As the timed run: one paper filter step per frame.
+        opts.fps_override = Some(paper::matched_fps());
+    }
+    let mut src = video::open_input(&clip.input, &opts)?;
     let (w, h) = input.size;
     let mut stab = Stabilizer::new(&clip.lens, w, h, params)?;
     let mut m = Measurer::new(fps_of(input), w, clip.lens.fx);
@@ -207,10 +225,86 @@ fn measure_peer(
     Ok((m.finish(), middle))
 }
 
+/// Measures the paper's output `.y4m` with the validity its loader wrote.
+fn measure_paper(
+    clip: &Clip,
+    input: &DecodedInput,
+    outs: &paper::PaperOutputs,
+    args: &CompareConfig,
+) -> Result<(Measured, Option<Frame>), CompareError> {
+    let opts = InputOptions {
+        fps_override: None,
+        timeout: timeout(args).min(Duration::from_secs(300)),
+        ..InputOptions::default()
+    };
+    let mut src = video::open_input(&outs.main, &opts)?;
+    let (w, h) = (src.info().width, src.info().height);
+    let file = std::fs::File::open(&outs.valid).map_err(|e| CompareError::io(&outs.valid, e))?;
+    let mut valid_file = std::io::BufReader::new(file);
+    let mut frame = Frame::new(w, h, PixelFormat::Rgb8);
+    let mut m = Measurer::new(fps_of(input), input.size.0, clip.lens.fx);
+    let mut mask = Vec::new();
+    let mut middle = None;
+    let mid = input.times.len() / 2;
+    for (j, pyr) in input.pyramids.iter().enumerate() {
+        if src.next_frame(&mut frame)?.is_none()
+            || !paper::read_valid(&mut valid_file, &outs.valid, &mut mask, w * h)?
+        {
+            break;
+        }
+        let valid = mask.iter().filter(|&&v| v != 0).count() as f64 / (w * h) as f64;
+        m.push(input.times[j], pyr, &frame.as_ref(), &mask, valid, None);
+        if j == mid {
+            middle = Some(frame.clone());
+        }
+    }
+    Ok((m.finish(), middle))
+}
+
+/// Runs the paper's code on `clip` in `method`'s mode and measures it.
+fn run_paper_method(
+    env: &paper::PaperEnv,
+    method: Method,
+    clip: &Clip,
+    input: &DecodedInput,
+    lens_json: &Path,
+    dir: &Path,
+    args: &CompareConfig,
+) -> Result<MethodResult, CompareError> {
+    let (usage, outs) = paper::run(
+        env,
+        method,
+        &clip.input,
+        lens_json,
+        fps_of(input),
+        dir,
+        timeout(args),
+        args.repeat,
+    )?;
+    let measured = measure_paper(clip, input, &outs, args);
+    let loop_seconds = paper::loop_seconds(&outs.log);
+    let _ = std::fs::remove_file(&outs.main);
+    let _ = std::fs::remove_file(&outs.valid);
+    let (measured, middle) = measured?;
+    Ok(MethodResult {
+        method: method.label(),
+        frames: measured.frames.len(),
+        frames_per_second: input.times.len() as f64 / usage.seconds.max(1e-9),
+        loop_frames_per_second: loop_seconds.map(|s| input.times.len() as f64 / s),
+        usage,
+        measured,
+        ground_truth: None,
+        middle,
+        saccades: Vec::new(),
+        frames_with_border: None,
+    })
+}
+
 /// Runs every method on `clip`, in a scratch folder under `work`.
 fn compare_clip(
     clip: &Clip,
     args: &CompareConfig,
+    paper_status: &PaperStatus,
     work: &Path,
 ) -> Result<ClipResult, CompareError> {
     let say = |s: String| {
@@ -240,15 +334,46 @@ fn compare_clip(
         FfmpegInput::File(clip.input.clone())
     };
     let mut methods = Vec::new();
-    for method in Method::ALL {
+    let mut paper_skipped = None;
+    let extra: &[Method] = match paper_status {
+        PaperStatus::Ready(_) => &Method::PAPER,
+        _ => &[],
+    };
+    for &method in Method::ALL.iter().chain(extra) {
+        if method.paper_mode().is_some() || method.is_matched() {
+            if let Some(why) = &paper_skipped {
+                say(format!("{}: skipped ({why})", method.label()));
+                continue;
+            }
+        }
         say(format!("{}: timed run", method.label()));
-        let r = if method.is_ours() {
+        let r = if let (PaperStatus::Ready(env), Some(_)) = (paper_status, method.paper_mode()) {
+            match run_paper_method(env, method, clip, &input, &lens_json, &dir, args) {
+                Ok(r) if r.frames > 0 => r,
+                // Research code on a clip it may not take (a lens, a length):
+                // reported as skipped on this clip, the comparison goes on.
+                Ok(_) => {
+                    paper_skipped = Some(format!("{} produced no frames", method.label()));
+                    continue;
+                }
+                Err(e) => {
+                    let why = format!("{}: {e}", method.label());
+                    eprintln!(
+                        "[{}] the paper's code is skipped on this clip: {why}",
+                        clip.name
+                    );
+                    paper_skipped = Some(why);
+                    continue;
+                }
+            }
+        } else if method.is_ours() {
             let (usage, out) = peers::run_ours(
                 method,
                 &clip.input,
                 &lens_json,
                 clip.fps,
                 args.lookahead,
+                input.size,
                 &dir,
                 timeout(args),
                 args.repeat,
@@ -266,6 +391,7 @@ fn compare_clip(
                 method: method.label(),
                 frames: measured.frames.len(),
                 frames_per_second: input.times.len() as f64 / usage.seconds.max(1e-9),
+                loop_frames_per_second: None,
                 usage,
                 measured,
                 ground_truth,
@@ -285,6 +411,7 @@ fn compare_clip(
                 method: method.label(),
                 frames: measured.frames.len(),
                 frames_per_second: input.times.len() as f64 / usage.seconds.max(1e-9),
+                loop_frames_per_second: None,
                 usage,
                 measured,
                 ground_truth: None,
@@ -310,6 +437,7 @@ fn compare_clip(
         hfov_deg: clip.lens.hfov_deg(),
         has_bars: clip.gt.is_some() || clip.name == "cup",
         methods,
+        paper_skipped,
         input_middle: input.middle,
     })
 }
@@ -429,15 +557,83 @@ pub fn run(args: &CompareConfig) -> Result<(), CompareError> {
             clips.push(clip);
         }
     }
+    let paper_status = PaperStatus::resolve(args.paper_env.as_deref());
+    match &paper_status {
+        PaperStatus::Skipped(why) => eprintln!("the paper's code (--peer paper) is skipped: {why}"),
+        PaperStatus::Ready(env) if !args.quiet => {
+            eprintln!(
+                "the paper's code (--peer paper): {}",
+                env.versions.describe()
+            )
+        }
+        _ => {}
+    }
     let mut results = Vec::new();
     for clip in &clips {
-        let r = compare_clip(clip, args, work.path())?;
+        let r = compare_clip(clip, args, &paper_status, work.path())?;
         // Write as we go, so a long run leaves a report of what finished.
         results.push(r);
-        report::write(&args.report, &results, args)?;
+        report::write(&args.report, &results, args, &paper_status)?;
     }
     if !args.quiet {
         eprintln!("wrote {}", args.report.join(report::REPORT_FILE).display());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn matched_runs_take_the_papers_settings_and_default_runs_do_not() {
+        let p = our_params(Method::MatchedStabilize, 30, (640, 360)).unwrap();
+        assert_eq!(p.render.output_width, Some(240));
+        assert_eq!(p.render.output_height, Some(136));
+        let d = our_params(Method::Stabilize, 30, (640, 360)).unwrap();
+        assert_eq!(d.render.output_width, None);
+        assert_ne!(format!("{:?}", p.view), format!("{:?}", d.view));
+        let n = our_params(Method::MatchedNone, 30, (640, 360)).unwrap();
+        assert_eq!(n.render.output_width, Some(240));
+    }
+
+    #[test]
+    fn without_the_papers_environment_the_report_says_it_was_skipped() {
+        let dir = tempfile::tempdir().unwrap();
+        let status = PaperStatus::resolve(Some(&dir.path().join("no-env")));
+        let PaperStatus::Skipped(why) = &status else {
+            panic!("not skipped: {status:?}")
+        };
+        assert!(why.contains("no-env"), "{why}");
+        let args = CompareConfig {
+            clips: Vec::new(),
+            report: dir.path().join("report"),
+            synthetic: false,
+            synthetic_seconds: 5.0,
+            synthetic_size: (320, 180),
+            panorama: dir.path().join("pano.jpg"),
+            lens: amc_core::LensSpec::Auto,
+            lookahead: 30,
+            fps: None,
+            timeout: 60,
+            machine: None,
+            repeat: 1,
+            per_frame: false,
+            quiet: true,
+            paper_env: Some(dir.path().join("no-env")),
+        };
+        std::fs::create_dir_all(&args.report).unwrap();
+        report::write(&args.report, &[], &args, &status).unwrap();
+        let text = std::fs::read_to_string(args.report.join(report::REPORT_FILE)).unwrap();
+        assert!(
+            text.contains(
+                "The paper's code (`--peer paper`) was **skipped**: no paper-peer environment"
+            ),
+            "{text}"
+        );
+        // Not asked for: not mentioned.
+        report::write(&args.report, &[], &args, &PaperStatus::NotRequested).unwrap();
+        let text = std::fs::read_to_string(args.report.join(report::REPORT_FILE)).unwrap();
+        assert!(!text.contains("was **skipped**"));
+    }
 }

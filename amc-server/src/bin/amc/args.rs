@@ -656,6 +656,22 @@ pub struct CompareArgs {
     /// No progress messages.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Extra peers: `paper` runs the paper's own code (github.com/prgumd/AMC) in its
+    /// three modes, and ours at its settings beside it; skipped (with a note in the
+    /// report) when its environment is missing.
+    #[arg(long, value_enum, value_name = "paper")]
+    pub peer: Vec<ExtraPeer>,
+    /// The paper's environment, made by tools/paper-peer/setup.sh (default:
+    /// $AMC_PAPER_PEER, else ~/.cache/amc/paper-peer).
+    #[arg(long, value_name = "DIR")]
+    pub paper_env: Option<PathBuf>,
+}
+
+/// Peers `amc compare` runs only when asked.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExtraPeer {
+    /// The paper's own implementation (Python/JAX).
+    Paper,
 }
 
 impl CompareArgs {
@@ -676,6 +692,10 @@ impl CompareArgs {
             repeat: self.repeat,
             per_frame: self.per_frame,
             quiet: self.quiet,
+            paper_env: self.peer.contains(&ExtraPeer::Paper).then(|| {
+                self.paper_env
+                    .unwrap_or_else(amc_server::compare::paper::default_env_dir)
+            }),
         })
     }
 }
@@ -686,6 +706,38 @@ mod tests {
 
     fn parse(argv: &[&str]) -> Result<Cli, clap::Error> {
         Cli::try_parse_from(std::iter::once("amc").chain(argv.iter().copied()))
+    }
+
+    #[test]
+    fn compare_runs_the_paper_only_when_asked() {
+        let config = |argv: &[&str]| {
+            let Command::Compare(a) = parse(argv).unwrap().command else {
+                panic!("not compare")
+            };
+            a.config().unwrap()
+        };
+        assert_eq!(
+            config(&["compare", "c.mp4", "--report", "r"]).paper_env,
+            None
+        );
+        let c = config(&[
+            "compare",
+            "c.mp4",
+            "--report",
+            "r",
+            "--peer",
+            "paper",
+            "--paper-env",
+            "/env",
+        ]);
+        assert_eq!(c.paper_env, Some(PathBuf::from("/env")));
+        // Without --paper-env: $AMC_PAPER_PEER or ~/.cache/amc/paper-peer.
+        let c = config(&["compare", "c.mp4", "--report", "r", "--peer", "paper"]);
+        assert_eq!(
+            c.paper_env,
+            Some(amc_server::compare::paper::default_env_dir())
+        );
+        assert!(parse(&["compare", "c.mp4", "--report", "r", "--peer", "vidstab"]).is_err());
     }
 
     #[test]
