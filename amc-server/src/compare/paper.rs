@@ -18,8 +18,10 @@
 //! (and resets its template every 5/60 s) whatever the clip's rate, works on
 //! the input downsampled 2x and shows the crop inside a 12.5% margin. "Ours
 //! matched" runs at the same smoothing per frame (`--fps 60`, the paper's
-//! gains `rate_a` 2 and `rate_b` 40), the same framing (`--zoom none
-//! --margin 0.125`) and the same output size as the paper's crop.
+//! gains `rate_a` 2 and `rate_b` 40), the same template resets in time
+//! (`n_track`: every 3rd frame of a 24-35 frames/s clip, [`paper_reset_frames`]),
+//! the same framing (`--zoom none --margin 0.125`) and the same output size
+//! as the paper's crop.
 
 use super::error::CompareError;
 use super::peers::{best_of, run_timed, Method, Usage};
@@ -199,11 +201,26 @@ pub fn crop_size(width: usize, height: usize) -> (usize, usize) {
     (side(width), side(height))
 }
 
+/// Frames between the paper's template resets on a clip of `clip_fps`: it
+/// resets when `frame_i / round(fps)` has advanced by more than 5/60 s since
+/// the last reset (`tracker_rotstab_reset_period`), so every 3rd frame at
+/// 24-35 frames/s and every 6th at 60.
+pub fn paper_reset_frames(clip_fps: f64) -> usize {
+    let fps = if clip_fps.is_finite() {
+        clip_fps.round().clamp(1.0, 10_000.0) as usize
+    } else {
+        30
+    };
+    fps * 5 / 60 + 1
+}
+
 /// Our stabilizer options (by name, as `amc_core::options` knows them) at the
-/// paper's smoothing and framing, with its output size for an input of that size.
-pub fn matched_options(width: usize, height: usize) -> Vec<(&'static str, String)> {
+/// paper's smoothing, template resets and framing, with its output size, for
+/// an input of that size and frame rate.
+pub fn matched_options(width: usize, height: usize, clip_fps: f64) -> Vec<(&'static str, String)> {
     let (w, h) = crop_size(width, height);
     vec![
+        ("n_track", paper_reset_frames(clip_fps).to_string()),
         ("rate_a", PAPER_RATE_A.to_string()),
         ("rate_b", PAPER_RATE_B.to_string()),
         ("zoom", "none".into()),
@@ -371,10 +388,20 @@ mod tests {
         assert_eq!(crop_size(640, 360), (240, 136));
         // 854x480 -> int(427) -> 427 - 2*53.
         assert_eq!(crop_size(854, 480), (321, 180));
-        let o = matched_options(640, 360);
+        let o = matched_options(640, 360, 29.97);
         assert!(o.contains(&("output_width", "240".into())));
+        assert!(o.contains(&("n_track", "3".into())));
         assert!(o.contains(&("zoom", "none".into())));
         assert_eq!(matched_fps(), 60.0);
+    }
+
+    #[test]
+    fn template_resets_follow_the_papers_clock() {
+        // k / round(fps) > 5/60: k > 2.25 at 27, 2.5 at 30, 5 at 60.
+        assert_eq!(paper_reset_frames(26.78), 3);
+        assert_eq!(paper_reset_frames(30.0), 3);
+        assert_eq!(paper_reset_frames(60.0), 6);
+        assert_eq!(paper_reset_frames(f64::NAN), 3);
     }
 
     #[test]

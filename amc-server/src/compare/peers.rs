@@ -458,7 +458,7 @@ pub fn run_ours(
     lens_json: &Path,
     fps: Option<f64>,
     lookahead: usize,
-    input_size: (usize, usize),
+    (input_size, clip_fps): ((usize, usize), f64),
     work: &Path,
     limit: Duration,
     repeat: usize,
@@ -482,9 +482,9 @@ pub fn run_ours(
         cmd.args(["--lookahead", &lookahead.to_string()]);
     }
     if method.is_matched() {
-        // The paper's smoothing per frame, framing and output size.
+        // The paper's smoothing per frame, template resets, framing and output size.
         let (w, h) = input_size;
-        for (name, value) in super::paper::matched_options(w, h) {
+        for (name, value) in super::paper::matched_options(w, h, clip_fps) {
             let flag = amc_core::options::OPTIONS
                 .iter()
                 .find(|o| o.name == name)

@@ -85,6 +85,7 @@ fn our_params(
     method: Method,
     lookahead: usize,
     input_size: (usize, usize),
+    clip_fps: f64,
 ) -> Result<StabilizerParams, CompareError> {
     let mode = match method {
         Method::None | Method::MatchedNone => Mode::None,
@@ -93,7 +94,7 @@ fn our_params(
     };
     let mut o = amc_core::StabilizerOptions::with_mode(mode);
     if method.is_matched() {
-        for (name, value) in paper::matched_options(input_size.0, input_size.1) {
+        for (name, value) in paper::matched_options(input_size.0, input_size.1, clip_fps) {
             o.set(name, &value)?;
         }
         o.validate()?;
@@ -132,7 +133,7 @@ fn measure_ours(
     input: &DecodedInput,
     args: &CompareConfig,
 ) -> Result<OursMeasured, CompareError> {
-    let mut params = our_params(method, args.lookahead, input.size)?;
+    let mut params = our_params(method, args.lookahead, input.size, fps_of(input))?;
     params.shutter.readout_ms = clip.readout_ms;
     let mut opts = input_options(clip, args);
     if method.is_matched() {
@@ -149,6 +150,12 @@ fn measure_ours(
     let mut middle = None;
     let mut frames_with_border = 0usize;
     let mid = input.times.len() / 2;
+    // Matched runs are measured as the paper's output is: on the pixels every
+    // averaged frame covers (the most frames any pixel has), not on every
+    // pixel some frame covers; near the border fewer frames are averaged, and
+    // those pixels move more.
+    let matched = method.is_matched();
+    let mut full_mask = Vec::new();
     let mut handle = |stab: &Stabilizer, tel: amc_core::Telemetry| {
         // From the renderer's coverage: pixels no averaged frame covers.
         frames_with_border += (tel.uncovered > 0) as usize;
@@ -157,14 +164,16 @@ fn measure_ours(
             return;
         };
         let out = stab.output();
-        m.push(
-            tel.t,
-            pyr,
-            &out,
-            stab.output_coverage(),
-            tel.valid_fraction,
-            Some(&tel),
-        );
+        let coverage = stab.output_coverage();
+        let mask = if matched {
+            let full = coverage.iter().copied().max().unwrap_or(0);
+            full_mask.clear();
+            full_mask.extend(coverage.iter().map(|&c| (c == full && c > 0) as u8));
+            &full_mask[..]
+        } else {
+            coverage
+        };
+        m.push(tel.t, pyr, &out, mask, tel.valid_fraction, Some(&tel));
         if j == mid {
             let mut f = Frame::new(out.width, out.height, out.format);
             f.copy_from(&out);
@@ -373,7 +382,7 @@ fn compare_clip(
                 &lens_json,
                 clip.fps,
                 args.lookahead,
-                input.size,
+                (input.size, fps_of(&input)),
                 &dir,
                 timeout(args),
                 args.repeat,
@@ -587,13 +596,13 @@ mod tests {
 
     #[test]
     fn matched_runs_take_the_papers_settings_and_default_runs_do_not() {
-        let p = our_params(Method::MatchedStabilize, 30, (640, 360)).unwrap();
+        let p = our_params(Method::MatchedStabilize, 30, (640, 360), 30.0).unwrap();
         assert_eq!(p.render.output_width, Some(240));
         assert_eq!(p.render.output_height, Some(136));
-        let d = our_params(Method::Stabilize, 30, (640, 360)).unwrap();
+        let d = our_params(Method::Stabilize, 30, (640, 360), 30.0).unwrap();
         assert_eq!(d.render.output_width, None);
         assert_ne!(format!("{:?}", p.view), format!("{:?}", d.view));
-        let n = our_params(Method::MatchedNone, 30, (640, 360)).unwrap();
+        let n = our_params(Method::MatchedNone, 30, (640, 360), 30.0).unwrap();
         assert_eq!(n.render.output_width, Some(240));
     }
 
