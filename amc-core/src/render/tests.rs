@@ -39,19 +39,22 @@ fn rounding_the_output_size_never_stretches() {
 }
 
 fn render(src: &CameraModel, vectorized: bool, format: PixelFormat) -> (Vec<u8>, Vec<u8>, f64) {
-    render_rolling(src, vectorized, format, false)
+    render_rolling(src, vectorized, format, false, None)
 }
 
-/// [`render`], with a rolling shutter's readout motion on every frame when `rolling`.
+/// [`render`], with a rolling shutter's readout motion on every frame when
+/// `rolling`, averaged without ghosts with `deghost`.
 fn render_rolling(
     src: &CameraModel,
     vectorized: bool,
     format: PixelFormat,
     rolling: bool,
+    deghost: Option<Deghost>,
 ) -> (Vec<u8>, Vec<u8>, f64) {
     let out = RenderParams::default().output_camera(src).unwrap();
     let mut warper = Warper::new(src, &out);
     warper.set_vectorized(vectorized);
+    warper.set_deghost(deghost);
     if rolling {
         let rows: Vec<RollingProjector> = (0..4)
             .map(|i| {
@@ -104,8 +107,8 @@ fn vectorized_matches_scalar() {
             (&pinhole, true),
             (&fisheye, true),
         ] {
-            let a = render_rolling(cam, false, format, rolling);
-            let b = render_rolling(cam, true, format, rolling);
+            let a = render_rolling(cam, false, format, rolling, None);
+            let b = render_rolling(cam, true, format, rolling, None);
             if rolling {
                 // The readout motion moves the picture.
                 assert_ne!(a.0, render(cam, false, format).0);
@@ -131,6 +134,41 @@ fn vectorized_matches_scalar() {
                 a.2
             );
         }
+    }
+}
+
+/// The ghost-free average: the vectorized kernels against the scalar reference
+/// (interleaved and planar, pinhole and fisheye, global and rolling shutter),
+/// output widths that leave a scalar tail; and it differs from the plain average.
+#[test]
+fn ghost_free_vectorized_matches_scalar() {
+    // Noise frames differ by up to 255 levels: 60 gives weights from 0 to 16.
+    let deghost = Deghost::new(60.0);
+    // 211 px: the output (158 px) leaves a scalar tail of 6 pixels per row.
+    let pinhole = CameraModel::pinhole_hfov(211, 117, 80.0).unwrap();
+    let mut fisheye = pinhole.clone();
+    fisheye.distortion = crate::camera::Distortion::Fisheye {
+        k1: 0.05,
+        k2: -0.01,
+        k3: 0.0,
+        k4: 0.0,
+    };
+    for format in [PixelFormat::Rgb8, PixelFormat::Rgba8] {
+        for (cam, rolling) in [(&pinhole, false), (&fisheye, false), (&pinhole, true)] {
+            let a = render_rolling(cam, false, format, rolling, deghost);
+            let b = render_rolling(cam, true, format, rolling, deghost);
+            assert_eq!(a, b, "{format:?} rolling {rolling}");
+            let plain = render_rolling(cam, true, format, rolling, None);
+            assert_ne!(a.0, plain.0);
+            // Coverage counts frames, whatever their weights.
+            assert_eq!(a.1, plain.1);
+        }
+    }
+    for cam in [&pinhole, &fisheye] {
+        let a = render_planar_deghost(cam, false, 1.0, deghost);
+        let b = render_planar_deghost(cam, true, 1.0, deghost);
+        assert_eq!(a, b);
+        assert_ne!(a.0, render_planar(cam, true, 1.0).0);
     }
 }
 
@@ -214,12 +252,24 @@ fn warp_then_inverse_restores_image() {
 /// Renders four noise frames' planes (Y through `src`, U and V through the
 /// chroma cameras) with the scalar or vectorized kernel.
 fn render_planar(src: &CameraModel, vectorized: bool, spin: f64) -> (Vec<u8>, Vec<u8>, usize) {
+    render_planar_deghost(src, vectorized, spin, None)
+}
+
+/// [`render_planar`], averaged without ghosts with `deghost`.
+fn render_planar_deghost(
+    src: &CameraModel,
+    vectorized: bool,
+    spin: f64,
+    deghost: Option<Deghost>,
+) -> (Vec<u8>, Vec<u8>, usize) {
     let out = RenderParams::default().output_camera(src).unwrap();
     let (sc, oc) = (chroma_camera(src), chroma_camera(&out));
     let mut luma = Warper::new(src, &out);
     let mut chroma = Warper::new(&sc, &oc);
     luma.set_vectorized(vectorized);
     chroma.set_vectorized(vectorized);
+    luma.set_deghost(deghost);
+    chroma.set_deghost(deghost);
     let frames: Vec<Frame> = (0..4)
         .map(|i| {
             let mut f = noise_frame(src.width, src.height, PixelFormat::Rgb8, i + 10);
