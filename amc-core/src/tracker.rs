@@ -70,7 +70,11 @@
 //!   camera), on the finest [`INTRA_LEVELS`] levels;
 //! * alignment sees only differences of readout motion between a frame and
 //!   its template: the absolute value is pinned by time ([`Gauge`]);
-//! * slow motion estimates `phi` only, under a prior ([`PACE_SWITCH`]).
+//! * slow motion estimates `phi` only, under a prior ([`PACE_SWITCH`]) that
+//!   grows where the readout motion is too small to see
+//!   ([`OBSERVABLE_READOUT_PX`]); there templates are rectified with the
+//!   motion the rate predicts, so what the estimate absorbs (looming) cannot
+//!   add up template after template.
 
 use crate::camera::CameraModel;
 use crate::error::{check_range, AmcError};
@@ -509,8 +513,21 @@ impl ReadoutPrior {
 }
 
 /// Strength of the [`ReadoutPrior`], relative to the data's information
-/// about one rotation axis.
+/// about one rotation axis, where the readout motion is well observed (see
+/// [`OBSERVABLE_READOUT_PX`]).
 const READOUT_PRIOR: f64 = 1e-3;
+/// Rotation across a readout (finest-level pixels, typical) from which the
+/// data pin `phi` down against what else they fit. Below it the prior grows:
+/// a drone flying forward slowly (karma.mp4, 5 deg/s, a 10 ms readout: 0.15
+/// px) shows far more looming than readout motion, and looming's vertical half
+/// is what `phi_x` does to the rows; estimated under the plain prior, `phi`
+/// absorbed it and grew to 13 deg (148 with the higher terms free). cc9
+/// (a phone in a car, 33 ms: ~0.9 px) keeps nearly the plain prior.
+const OBSERVABLE_READOUT_PX: f64 = 2.0;
+/// Least typical rotation across a readout (finest-level pixels) at which
+/// the higher terms of the readout path are estimated (with a fast pace): a
+/// path bending within a readout of less cannot be told from noise.
+const MIN_FAST_READOUT_PX: f64 = 0.5;
 /// The readout path's model follows the motion's pace, measured by the
 /// lag-one autocorrelation of the pose-to-pose rates, `rho = <w_j . w_(j-1)> /
 /// <|w_j|^2>` (moving averages), which is `cos(2 pi f dt)` for shake at `f` Hz.
@@ -747,7 +764,37 @@ impl Tracker {
     /// Whether the motion is fast for the readout path's model (see
     /// [`PACE_SWITCH`]); slow until two rates are known.
     fn fast_motion(&self) -> bool {
-        self.pace.1 > 0.0 && self.pace.0 < PACE_SWITCH * self.pace.1
+        self.readout_motion_px()
+            .is_some_and(|px| px >= MIN_FAST_READOUT_PX)
+            && self.pace.0 < PACE_SWITCH * self.pace.1
+    }
+
+    /// The typical rotation across a readout, in finest-level pixels: the
+    /// RMS pose-to-pose rate (the moving average of [`PACE_SWITCH`]) times the
+    /// readout time times the focal length; `None` until two rates are known.
+    fn readout_motion_px(&self) -> Option<f64> {
+        (self.pace.1 > 0.0)
+            .then(|| self.pace.1.sqrt() * self.readout_s * self.base.fx.max(self.base.fy) as f64)
+    }
+
+    /// Whether the readout motion is known to be too small to be observed
+    /// (see [`OBSERVABLE_READOUT_PX`]).
+    fn readout_unobservable(&self) -> bool {
+        self.readout_motion_px()
+            .is_some_and(|px| px < OBSERVABLE_READOUT_PX)
+    }
+
+    /// The weight of the [`ReadoutPrior`] per unit of the data's information:
+    /// [`READOUT_PRIOR`] where the readout motion spans
+    /// [`OBSERVABLE_READOUT_PX`] or more (or is not known yet), growing as the
+    /// square of the shortfall below it (the data's pull on `phi` shrinks with
+    /// the motion it has to see, while what else it fits, looming and
+    /// parallax, does not).
+    fn prior_strength(&self) -> f64 {
+        let seen = self
+            .readout_motion_px()
+            .map_or(1.0, |px| px / OBSERVABLE_READOUT_PX);
+        READOUT_PRIOR / seen.clamp(1e-2, 1.0).powi(2)
     }
 
     /// Adds the last frame to the gauge check; at the end of a block, removes
@@ -887,7 +934,7 @@ impl Tracker {
         if intra && !fast {
             prior = Some(ReadoutPrior {
                 mean: self.prior_mean,
-                weight: READOUT_PRIOR * (cur.h[0] + cur.h[3] + cur.h[5]) / 3.0,
+                weight: self.prior_strength() * (cur.h[0] + cur.h[3] + cur.h[5]) / 3.0,
             });
         }
         let terms = if fast { INTRA_TERMS } else { 1 };
@@ -1186,8 +1233,21 @@ impl Tracker {
     /// Makes `pyr` the template: selects pixels and precomputes steepest descent.
     fn set_template(&mut self, pyr: &Pyramid) {
         self.frames_since_reset = 0;
-        // The new template is rectified with the gauge-corrected motion.
+        // The new template is rectified with the gauge-corrected motion; with a
+        // slow pace where the readout motion is too small to be observed (see
+        // [`OBSERVABLE_READOUT_PX`]), with the motion the last rate predicts:
+        // frames are aligned to the template and estimated relative to it, so
+        // what the estimate absorbed besides the readout (looming, parallax)
+        // would otherwise pass on to every later template and add up.
         self.gauge_tpl = IntraFrame::ZERO;
+        let rectified = if self.fast_motion() || !self.readout_unobservable() {
+            self.intra
+        } else {
+            IntraFrame {
+                phi: self.rate * self.readout_s,
+                ..IntraFrame::ZERO
+            }
+        };
         let mut k = self.base;
         let votes = if self.params.reject_static {
             Some((&self.static_votes[..], self.width))
@@ -1205,7 +1265,7 @@ impl Tracker {
                 &mut self.template[level],
             );
             if let Some(rows) = &self.rolling {
-                rectify_template(&mut self.template[level], rows, level, &self.intra);
+                rectify_template(&mut self.template[level], rows, level, &rectified);
             }
             k = k.halved();
         }
