@@ -50,7 +50,7 @@ impl Deghost {
     /// counts fully, from twice it not at all); `None` for 0, the plain
     /// average. `levels` is clamped to 1/256..=[`MAX_DEGHOST`].
     pub fn new(levels: f64) -> Option<Self> {
-        if !(levels > 0.0) {
+        if levels.is_nan() || levels <= 0.0 {
             return None;
         }
         let t = (levels * 256.0).round().clamp(1.0, MAX_DEGHOST * 256.0) as i32;
