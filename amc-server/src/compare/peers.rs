@@ -450,7 +450,16 @@ fn filter_path(p: &Path) -> String {
     out
 }
 
-/// Runs one of our modes as `amc stabilize` (the current executable), timed.
+/// How a matched run (ours at the paper's settings, see `compare::paper`)
+/// differs: stabilizer options by name, and the frame rate the clip is read at.
+#[derive(Clone, Copy, Debug)]
+pub struct MatchedRun<'a> {
+    pub options: &'a [(&'static str, String)],
+    pub fps: f64,
+}
+
+/// Runs one of our modes as `amc stabilize` (the current executable), timed;
+/// `matched` for the matched methods.
 #[allow(clippy::too_many_arguments)]
 pub fn run_ours(
     method: Method,
@@ -458,7 +467,7 @@ pub fn run_ours(
     lens_json: &Path,
     fps: Option<f64>,
     lookahead: usize,
-    (input_size, clip_fps): ((usize, usize), f64),
+    matched: Option<MatchedRun<'_>>,
     work: &Path,
     limit: Duration,
     repeat: usize,
@@ -481,18 +490,16 @@ pub fn run_ours(
     if method == Method::StabilizeLookahead {
         cmd.args(["--lookahead", &lookahead.to_string()]);
     }
-    if method.is_matched() {
-        // The paper's smoothing per frame, template resets, framing and output size.
-        let (w, h) = input_size;
-        for (name, value) in super::paper::matched_options(w, h, clip_fps) {
+    if let Some(run) = matched {
+        for (name, value) in run.options {
             let flag = amc_core::options::OPTIONS
                 .iter()
-                .find(|o| o.name == name)
+                .find(|o| o.name == *name)
                 .ok_or_else(|| CompareError::Internal(format!("no stabilizer option {name}")))?
                 .flag;
             cmd.arg(format!("--{flag}")).arg(value);
         }
-        cmd.args(["--fps", &super::paper::matched_fps().to_string()]);
+        cmd.args(["--fps", &run.fps.to_string()]);
     } else if let Some(f) = fps {
         cmd.args(["--fps", &f.to_string()]);
     }

@@ -376,13 +376,20 @@ fn compare_clip(
                 }
             }
         } else if method.is_ours() {
+            // The paper's smoothing per frame, template resets, framing and output size.
+            let matched_options = method
+                .is_matched()
+                .then(|| paper::matched_options(input.size.0, input.size.1, fps_of(&input)));
             let (usage, out) = peers::run_ours(
                 method,
                 &clip.input,
                 &lens_json,
                 clip.fps,
                 args.lookahead,
-                (input.size, fps_of(&input)),
+                matched_options.as_deref().map(|options| peers::MatchedRun {
+                    options,
+                    fps: paper::matched_fps(),
+                }),
                 &dir,
                 timeout(args),
                 args.repeat,
