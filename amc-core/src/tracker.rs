@@ -703,13 +703,13 @@ impl Tracker {
             }
         }
 
-        let (mut pose, mut info) = self.coarse_to_fine(pyr, start);
+        let (mut pose, mut info) = self.coarse_to_fine(pyr, start, dt);
         let suspect = |info: &TrackInfo, typical: Option<f32>| {
             let limit = typical.map_or(f32::INFINITY, |t| (SUSPECT_RATIO * t).max(SUSPECT_FLOOR));
             !(info.rms_residual <= limit)
         };
         if suspect(&info, self.typical_residual) {
-            let (p2, info2) = self.recover(pyr, pose);
+            let (p2, info2) = self.recover(pyr, pose, dt);
             if info2.rms_residual < info.rms_residual {
                 pose = p2;
                 info = TrackInfo {
@@ -820,9 +820,14 @@ impl Tracker {
     }
 
     /// Runs all levels from `pose`, returning the estimate and its quality.
-    fn coarse_to_fine(&self, pyr: &Pyramid, mut pose: Pose) -> (Pose, TrackInfo) {
+    fn coarse_to_fine(&self, pyr: &Pyramid, mut pose: Pose, dt: f64) -> (Pose, TrackInfo) {
         let mut info = TrackInfo::default();
         for level in (0..self.n_levels).rev() {
+            if level + 1 == INTRA_LEVELS {
+                if let Some(intra) = self.seed_intra(&pose, dt) {
+                    pose.intra = intra;
+                }
+            }
             let (p_new, final_eval, iters) = self.refine(level, &pyr.levels[level], pose);
             pose = p_new;
             info.iterations += iters;
@@ -840,9 +845,32 @@ impl Tracker {
         (pose, info)
     }
 
+    /// A fresh start for the readout path before the first level that
+    /// estimates it, under fast motion: `phi` from the rate between the last
+    /// frame and this frame's rotation as the coarse levels found it, and no
+    /// higher terms. At 12-20 Hz shake the last frame's path (the start
+    /// otherwise) is a poor guess, since the rates' lag-one autocorrelation is
+    /// negative there, while this rate is centred only half a frame earlier.
+    /// Measured on the tracking bench's clip: 4.0 -> 2.5 Gauss-Newton
+    /// iterations per frame on that level, 10.9 -> 9.4 on all levels, with the
+    /// same accuracy. `None`: keep the start (global shutter, slow motion, the
+    /// first frame pair).
+    fn seed_intra(&self, pose: &Pose, dt: f64) -> Option<IntraFrame> {
+        let (_, r_prev) = self.last?;
+        if self.rolling.is_none() || !self.fast_motion() || !(dt.is_finite() && dt > 0.0) {
+            return None;
+        }
+        let rate = so3::body_rate(&r_prev, &(self.r_0k * pose.r), dt);
+        let seed = IntraFrame {
+            phi: rate * self.readout_s,
+            ..IntraFrame::ZERO
+        };
+        Some(seed.plus(&self.gauge_tpl, 1.0))
+    }
+
     /// Recovery from a wrong minimum: scores a pan/tilt grid around `center` at
     /// the coarsest level and refines the best point at all levels.
-    fn recover(&self, pyr: &Pyramid, center: Pose) -> (Pose, TrackInfo) {
+    fn recover(&self, pyr: &Pyramid, center: Pose, dt: f64) -> (Pose, TrackInfo) {
         let coarsest = self.n_levels - 1;
         let img = &pyr.levels[coarsest];
         let f = self.template[coarsest].k.map_or(1.0, |k| k.fx.max(k.fy)) as f64;
@@ -862,7 +890,7 @@ impl Tracker {
                 }
             }
         }
-        self.coarse_to_fine(pyr, best.1)
+        self.coarse_to_fine(pyr, best.1, dt)
     }
 
     /// Updates the camera-fixed votes from the finest level at the final estimate.
@@ -1207,13 +1235,7 @@ impl Tracker {
                         pw[q] *= ps[q];
                     }
                 }
-                let dot = |a: &[f32; CHUNK]| -> f64 {
-                    let mut acc = 0f32;
-                    for q in 0..len {
-                        acc += a[q] * pw[q];
-                    }
-                    acc as f64
-                };
+                let dot = |a: &[f32; CHUNK]| -> f64 { dot_lanes(&a[..len], &pw[..len]) as f64 };
                 let hk = if p == 0 { &mut ev.h } else { &mut ev.hs[p - 1] };
                 for (a, o) in outer.iter().enumerate() {
                     hk[a] += dot(o);
@@ -1297,6 +1319,31 @@ fn rectify_template(tpl: &mut LevelTemplate, rows: &RowTime, level: usize, intra
         tpl.ys[i] = ray[1];
         tpl.zs.push(ray[2]);
     }
+}
+
+/// Lanes of [`dot_lanes`]: eight, one AVX register or two SSE ones.
+const DOT_LANES: usize = 8;
+
+/// `sum a[q] b[q]`, accumulated in [`DOT_LANES`] independent lanes. A plain
+/// running f32 sum is one serial chain (the compiler may not reorder float
+/// additions), which made the rolling-shutter moments, 54 such sums per
+/// chunk, the tracker's hottest loop; separate lanes vectorize.
+#[inline(always)]
+fn dot_lanes(a: &[f32], b: &[f32]) -> f32 {
+    let mut acc = [0f32; DOT_LANES];
+    let (a8, b8) = (a.chunks_exact(DOT_LANES), b.chunks_exact(DOT_LANES));
+    let tail: f32 = a8
+        .remainder()
+        .iter()
+        .zip(b8.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in a8.zip(b8) {
+        for l in 0..DOT_LANES {
+            acc[l] += x[l] * y[l];
+        }
+    }
+    acc.iter().sum::<f32>() + tail
 }
 
 /// `exp(b) z` for a small rotation vector `b`, to third order:
