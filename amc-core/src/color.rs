@@ -6,6 +6,49 @@
 
 use crate::image::{chroma_size, yuv_planes, yuv_planes_mut};
 
+/// BT.601 YCbCr -> RGB in 16.16 fixed point.
+#[derive(Clone, Copy)]
+struct YccToRgb {
+    ky: i32,
+    off: i32,
+    kr: i32,
+    kgu: i32,
+    kgv: i32,
+    kb: i32,
+}
+
+impl YccToRgb {
+    /// `full_range`: Y 0..=255 instead of 16..=235.
+    fn new(full_range: bool) -> Self {
+        let (ky, off, kr, kgu, kgv, kb) = if full_range {
+            (65536, 0, 91881, 22554, 46802, 116130)
+        } else {
+            (76309, 16, 104597, 25675, 53279, 132201)
+        };
+        Self {
+            ky,
+            off,
+            kr,
+            kgu,
+            kgv,
+            kb,
+        }
+    }
+
+    /// Channel `CH` (0 R, 1 G, 2 B) of one pixel.
+    #[inline(always)]
+    fn channel<const CH: usize>(&self, l: u8, cb: u8, cr: u8) -> u8 {
+        let c = (l as i32 - self.off) * self.ky + 32768;
+        let (d, e) = (cb as i32 - 128, cr as i32 - 128);
+        let v = match CH {
+            0 => c + self.kr * e,
+            1 => c - self.kgu * d - self.kgv * e,
+            _ => c + self.kb * d,
+        };
+        (v >> 16).clamp(0, 255) as u8
+    }
+}
+
 /// Converts a planar 4:2:0 frame (`width x height`, planes as
 /// [`crate::PixelFormat::Yuv420p`] lays them out) to packed pixels of
 /// `channels` bytes (3: RGB, 4: RGBA with alpha 255) in `out` (resized).
@@ -21,12 +64,7 @@ pub fn yuv420p_to_rgb_into(
 ) {
     let (cw, _) = chroma_size(width, height);
     let (luma, cb, cr) = yuv_planes(width, height, planes);
-    // Fixed-point (16.16) BT.601 coefficients.
-    let (ky, off, kr, kgu, kgv, kb) = if full_range {
-        (65536, 0, 91881, 22554, 46802, 116130)
-    } else {
-        (76309, 16, 104597, 25675, 53279, 132201)
-    };
+    let k = YccToRgb::new(full_range);
     out.clear();
     out.resize(width * height * channels, 255);
     for y in 0..height {
@@ -34,13 +72,49 @@ pub fn yuv420p_to_rgb_into(
         let row = &mut out[y * width * channels..(y + 1) * width * channels];
         let crow = (y >> 1) * cw;
         for (x, (px, &l)) in row.chunks_exact_mut(channels).zip(yrow).enumerate() {
-            let c = (l as i32 - off) * ky + 32768;
-            let d = cb[crow + (x >> 1)] as i32 - 128;
-            let e = cr[crow + (x >> 1)] as i32 - 128;
-            px[0] = ((c + kr * e) >> 16).clamp(0, 255) as u8;
-            px[1] = ((c - kgu * d - kgv * e) >> 16).clamp(0, 255) as u8;
-            px[2] = ((c + kb * d) >> 16).clamp(0, 255) as u8;
+            let (u, v) = (cb[crow + (x >> 1)], cr[crow + (x >> 1)]);
+            px[0] = k.channel::<0>(l, u, v);
+            px[1] = k.channel::<1>(l, u, v);
+            px[2] = k.channel::<2>(l, u, v);
         }
+    }
+}
+
+/// Row `y` of channel `channel` (0 R, 1 G, 2 B) of what
+/// [`yuv420p_to_rgb_into`] makes of a limited-range planar 4:2:0 frame, into
+/// `out` (`width` values): the same bytes, one channel at a time, without
+/// the packed copy (the metrics measure channels separately).
+pub fn yuv420p_channel_row_into(
+    width: usize,
+    height: usize,
+    planes: &[u8],
+    channel: usize,
+    y: usize,
+    out: &mut [u8],
+) {
+    let (cw, _) = chroma_size(width, height);
+    let (luma, cb, cr) = yuv_planes(width, height, planes);
+    let k = YccToRgb::new(false);
+    let yrow = &luma[y * width..(y + 1) * width];
+    let crow = (y >> 1) * cw;
+    let (cb, cr) = (&cb[crow..crow + cw], &cr[crow..crow + cw]);
+    // Two pixels per chroma sample: pairs, then an odd width's last pixel.
+    fn run<const CH: usize>(k: YccToRgb, yrow: &[u8], cb: &[u8], cr: &[u8], out: &mut [u8]) {
+        let pairs = out.chunks_exact_mut(2).zip(yrow.chunks_exact(2));
+        for ((o, l), (&u, &v)) in pairs.zip(cb.iter().zip(cr)) {
+            o[0] = k.channel::<CH>(l[0], u, v);
+            o[1] = k.channel::<CH>(l[1], u, v);
+        }
+        let n = out.len();
+        if n % 2 == 1 {
+            out[n - 1] = k.channel::<CH>(yrow[n - 1], cb[n / 2], cr[n / 2]);
+        }
+    }
+    let out = &mut out[..width];
+    match channel {
+        0 => run::<0>(k, yrow, cb, cr, out),
+        1 => run::<1>(k, yrow, cb, cr, out),
+        _ => run::<2>(k, yrow, cb, cr, out),
     }
 }
 
@@ -104,6 +178,25 @@ mod tests {
                 let mut rgba = Vec::new();
                 yuv420p_to_rgb_into(w, h, &planes, false, 4, &mut rgba);
                 assert!(rgba.chunks_exact(4).all(|p| p[3] == 255));
+            }
+        }
+    }
+
+    #[test]
+    fn channel_rows_are_the_packed_conversions_bytes() {
+        // Odd and even sizes, every code (a pseudo-random byte pattern).
+        for (w, h) in [(6usize, 4usize), (7, 5), (1, 1)] {
+            let n = w * h + 2 * w.div_ceil(2) * h.div_ceil(2);
+            let planes: Vec<u8> = (0..n).map(|i| (i * 97 + i * i * 13) as u8).collect();
+            let mut packed = Vec::new();
+            yuv420p_to_rgb_into(w, h, &planes, false, 3, &mut packed);
+            let mut row = vec![0u8; w];
+            for ch in 0..3 {
+                for y in 0..h {
+                    yuv420p_channel_row_into(w, h, &planes, ch, y, &mut row);
+                    let want: Vec<u8> = (0..w).map(|x| packed[(y * w + x) * 3 + ch]).collect();
+                    assert_eq!(row, want, "{w}x{h}, channel {ch}, row {y}");
+                }
             }
         }
     }

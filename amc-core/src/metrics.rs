@@ -15,6 +15,8 @@
 //! ```
 //! Clip values pool the squares of all frames before the square root.
 
+use crate::color::yuv420p_channel_row_into;
+#[cfg(doc)]
 use crate::color::yuv420p_to_rgb_into;
 use crate::image::{y_to_unit, FrameRef, GrayImage, PixelFormat, LUMA_WEIGHTS};
 use crate::stabilizer::Telemetry;
@@ -140,8 +142,8 @@ pub struct MetricsAccumulator {
     cur: GrayImage,
     /// One row of squared gradients (reused).
     row: Vec<f32>,
-    /// RGB of a planar frame (reused).
-    rgb: Vec<u8>,
+    /// One row of one RGB channel of a planar frame (reused).
+    channel_row: Vec<u8>,
     has_prev: bool,
     nf_sq: f64,
     nf_n: u64,
@@ -201,13 +203,86 @@ fn sobel_sq_row(above: &[f32], row: &[f32], below: &[f32], out: &mut [f32]) {
 /// Sum and count of the finite values of `v` (per row in `f32`, which holds
 /// a row's sum to ~1e-7; rows are added in `f64`).
 fn finite_sum(v: &[f32]) -> (f64, u64) {
-    let (mut s, mut n) = (0f32, 0u32);
-    for &x in v {
-        let ok = x.is_finite();
-        s += if ok { x } else { 0.0 };
-        n += ok as u32;
-    }
+    let (s, n) = lane_sum(v, v, v, |x, _, _| (x, x.is_finite()));
     (s as f64, n as u64)
+}
+
+/// Lanes of [`lane_sum`].
+const LANES: usize = 8;
+
+/// Sum of `term(a[i], b[i], c[i]).0` over the `i` where its `.1` holds, and
+/// how many those are (`a`, `b`, `c` of equal length). Accumulated in
+/// [`LANES`] independent lanes: a single running `f32` sum is one serial
+/// chain the compiler may not reorder, which made these per-pixel sums most
+/// of the metrics' time (a third of a 720p run's CPU); lanes vectorize.
+#[inline(always)]
+fn lane_sum(
+    a: &[f32],
+    b: &[f32],
+    c: &[f32],
+    term: impl Fn(f32, f32, f32) -> (f32, bool),
+) -> (f32, u32) {
+    let n = a.len().min(b.len()).min(c.len());
+    let (a, b, c) = (&a[..n], &b[..n], &c[..n]);
+    let (mut s, mut k) = ([0f32; LANES], [0u32; LANES]);
+    let n8 = n / LANES * LANES;
+    for ((xa, xb), xc) in a[..n8]
+        .chunks_exact(LANES)
+        .zip(b[..n8].chunks_exact(LANES))
+        .zip(c[..n8].chunks_exact(LANES))
+    {
+        for l in 0..LANES {
+            let (v, ok) = term(xa[l], xb[l], xc[l]);
+            s[l] += if ok { v } else { 0.0 };
+            k[l] += ok as u32;
+        }
+    }
+    for i in n8..n {
+        let (v, ok) = term(a[i], b[i], c[i]);
+        s[0] += if ok { v } else { 0.0 };
+        k[0] += ok as u32;
+    }
+    (s.iter().sum(), k.iter().sum())
+}
+
+/// Channel `ch` (0 R, 1 G, 2 B) of `frame` in [0, 1] into `chan` (resized),
+/// `NaN` where `coverage` is 0. A planar frame is measured in the RGB a
+/// player would show ([`yuv420p_to_rgb_into`]'s bytes), converted a row and
+/// a channel at a time into `bytes` rather than into a packed copy.
+fn channel_into(
+    frame: &FrameRef<'_>,
+    ch: usize,
+    coverage: &[u8],
+    chan: &mut GrayImage,
+    bytes: &mut Vec<u8>,
+) {
+    let (w, h) = (frame.width, frame.height);
+    chan.resize(w, h);
+    let unit = |b: u8, cv: u8| if cv == 0 { f32::NAN } else { b as f32 / 255.0 };
+    if frame.format.is_planar() {
+        bytes.resize(w, 0);
+        for (y, (o, cov)) in chan
+            .data
+            .chunks_exact_mut(w)
+            .zip(coverage.chunks_exact(w))
+            .enumerate()
+        {
+            yuv420p_channel_row_into(w, h, frame.data, ch, y, bytes);
+            for ((o, &b), &cv) in o.iter_mut().zip(bytes.iter()).zip(cov) {
+                *o = unit(b, cv);
+            }
+        }
+        return;
+    }
+    let c = frame.format.channels();
+    for ((o, px), &cv) in chan
+        .data
+        .iter_mut()
+        .zip(frame.data.chunks_exact(c))
+        .zip(coverage)
+    {
+        *o = unit(px[ch], cv);
+    }
 }
 
 /// Sum of squared Sobel magnitudes over R, G, B and the number of terms.
@@ -216,28 +291,16 @@ fn sharpness_sums(
     coverage: &[u8],
     chan: &mut GrayImage,
     row: &mut Vec<f32>,
+    bytes: &mut Vec<u8>,
 ) -> (f64, u64) {
     let (w, h) = (frame.width, frame.height);
-    let c = frame.format.channels();
     let (mut sum, mut n) = (0f64, 0u64);
     if w < 3 || h < 3 {
         return (sum, n);
     }
     row.resize(w - 2, 0.0);
     for ch in 0..3 {
-        chan.resize(w, h);
-        for ((o, px), &cv) in chan
-            .data
-            .iter_mut()
-            .zip(frame.data.chunks_exact(c))
-            .zip(coverage)
-        {
-            *o = if cv == 0 {
-                f32::NAN
-            } else {
-                px[ch] as f32 / 255.0
-            };
-        }
+        channel_into(frame, ch, coverage, chan, bytes);
         for v in 1..h - 1 {
             let d = &chan.data;
             sobel_sq_row(
@@ -284,13 +347,10 @@ impl MetricsAccumulator {
             for v in 0..h {
                 let (c_row, p_row) = (&cur[v * w..(v + 1) * w], &prev[v * w..(v + 1) * w]);
                 // Frame change over every pixel valid in both frames.
-                let (mut s, mut k) = (0f32, 0u32);
-                for (a, b) in c_row.iter().zip(p_row) {
+                let (s, k) = lane_sum(c_row, p_row, p_row, |a, b, _| {
                     let it = a - b;
-                    let ok = it.is_finite();
-                    s += if ok { it * it } else { 0.0 };
-                    k += ok as u32;
-                }
+                    (it * it, it.is_finite())
+                });
                 ch += s as f64;
                 ch_n += k as u64;
                 // Normal flow where the gradient (interior pixels, all nine
@@ -305,14 +365,12 @@ impl MetricsAccumulator {
                     &mut self.row,
                 );
                 let (c_in, p_in) = (&c_row[1..w - 1], &p_row[1..w - 1]);
-                let (mut s, mut k) = (0f32, 0u32);
-                for ((g2, a), b) in self.row.iter().zip(c_in).zip(p_in) {
+                let (s, k) = lane_sum(&self.row, c_in, p_in, |g2, a, b| {
                     let it = a - b;
                     // NaN compares false: invalid pixels drop out here.
-                    let ok = *g2 >= min_g2 && it.is_finite() && g2.is_finite();
-                    s += if ok { it * it / g2 } else { 0.0 };
-                    k += ok as u32;
-                }
+                    let ok = g2 >= min_g2 && it.is_finite() && g2.is_finite();
+                    (it * it / g2, ok)
+                });
                 nf += s as f64;
                 nf_n += k as u64;
             }
@@ -330,20 +388,13 @@ impl MetricsAccumulator {
         let mut chan = std::mem::take(&mut self.prev);
         // Sharpness is defined over R, G and B: a planar frame is measured in
         // the RGB a player would show.
-        let rgb_frame;
-        let frame = if frame.format.is_planar() {
-            yuv420p_to_rgb_into(w, h, frame.data, false, 3, &mut self.rgb);
-            rgb_frame = FrameRef {
-                width: w,
-                height: h,
-                format: PixelFormat::Rgb8,
-                data: &self.rgb,
-            };
-            &rgb_frame
-        } else {
-            frame
-        };
-        let (s, n) = sharpness_sums(frame, coverage, &mut chan, &mut self.row);
+        let (s, n) = sharpness_sums(
+            frame,
+            coverage,
+            &mut chan,
+            &mut self.row,
+            &mut self.channel_row,
+        );
         self.prev = chan;
         if n > 0 {
             m.sharpness = (s / n as f64).sqrt();
@@ -428,5 +479,34 @@ mod tests {
         assert_eq!(m.rms_change, Some(0.0));
         assert_eq!(m.sharpness, 0.0);
         assert_eq!(m.rms_normal_flow, None);
+    }
+
+    #[test]
+    fn a_planar_frame_is_as_sharp_as_its_rgb() {
+        // Sharpness is defined on the RGB a player shows: measuring the
+        // planes directly must give exactly what their conversion gives.
+        let (w, h) = (37, 21);
+        let n = PixelFormat::Yuv420p.buffer_len(w, h).unwrap();
+        let planes: Vec<u8> = (0..n).map(|i| (i * 31 + (i * i) % 251) as u8).collect();
+        let mut rgb = Vec::new();
+        crate::color::yuv420p_to_rgb_into(w, h, &planes, false, 3, &mut rgb);
+        let yuv = Frame {
+            width: w,
+            height: h,
+            format: PixelFormat::Yuv420p,
+            data: planes,
+        };
+        let rgb = Frame {
+            width: w,
+            height: h,
+            format: PixelFormat::Rgb8,
+            data: rgb,
+        };
+        let mut cov = vec![1u8; w * h];
+        cov[5 * w + 9] = 0;
+        let a = MetricsAccumulator::new().push(&yuv.as_ref(), &cov, 1.0, None);
+        let b = MetricsAccumulator::new().push(&rgb.as_ref(), &cov, 1.0, None);
+        assert!(a.sharpness > 0.0);
+        assert_eq!(a.sharpness, b.sharpness);
     }
 }
