@@ -164,9 +164,8 @@ struct Rendering {
     acc: Accumulator,
     /// Ghost-free averaging of the saccade slots (the running sum `acc` is the
     /// plain average; the weights change with every newest frame, so the
-    /// weighted one is merged from the slots per output): its weights, and
-    /// its weighted sums and weights' sums (reused).
-    deghost: Option<Deghost>,
+    /// weighted one is merged from the slots per output, with the warper's
+    /// [`Warper::deghost`]): its weighted sums and weights' sums (reused).
     merged_sum: Vec<u32>,
     merged_weight: Vec<u32>,
     rotations: Vec<nalgebra::Matrix3<f64>>,
@@ -305,7 +304,6 @@ impl Stabilizer {
                 slots: VecDeque::new(),
                 spare_slots: Vec::new(),
                 acc: Accumulator::default(),
-                deghost: params.render.deghost(),
                 merged_sum: Vec::new(),
                 merged_weight: Vec::new(),
                 rotations: Vec::new(),
@@ -780,7 +778,7 @@ impl Rendering {
     /// pixels covered by `full` frames.
     fn finish_saccade(&mut self, full: u8) -> f64 {
         let (ow, oh) = (self.out_cam.width, self.out_cam.height);
-        if let Some(deghost) = self.deghost.filter(|_| self.slots.len() > 1) {
+        if let Some(deghost) = self.warper.deghost().filter(|_| self.slots.len() > 1) {
             self.finish_saccade_merged(deghost, full)
         } else if self.output.format.is_planar() {
             self.acc

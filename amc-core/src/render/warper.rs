@@ -199,6 +199,11 @@ impl Warper {
         self.deghost = deghost;
     }
 
+    /// The ghost-free averaging set by [`Warper::set_deghost`]; `None`: the plain average.
+    pub fn deghost(&self) -> Option<Deghost> {
+        self.deghost
+    }
+
     /// Output size.
     pub fn output_size(&self) -> (usize, usize) {
         (self.out.width, self.out.height)

@@ -34,6 +34,15 @@ fn timeout(args: &CompareConfig) -> Duration {
 fn input_options(clip: &Clip, args: &CompareConfig) -> InputOptions {
     InputOptions {
         fps_override: clip.fps,
+        ..output_options(args)
+    }
+}
+
+/// How a method's output is read back to be measured: at its own timestamps,
+/// each ffmpeg reader under the run's time limit (at most 5 min).
+fn output_options(args: &CompareConfig) -> InputOptions {
+    InputOptions {
+        fps_override: None,
         timeout: timeout(args).min(Duration::from_secs(300)),
         ..InputOptions::default()
     }
@@ -207,11 +216,7 @@ fn measure_peer(
     outs: &peers::PeerOutputs,
     args: &CompareConfig,
 ) -> Result<(Measured, Option<Frame>), CompareError> {
-    let opts = InputOptions {
-        fps_override: None,
-        timeout: timeout(args).min(Duration::from_secs(300)),
-        ..InputOptions::default()
-    };
+    let opts = output_options(args);
     let mut a_src = video::open_input(&outs.main, &opts)?;
     let mut b_src = video::open_input(&outs.alt, &opts)?;
     let (w, h) = (a_src.info().width, a_src.info().height);
@@ -241,11 +246,7 @@ fn measure_paper(
     outs: &paper::PaperOutputs,
     args: &CompareConfig,
 ) -> Result<(Measured, Option<Frame>), CompareError> {
-    let opts = InputOptions {
-        fps_override: None,
-        timeout: timeout(args).min(Duration::from_secs(300)),
-        ..InputOptions::default()
-    };
+    let opts = output_options(args);
     let mut src = video::open_input(&outs.main, &opts)?;
     let (w, h) = (src.info().width, src.info().height);
     let file = std::fs::File::open(&outs.valid).map_err(|e| CompareError::io(&outs.valid, e))?;
