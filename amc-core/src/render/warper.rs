@@ -28,6 +28,12 @@ pub const GRID_STEP: usize = 8;
 /// bilinear interpolation over 16 px cells stays within 0.005 px of it (a
 /// 90 deg lens turned by 5 deg); a quarter of the nodes of [`GRID_STEP`].
 pub const ROLLING_GRID_STEP: usize = 16;
+/// The larger of the two grid steps (the interpolation's offset table).
+const MAX_GRID_STEP: usize = if GRID_STEP > ROLLING_GRID_STEP {
+    GRID_STEP
+} else {
+    ROLLING_GRID_STEP
+};
 
 /// The camera of a 4:2:0 chroma plane of frames seen through `cam`: half the
 /// focal length, and chroma sample `u` at luma position `2 u + 0.5` (centred
@@ -951,10 +957,27 @@ fn interpolate_grid_row(
     let r0 = &grid[gy * grid_w..(gy + 1) * grid_w];
     let r1 = &grid[(gy + 1) * grid_w..(gy + 2) * grid_w];
     let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+    // This row's value at node column `g`: interpolated between the two node
+    // rows once per node, so each pixel costs one interpolation per
+    // coordinate (it was three, a ninth of a rolling-shutter render).
+    let node = |g: usize| {
+        let (a, b) = (r0[g], r1[g]);
+        [lerp(a[0], b[0], fy), lerp(a[1], b[1], fy)]
+    };
+    // Each pixel's offset in its cell, `i / step` (exact: `step` is a power
+    // of two), from a table: converting the index per pixel is a scalar
+    // `usize -> f32` that keeps the loop from vectorizing.
+    debug_assert!(step.is_power_of_two() && step <= MAX_GRID_STEP);
+    let inv_step = 1.0 / step as f32;
+    let fxs: [f32; MAX_GRID_STEP] = std::array::from_fn(|i| i as f32 * inv_step);
     let n = xs.len().min(ys.len());
+    if grid_w < 2 {
+        return;
+    }
+    let mut left = node(0);
     // Cell by cell, so the per-pixel loop is straight-line (it vectorizes);
     // the last cell extrapolates to the row's end, as the nodes end there.
-    for gx in 0..grid_w.saturating_sub(1) {
+    for gx in 0..grid_w - 1 {
         let start = gx * step;
         if start >= n {
             break;
@@ -964,15 +987,23 @@ fn interpolate_grid_row(
         } else {
             (start + step).min(n)
         };
-        let (a0, a1, b0, b1) = (r0[gx], r0[gx + 1], r1[gx], r1[gx + 1]);
+        let right = node(gx + 1);
+        let (dx, dy) = (right[0] - left[0], right[1] - left[1]);
         let (xo, yo) = (&mut xs[start..end], &mut ys[start..end]);
-        for (i, (xo, yo)) in xo.iter_mut().zip(yo.iter_mut()).enumerate() {
-            let fx = i as f32 / step as f32;
-            let (tx, ty) = (lerp(a0[0], a1[0], fx), lerp(a0[1], a1[1], fx));
-            let (bx, by) = (lerp(b0[0], b1[0], fx), lerp(b0[1], b1[1], fx));
-            *xo = lerp(tx, bx, fy);
-            *yo = lerp(ty, by, fy);
+        if end - start <= step {
+            for ((xo, yo), &fx) in xo.iter_mut().zip(yo.iter_mut()).zip(&fxs) {
+                *xo = left[0] + dx * fx;
+                *yo = left[1] + dy * fx;
+            }
+        } else {
+            // The last cell, extrapolated past its node to the row's end.
+            for (i, (xo, yo)) in xo.iter_mut().zip(yo.iter_mut()).enumerate() {
+                let fx = i as f32 * inv_step;
+                *xo = left[0] + dx * fx;
+                *yo = left[1] + dy * fx;
+            }
         }
+        left = right;
     }
 }
 
