@@ -13,6 +13,7 @@ pub mod error;
 pub mod format;
 pub mod framing;
 pub mod image;
+pub mod lanes;
 pub mod lens;
 pub mod so3;
 pub mod synth;

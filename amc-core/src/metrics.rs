@@ -19,6 +19,7 @@ use crate::color::yuv420p_channel_row_into;
 #[cfg(doc)]
 use crate::color::yuv420p_to_rgb_into;
 use crate::image::{y_to_unit, FrameRef, GrayImage, PixelFormat, LUMA_WEIGHTS};
+use crate::lanes::lane_sum;
 use crate::stabilizer::Telemetry;
 use serde::{Deserialize, Serialize};
 
@@ -205,44 +206,6 @@ fn sobel_sq_row(above: &[f32], row: &[f32], below: &[f32], out: &mut [f32]) {
 fn finite_sum(v: &[f32]) -> (f64, u64) {
     let (s, n) = lane_sum(v, v, v, |x, _, _| (x, x.is_finite()));
     (s as f64, n as u64)
-}
-
-/// Lanes of [`lane_sum`].
-const LANES: usize = 8;
-
-/// Sum of `term(a[i], b[i], c[i]).0` over the `i` where its `.1` holds, and
-/// how many those are (`a`, `b`, `c` of equal length). Accumulated in
-/// [`LANES`] independent lanes: a single running `f32` sum is one serial
-/// chain the compiler may not reorder, which made these per-pixel sums most
-/// of the metrics' time (a third of a 720p run's CPU); lanes vectorize.
-#[inline(always)]
-fn lane_sum(
-    a: &[f32],
-    b: &[f32],
-    c: &[f32],
-    term: impl Fn(f32, f32, f32) -> (f32, bool),
-) -> (f32, u32) {
-    let n = a.len().min(b.len()).min(c.len());
-    let (a, b, c) = (&a[..n], &b[..n], &c[..n]);
-    let (mut s, mut k) = ([0f32; LANES], [0u32; LANES]);
-    let n8 = n / LANES * LANES;
-    for ((xa, xb), xc) in a[..n8]
-        .chunks_exact(LANES)
-        .zip(b[..n8].chunks_exact(LANES))
-        .zip(c[..n8].chunks_exact(LANES))
-    {
-        for l in 0..LANES {
-            let (v, ok) = term(xa[l], xb[l], xc[l]);
-            s[l] += if ok { v } else { 0.0 };
-            k[l] += ok as u32;
-        }
-    }
-    for i in n8..n {
-        let (v, ok) = term(a[i], b[i], c[i]);
-        s[0] += if ok { v } else { 0.0 };
-        k[0] += ok as u32;
-    }
-    (s.iter().sum(), k.iter().sum())
 }
 
 /// Channel `ch` (0 R, 1 G, 2 B) of `frame` in [0, 1] into `chan` (resized),

@@ -79,6 +79,7 @@
 use crate::camera::CameraModel;
 use crate::error::{check_range, AmcError};
 use crate::image::GrayImage;
+use crate::lanes;
 use crate::pyramid::Pyramid;
 use crate::shutter::RowTime;
 use crate::shutter::{IntraFrame, INTRA_TERMS};
@@ -1235,7 +1236,9 @@ impl Tracker {
                         pw[q] *= ps[q];
                     }
                 }
-                let dot = |a: &[f32; CHUNK]| -> f64 { dot_lanes(&a[..len], &pw[..len]) as f64 };
+                // Summed in lanes: as one serial f32 sum each, these 54 sums per
+                // chunk were the tracker's hottest loop.
+                let dot = |a: &[f32; CHUNK]| -> f64 { lanes::dot(&a[..len], &pw[..len]) as f64 };
                 let hk = if p == 0 { &mut ev.h } else { &mut ev.hs[p - 1] };
                 for (a, o) in outer.iter().enumerate() {
                     hk[a] += dot(o);
@@ -1319,31 +1322,6 @@ fn rectify_template(tpl: &mut LevelTemplate, rows: &RowTime, level: usize, intra
         tpl.ys[i] = ray[1];
         tpl.zs.push(ray[2]);
     }
-}
-
-/// Lanes of [`dot_lanes`]: eight, one AVX register or two SSE ones.
-const DOT_LANES: usize = 8;
-
-/// `sum a[q] b[q]`, accumulated in [`DOT_LANES`] independent lanes. A plain
-/// running f32 sum is one serial chain (the compiler may not reorder float
-/// additions), which made the rolling-shutter moments, 54 such sums per
-/// chunk, the tracker's hottest loop; separate lanes vectorize.
-#[inline(always)]
-fn dot_lanes(a: &[f32], b: &[f32]) -> f32 {
-    let mut acc = [0f32; DOT_LANES];
-    let (a8, b8) = (a.chunks_exact(DOT_LANES), b.chunks_exact(DOT_LANES));
-    let tail: f32 = a8
-        .remainder()
-        .iter()
-        .zip(b8.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
-    for (x, y) in a8.zip(b8) {
-        for l in 0..DOT_LANES {
-            acc[l] += x[l] * y[l];
-        }
-    }
-    acc.iter().sum::<f32>() + tail
 }
 
 /// `exp(b) z` for a small rotation vector `b`, to third order:

@@ -989,16 +989,15 @@ fn interpolate_grid_row(
         };
         let right = node(gx + 1);
         let (dx, dy) = (right[0] - left[0], right[1] - left[1]);
-        let (xo, yo) = (&mut xs[start..end], &mut ys[start..end]);
-        if end - start <= step {
-            for ((xo, yo), &fx) in xo.iter_mut().zip(yo.iter_mut()).zip(&fxs) {
-                *xo = left[0] + dx * fx;
-                *yo = left[1] + dy * fx;
-            }
-        } else {
-            // The last cell, extrapolated past its node to the row's end.
-            for (i, (xo, yo)) in xo.iter_mut().zip(yo.iter_mut()).enumerate() {
-                let fx = i as f32 * inv_step;
+        // One block for every cell but the last, which extrapolates past its
+        // node in blocks `k` (offsets `k + i / step`, exact as well).
+        let blocks = xs[start..end]
+            .chunks_mut(step)
+            .zip(ys[start..end].chunks_mut(step));
+        for (k, (xo, yo)) in blocks.enumerate() {
+            let base = k as f32;
+            for ((xo, yo), &f) in xo.iter_mut().zip(yo.iter_mut()).zip(&fxs) {
+                let fx = base + f;
                 *xo = left[0] + dx * fx;
                 *yo = left[1] + dy * fx;
             }
