@@ -62,6 +62,15 @@ impl Deghost {
     }
 
     /// `(2T, slope)`: the vector kernels' copy of [`Deghost::weight`].
+    // Only the vector kernels read it: unused where there are none (wasm32
+    // without simd128).
+    #[cfg_attr(
+        not(any(
+            target_arch = "x86_64",
+            all(target_arch = "wasm32", target_feature = "simd128")
+        )),
+        allow(dead_code)
+    )]
     pub(crate) fn constants(self) -> (i32, i32) {
         (self.zero_at, self.slope)
     }
