@@ -672,11 +672,7 @@ impl Tracker {
             (start_intra.psi, start_intra.chi) = (Tangent::zeros(), Tangent::zeros());
         }
         let intra = start_intra.plus(&self.gauge_tpl, 1.0);
-        self.prior_mean = IntraFrame {
-            phi: self.rate * self.readout_s,
-            ..IntraFrame::ZERO
-        }
-        .plus(&self.gauge_tpl, 1.0);
+        self.prior_mean = self.path_of_rate(&self.rate).plus(&self.gauge_tpl, 1.0);
         let pose = |r| Pose { r, intra };
         let mut candidates = [
             pose(self.r_kj),
@@ -862,11 +858,16 @@ impl Tracker {
             return None;
         }
         let rate = so3::body_rate(&r_prev, &(self.r_0k * pose.r), dt);
-        let seed = IntraFrame {
+        Some(self.path_of_rate(&rate).plus(&self.gauge_tpl, 1.0))
+    }
+
+    /// The readout path a constant body rate `rate` draws: `phi = rate tau`,
+    /// no higher terms.
+    fn path_of_rate(&self, rate: &Tangent) -> IntraFrame {
+        IntraFrame {
             phi: rate * self.readout_s,
             ..IntraFrame::ZERO
-        };
-        Some(seed.plus(&self.gauge_tpl, 1.0))
+        }
     }
 
     /// Recovery from a wrong minimum: scores a pan/tilt grid around `center` at
@@ -1268,10 +1269,7 @@ impl Tracker {
         let rectified = if self.fast_motion() || !self.readout_unobservable() {
             self.intra
         } else {
-            IntraFrame {
-                phi: self.rate * self.readout_s,
-                ..IntraFrame::ZERO
-            }
+            self.path_of_rate(&self.rate)
         };
         let mut k = self.base;
         let votes = if self.params.reject_static {
