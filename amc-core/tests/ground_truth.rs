@@ -664,14 +664,19 @@ struct RollingCase {
 /// the ground truth at mid-readout.
 ///
 /// Measured (x86-64, 4 s clips; ratio = median per-frame error over the same
-/// motion's with a global shutter): pinhole 100 deg/s 1.56x (10 ms) and
-/// 1.75x (20 ms), 300 deg/s 2.3x and 3.6x; fisheye 1.6x, 1.8x, 1.9x and 2.4x
-/// (with a cubic path and two plain fixed-point steps the 20 ms cases were
-/// 3.5x, 14x, 2.0x and 4.4x). Without the model the error is 0.19-1.0 deg
-/// (70-800x). The bars leave about 1.4x. Orientation after 4 s: within 1.1x of the global shutter's on
-/// the pinhole at 100 deg/s and the fisheye at 100 deg/s, 1.2-1.7x on the
-/// pinhole at 300 deg/s, 3-5x on the fisheye at 300 deg/s (0.07-0.13 deg
-/// against 0.025); the bar is 1.5x plus 0.15 deg. The readout fit from the
+/// motion's with a global shutter): pinhole 100 deg/s 1.5x (10 ms) and
+/// 1.7x (20 ms), 300 deg/s 2.4x and 3.6-4.3x; fisheye 1.6x, 1.8x, 1.9x and
+/// 2.4x (with a cubic path and two plain fixed-point steps the 20 ms cases
+/// were 3.5x, 14x, 2.0x and 4.4x). The same estimator on a global-shutter
+/// clip, its readout path free, is 1.7-4.2x off the plain rotation's: what
+/// is left is the variance of the path's terms, not a bias. Without the
+/// model the error is 0.19-1.0 deg (70-800x). The bars leave about 1.4x.
+/// Orientation after 4 s: within 0.85-1.15x of the global shutter's on the
+/// pinhole and the fisheye at 100 deg/s, 1.6x and 2.3x on the fisheye at
+/// 300 deg/s (0.041 and 0.057 deg against 0.025; the same estimator on the
+/// global-shutter clip: 0.037 and 0.045); the bar is 1.5x plus 0.05 deg.
+/// (Before the first template was rectified again once the gauge is known,
+/// its unknown path left 0.07-0.13 deg within the first half second.) The readout fit from the
 /// tracking pass (what `auto` runs) is within 4% (bar 10%).
 #[test]
 fn rolling_shutter_estimate_matches_ground_truth() {
@@ -745,9 +750,9 @@ fn rolling_shutter_estimate_matches_ground_truth() {
                 gs.median_frame()
             ));
         }
-        if !(rs.final_orientation() <= 1.5 * gs.final_orientation() + 0.15) {
+        if !(rs.final_orientation() <= 1.5 * gs.final_orientation() + 0.05) {
             failures.push(format!(
-                "[{}] drift {:.4} deg > 1.5 x {:.4} + 0.15",
+                "[{}] drift {:.4} deg > 1.5 x {:.4} + 0.05",
                 c.name,
                 rs.final_orientation(),
                 gs.final_orientation()
