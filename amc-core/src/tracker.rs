@@ -211,7 +211,7 @@ const INTRA_TOLERANCE_SCALE: f64 = 0.25;
 /// at the readout's ends, see [`Tracker::quartic_bend_px`]) at which its
 /// fourth term `xi` is estimated. Measured on 12-20 Hz shake at 60 frames/s
 /// (median per-frame error, ratio to a global shutter's): 100 deg/s through
-/// 20 ms, cubic 3.5x, quartic 1.75x; 300 deg/s through 20 ms, 14x and 3.2x;
+/// 20 ms, cubic 3.5x, quartic 1.75x; 300 deg/s through 20 ms, 14x and 3.2-4.3x;
 /// through 10 ms the cubic is better (1.56x and 2.25x against 1.70x and 2.5x:
 /// the extra terms cost precision where there is nothing for them to fit).
 const QUARTIC_MIN_PX: f64 = 0.05;
@@ -256,6 +256,12 @@ impl Intrinsics {
             cx: (self.cx - 0.5) * 0.5,
             cy: (self.cy - 0.5) * 0.5,
         }
+    }
+
+    /// The normalized ray `(x, y)` (at `z = 1`) through pixel `(u, v)`.
+    fn ray(&self, u: f32, v: f32) -> (f32, f32) {
+        let y = (v - self.cy) / self.fy;
+        ((u - self.cx - self.skew * y) / self.fx, y)
     }
 }
 
@@ -690,7 +696,10 @@ impl Tracker {
         // At most three candidates; a fixed array keeps `track` allocation-free.
         // With a rolling shutter each starts from the last frame's readout motion.
         // Terms that are not estimated (all but `phi` at a slow pace) are zero.
-        let intra = (self.intra.truncated(self.path_terms())).plus(&self.gauge_tpl, 1.0);
+        let intra = self
+            .intra
+            .truncated(self.path_terms())
+            .plus(&self.gauge_tpl, 1.0);
         self.prior_mean = self.path_of_rate(&self.rate).plus(&self.gauge_tpl, 1.0);
         let pose = |r| Pose { r, intra };
         let mut candidates = [
@@ -791,7 +800,8 @@ impl Tracker {
 
     /// How many terms of the readout path are estimated (on the levels that
     /// estimate it): none with a global shutter, `phi` alone with a slow
-    /// pace, and with a fast one all of them.
+    /// pace, and with a fast one `phi, psi, chi`, and `xi` where the path
+    /// bends enough ([`QUARTIC_MIN_PX`]).
     fn path_terms(&self) -> usize {
         if self.rolling.is_none() {
             0
@@ -832,13 +842,6 @@ impl Tracker {
     fn readout_motion_px(&self) -> Option<f64> {
         (self.pace.1 > 0.0)
             .then(|| self.pace.1.sqrt() * self.readout_s * self.base.fx.max(self.base.fy) as f64)
-    }
-
-    /// Whether templates are rectified with the estimated readout motion
-    /// (else with the motion the last rate predicts; see
-    /// [`Tracker::set_template`]).
-    fn templates_take_estimates(&self) -> bool {
-        self.fast_motion() || !self.readout_unobservable()
     }
 
     /// Whether the readout motion is known to be too small to be observed
@@ -884,9 +887,10 @@ impl Tracker {
         true
     }
 
-    /// Once the gauge is first known, rectifies the current template (the
-    /// first frame's, held until then) again with its own readout path as now
-    /// known, instead of the one it was given (zero for the first frame).
+    /// After a correction of the gauge at a fast pace, rectifies the current
+    /// template again with its own readout path as now known, instead of the
+    /// one it was given (zero for the first frame's, which is held until the
+    /// first correction).
     ///
     /// Only differences of readout motion are seen to first order (see
     /// [`Gauge`]), but the rotations do not commute: a template rectified with
@@ -1408,7 +1412,7 @@ impl Tracker {
         // what the estimate absorbed besides the readout (looming, parallax)
         // would otherwise pass on to every later template and add up.
         self.gauge_tpl = IntraFrame::ZERO;
-        let rectified = if self.templates_take_estimates() {
+        let rectified = if self.fast_motion() || !self.readout_unobservable() {
             self.intra
         } else {
             self.path_of_rate(&self.rate)
@@ -1450,8 +1454,7 @@ fn rectify_template(tpl: &mut LevelTemplate, rows: &RowTime, level: usize, intra
     for i in 0..tpl.xs.len() {
         let loc = tpl.loc[i] as usize;
         let (u, v) = ((loc % w) as f32, (loc / w) as f32);
-        let y = (v - k.cy) / k.fy;
-        let x = (u - k.cx - k.skew * y) / k.fx;
+        let (x, y) = k.ray(u, v);
         let s = rows.at(level, u, v) as f64;
         let ray = if s.is_finite() {
             rotate_small(&intra.at(s).map(|a| a as f32).into(), &[x, y, 1.0])
@@ -1603,8 +1606,7 @@ fn build_level_template(
             }
             if let Some((i, _)) = best {
                 let (u, v) = ((i % w) as f32, (i / w) as f32);
-                let y = (v - k.cy) / k.fy;
-                let x = (u - k.cx - k.skew * y) / k.fx;
+                let (x, y) = k.ray(u, v);
                 let jx = [-x * y, 1.0 + x * x, -y];
                 let jy = [-(1.0 + y * y), x * y, x];
                 let (gx, gy) = grad[i];
