@@ -266,5 +266,93 @@ fn bench_stabilize(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_tracking, bench_stabilize);
+/// The render alone, one row kernel after another in one run: the average of
+/// six frames' three planes (`yuv420p`) into the view with the paper's framing
+/// (the central 75%, as `stabilize/*-yuv420p` renders), each frame through its
+/// true orientation under the synthetic shake (the view held at the start).
+/// Each iteration renders one output from the next six frames of the clip.
+fn bench_render(c: &mut Criterion) {
+    use amc_core::render::kernels::Kernel;
+    use amc_core::render::kernels::FRAME_PADDING;
+    use amc_core::render::{chroma_camera, RenderParams, Warper};
+    let mut g = c.benchmark_group("render");
+    g.throughput(Throughput::Elements(1));
+    g.sampling_mode(criterion::SamplingMode::Flat);
+    g.sample_size(20);
+    let shake = Shake::new(&ShakeParams::default()).expect("shake");
+    let n_avg = RenderParams::default().n_avg;
+    for (w, h) in [(320, 180), (1280, 720)] {
+        let (cam, rgb) = clip(w, h);
+        let mut yuv = to_yuv(&rgb);
+        // The vector kernels read a few bytes past the last plane.
+        for f in &mut yuv {
+            f.data.extend_from_slice(&[0; FRAME_PADDING]);
+        }
+        let out = RenderParams::default()
+            .output_camera_with_margin(&cam, 0.125)
+            .expect("output camera");
+        let rotations: Vec<_> = (0..CLIP_FRAMES)
+            .map(|j| *shake.orientation_at(j as f64 / FPS).inverse().matrix())
+            .collect();
+        let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
+        let (ow, oh) = (out.width, out.height);
+        for kernel in Kernel::available() {
+            let mut luma = Warper::new(&cam, &out);
+            let mut chroma = Warper::new(&chroma_camera(&cam), &chroma_camera(&out));
+            if !(luma.set_kernel(kernel) && chroma.set_kernel(kernel)) {
+                continue;
+            }
+            let mut img = Frame::new(ow, oh, PixelFormat::Yuv420p);
+            let mut coverage = Vec::new();
+            g.bench_function(format!("{w}x{h}-yuv420p-{kernel:?}"), |b| {
+                let mut j = 0usize;
+                b.iter(|| {
+                    let idx: Vec<usize> =
+                        (j..j + n_avg).map(|k| k % (2 * CLIP_FRAMES - 2)).collect();
+                    let frame = |i: usize| {
+                        let k = idx[i];
+                        if k < CLIP_FRAMES {
+                            k
+                        } else {
+                            2 * CLIP_FRAMES - 2 - k
+                        }
+                    };
+                    let rots: Vec<_> = (0..n_avg).map(|i| rotations[frame(i)]).collect();
+                    let (oy, ou, ov) = amc_core::image::yuv_planes_mut(ow, oh, &mut img.data);
+                    let plane = |i: usize, p: usize| {
+                        let (y, u, v) = amc_core::image::yuv_planes(w, h, &yuv[frame(i)].data);
+                        // Each plane runs on to the frame's end (the padding).
+                        let data = &yuv[frame(i)].data;
+                        let start = [y, u, v][p].as_ptr() as usize - data.as_ptr() as usize;
+                        &data[start..]
+                    };
+                    luma.average_plane_into(|i| plane(i, 0), w, h, &rots, oy, &mut coverage, 0);
+                    chroma.average_plane_into(
+                        |i| plane(i, 1),
+                        cw,
+                        ch,
+                        &rots,
+                        ou,
+                        &mut coverage,
+                        128,
+                    );
+                    chroma.average_plane_into(
+                        |i| plane(i, 2),
+                        cw,
+                        ch,
+                        &rots,
+                        ov,
+                        &mut coverage,
+                        128,
+                    );
+                    black_box(&img);
+                    j += 1;
+                })
+            });
+        }
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench_tracking, bench_stabilize, bench_render);
 criterion_main!(benches);

@@ -18,6 +18,9 @@ pub(crate) struct Probe {
     pub audio_codec: Option<String>,
     /// ffmpeg's name for the container (`mov,mp4,m4a,3gp,3g2,mj2`, `png_pipe`, ...).
     pub format_name: String,
+    /// Whether the video stream decodes to limited-range 8-bit 4:2:0
+    /// (`yuv420p`, not tagged full range): planar frames need no conversion.
+    pub limited_yuv420p: bool,
 }
 
 /// Probes `path`. A file ffprobe cannot open, or one without a video stream,
@@ -46,8 +49,8 @@ pub(crate) fn probe_with(
     args.extend(
         [
             "-show_entries",
-            "stream=index,codec_type,codec_name,width,height,avg_frame_rate,r_frame_rate,\
-             nb_frames,nb_read_packets,duration:stream_side_data=rotation:stream_tags=rotate:\
+            "stream=index,codec_type,codec_name,width,height,pix_fmt,color_range,\
+             avg_frame_rate,r_frame_rate,nb_frames,nb_read_packets,duration:stream_side_data=rotation:stream_tags=rotate:\
              stream_disposition=attached_pic:format=duration,format_name",
             "-of",
             "json",
@@ -72,7 +75,8 @@ pub(crate) fn probe_device(
         "-f",
         format,
         "-show_entries",
-        "stream=index,codec_type,codec_name,width,height,avg_frame_rate,r_frame_rate:format=format_name",
+        "stream=index,codec_type,codec_name,width,height,pix_fmt,color_range,avg_frame_rate,\
+         r_frame_rate:format=format_name",
         "-of",
         "json",
     ]
@@ -168,6 +172,8 @@ fn parse(path: &Path, json: &[u8]) -> Result<Probe, VideoError> {
             .unwrap_or_default()
             .to_string(),
         video_index: video["index"].as_u64().unwrap_or(0),
+        limited_yuv420p: video["pix_fmt"].as_str() == Some("yuv420p")
+            && video["color_range"].as_str() != Some("pc"),
     })
 }
 

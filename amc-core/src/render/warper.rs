@@ -13,7 +13,7 @@
 
 use super::accumulator::WarpedFrame;
 use super::kernels::{
-    merge_row_gray_scalar, merge_row_scalar, Geometry, Kernel, RowCoords, FRAME_PADDING,
+    average, merge_row_gray_scalar, merge_row_scalar, Geometry, Kernel, RowCoords, FRAME_PADDING,
 };
 use super::robust::{weighted_average, Deghost};
 use crate::camera::CameraModel;
@@ -190,6 +190,17 @@ impl Warper {
             scratch: RowScratch::default(),
             band_scratch: Vec::new(),
         }
+    }
+
+    /// Runs `kernel` instead of the detected one, for benches and tests that
+    /// compare kernels; returns `false` and keeps the current kernel when this
+    /// build or CPU cannot run it (see [`Kernel::available`]).
+    pub fn set_kernel(&mut self, kernel: Kernel) -> bool {
+        let runnable = Kernel::available().contains(&kernel);
+        if runnable {
+            self.kernel = kernel;
+        }
+        runnable
     }
 
     /// Disables the vectorized path (for testing the scalar one against it).
@@ -645,7 +656,7 @@ impl Warper {
                 finish_merged_gray_row(scratch, out_row, cov_row, full, fill)
             } else {
                 w.accumulate_row(&pass, v, scratch, true);
-                finish_gray_row(&pass, scratch, out_row, cov_row, full, fill)
+                finish_gray_row(w.kernel, &pass, scratch, out_row, cov_row, full, fill)
             }
         });
         self.maps = maps;
@@ -771,13 +782,6 @@ impl Warper {
     }
 }
 
-/// `round(sum / (256 n))`, 0 where `n = 0`: `1 / (256 n)` is inf there and
-/// `0 * inf = NaN`, which `as u8` maps to 0.
-#[inline(always)]
-fn average(sum: u32, n: u32) -> u8 {
-    (sum as f32 * (1.0 / (256.0 * n as f32)) + 0.5) as u8
-}
-
 /// Writes one interleaved output row from the kernel's sums (pixels `..n8`)
 /// and the scalar path (the rest); returns the pixels every frame covers.
 fn finish_rgb_row(
@@ -841,6 +845,7 @@ fn finish_rgb_row(
 /// Writes one single-channel output row (uncovered pixels `fill`); returns the
 /// pixels every frame covers.
 fn finish_gray_row(
+    kernel: Kernel,
     pass: &Pass<'_, '_>,
     scratch: &RowScratch,
     out_row: &mut [u8],
@@ -850,15 +855,24 @@ fn finish_gray_row(
 ) -> usize {
     let (n8, ow) = (pass.n8, cov_row.len());
     let (sum, n) = (&scratch.sums[0][..n8], &scratch.count[..n8]);
-    // Separate branch-free passes over equal-length slices: each vectorizes.
-    for ((o, &s), &k) in out_row[..n8].iter_mut().zip(sum).zip(n) {
-        let v = average(s, k);
-        *o = if k == 0 { fill } else { v };
-    }
-    for (c, &k) in cov_row[..n8].iter_mut().zip(n) {
-        *c = k as u8;
-    }
-    let mut complete = n.iter().filter(|&&k| k == full as u32).count();
+    // SAFETY: `n8 > 0` only with a vectorized kernel from `Kernel::detect`
+    // (a multiple of 8), and every row buffer holds `ow >= n8` values.
+    let finished =
+        unsafe { kernel.finish_row_gray(sum, n, out_row, cov_row, n8, full as u32, fill) };
+    let mut complete = match finished {
+        Some(complete) => complete,
+        None => {
+            // Separate branch-free passes over equal-length slices: each vectorizes.
+            for ((o, &s), &k) in out_row[..n8].iter_mut().zip(sum).zip(n) {
+                let v = average(s, k);
+                *o = if k == 0 { fill } else { v };
+            }
+            for (c, &k) in cov_row[..n8].iter_mut().zip(n) {
+                *c = k as u8;
+            }
+            n.iter().filter(|&&k| k == full as u32).count()
+        }
+    };
     for u in n8..ow {
         let (mut acc, mut c) = (0u32, 0u32);
         for (f, data) in pass.datas.iter().enumerate() {

@@ -370,6 +370,69 @@ pub(super) unsafe fn accumulate_row_gray(
     }
 }
 
+/// Finishes the first `n8` pixels (a multiple of 8) of a single-channel output
+/// row from [`accumulate_row_gray`]'s sums, eight at a time: the contract of
+/// `avx512::finish_row_gray` (`round(sum / (256 n))` as the scalar `average`
+/// computes it, `fill` where `n = 0`, `coverage[u] = n`); returns how many
+/// pixels `full` frames cover.
+///
+/// # Safety
+/// The CPU must support AVX2; `sum`, `count`, `out` and `coverage` must hold
+/// at least `n8` values.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn finish_row_gray(
+    sum: &[u32],
+    count: &[u32],
+    out: &mut [u8],
+    coverage: &mut [u8],
+    n8: usize,
+    full: u32,
+    fill: u8,
+) -> usize {
+    debug_assert!(n8 & 7 == 0 && sum.len() >= n8 && count.len() >= n8);
+    debug_assert!(out.len() >= n8 && coverage.len() >= n8);
+    let (c256, half, one) = (
+        _mm256_set1_ps(256.0),
+        _mm256_set1_ps(0.5),
+        _mm256_set1_ps(1.0),
+    );
+    let (zero, max) = (_mm256_setzero_si256(), _mm256_set1_epi32(255));
+    let (fill, full) = (
+        _mm256_set1_epi32(fill as i32),
+        _mm256_set1_epi32(full as i32),
+    );
+    // Byte 0 of each 32-bit lane to the front of its 128-bit half.
+    let low_bytes = _mm256_setr_epi8(
+        0, 4, 8, 12, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, 0, 4, 8, 12, -1, -1, -1, -1,
+        -1, -1, -1, -1, -1, -1, -1, -1,
+    );
+    let store8 = |dst: *mut u8, v: __m256i| {
+        let b = _mm256_shuffle_epi8(v, low_bytes);
+        let lo = _mm_cvtsi128_si32(_mm256_castsi256_si128(b)) as u32;
+        let hi = _mm_cvtsi128_si32(_mm256_extracti128_si256::<1>(b)) as u32;
+        (dst as *mut u32).write_unaligned(lo);
+        (dst.add(4) as *mut u32).write_unaligned(hi);
+    };
+    let mut complete = 0;
+    let mut u = 0;
+    while u < n8 {
+        let s = _mm256_loadu_si256(sum.as_ptr().add(u) as *const __m256i);
+        let n = _mm256_loadu_si256(count.as_ptr().add(u) as *const __m256i);
+        // As the AVX-512 pass: exact conversions, a correctly rounded
+        // division, no FMA; NaN (n = 0) converts to i32::MIN and clamps to 0.
+        let r = _mm256_div_ps(one, _mm256_mul_ps(c256, _mm256_cvtepi32_ps(n)));
+        let v = _mm256_add_ps(_mm256_mul_ps(_mm256_cvtepi32_ps(s), r), half);
+        let v = _mm256_min_epi32(_mm256_max_epi32(_mm256_cvttps_epi32(v), zero), max);
+        let empty = _mm256_cmpeq_epi32(n, zero);
+        store8(out.as_mut_ptr().add(u), _mm256_blendv_epi8(v, fill, empty));
+        store8(coverage.as_mut_ptr().add(u), n);
+        let covered = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(n, full)));
+        complete += covered.count_ones() as usize;
+        u += 8;
+    }
+    complete
+}
+
 /// The bilinear footprint of eight sample points: which lanes fall inside the
 /// frame (`mask`, all bits of a lane), the top-left tap `(x0, y0)` of each, and
 /// the 8-bit weights `ax = round(256 fx)`, `bx = 256 - ax` (and `ay`, `by`) the

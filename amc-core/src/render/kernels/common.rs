@@ -110,6 +110,15 @@ impl Geometry {
     }
 }
 
+/// An output pixel from the sum of its frames' 8.8 fixed-point samples:
+/// `round(sum / (256 n))`, 0 where `n = 0` (`1 / (256 n)` is inf there and
+/// `0 * inf = NaN`, which `as u8` maps to 0). The reference for the kernels'
+/// finishing passes.
+#[inline(always)]
+pub(crate) fn average(sum: u32, n: u32) -> u8 {
+    (sum as f32 * (1.0 / (256.0 * n as f32)) + 0.5) as u8
+}
+
 /// Where a frame's source coordinates along the row come from.
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum RowCoords<'a> {

@@ -1,0 +1,429 @@
+//! The x86-64 AVX-512 plane kernel (AVX-512 F, BW and VBMI, chosen at run
+//! time): the single-channel rows of planar frames, sixteen output pixels at
+//! a time, bit-exact with the scalar reference in `scalar.rs`.
+//!
+//! Why it is faster than the AVX2 kernel: not the wider lanes so much as the
+//! taps. Under a rotation, sixteen neighbouring output pixels land on a short
+//! run of source pixels spread over at most two rows (three rows of taps), so
+//! instead of gathering every tap the kernel loads a 64-byte window of each
+//! of those rows and picks every lane's pair of horizontal taps out of it with
+//! one byte permute (`vpermb`). A chunk whose taps spread wider (a strong
+//! zoom-out, a steep roll, a window past the plane's end) takes two 16-lane
+//! gathers instead, as the AVX2 kernel does. Both fetch the same bytes, and
+//! the arithmetic after them is exact integer arithmetic equal to the
+//! reference's, so the choice never changes a result.
+
+use super::common::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
+use std::arch::x86_64::*;
+
+/// Largest offset of a lane's left tap inside the 64-byte window: its right
+/// neighbour is the window's last byte.
+const WINDOW_SPAN: i32 = 62;
+
+/// Columns the window starts left of the chunk's two end taps: lanes between
+/// the ends may wander left of both (a grid-interpolated row is monotonic
+/// only cell by cell), and 8 columns of slack still leave 54 for the run.
+const WINDOW_SLACK: i32 = 8;
+
+/// Bytes 0 and 2 of every 32-bit lane: where the permute writes a lane's left
+/// and right tap (the other bytes are zeroed, leaving two 16-bit words).
+const PAIR_BYTES: __mmask64 = 0x5555_5555_5555_5555;
+
+/// Whether this CPU can run this kernel.
+pub(super) fn available() -> bool {
+    is_x86_feature_detected!("avx512f")
+        && is_x86_feature_detected!("avx512bw")
+        && is_x86_feature_detected!("avx512vbmi")
+}
+
+/// For `u in 0..n8` (a multiple of 8), `acc[u] = sum_f sample_f(coords[f] at u)`
+/// and `count[u]` = frames whose coordinate lies inside the plane: the
+/// contract of `scalar::accumulate_row_gray`. Sixteen lanes per step; a last
+/// step of eight runs with the upper lanes masked off.
+///
+/// # Safety
+/// The CPU must support AVX-512 F, BW and VBMI ([`available`]); every
+/// `datas[f]` must hold the whole plane plus 2 readable bytes
+/// ([`super::FRAME_PADDING`] covers it); coordinate tables and the outputs
+/// must have at least `n8` elements.
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+pub(super) unsafe fn accumulate_row_gray(
+    datas: &[&[u8]],
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    n8: usize,
+    acc: &mut [u32],
+    count: &mut [u32],
+) {
+    debug_assert!(n8 & 7 == 0 && datas.len() == coords.len());
+    debug_assert!(acc.len() >= n8 && count.len() >= n8);
+    let one = _mm512_set1_epi32(1);
+    let mut u = 0;
+    while u < n8 {
+        let lanes: __mmask16 = if n8 - u >= 16 { 0xFFFF } else { 0x00FF };
+        let (mut sum, mut sum_n) = (_mm512_setzero_si512(), _mm512_setzero_si512());
+        for (data, coord) in datas.iter().zip(coords) {
+            let Some((v, mask)) = sample_gray16(data, &g, coord, u, lanes) else {
+                continue;
+            };
+            sum = _mm512_add_epi32(sum, v);
+            sum_n = _mm512_mask_add_epi32(sum_n, mask, sum_n, one);
+        }
+        _mm512_mask_storeu_epi32(acc.as_mut_ptr().add(u) as *mut i32, lanes, sum);
+        _mm512_mask_storeu_epi32(count.as_mut_ptr().add(u) as *mut i32, lanes, sum_n);
+        u += 16;
+    }
+}
+
+/// Finishes the first `n8` pixels (a multiple of 8) of a single-channel output
+/// row from [`accumulate_row_gray`]'s sums: `out[u] = round(sum / (256 n))`
+/// computed as the scalar `average` does (the same `f32` operations, and its
+/// saturating conversion), `fill` where no frame covers the pixel (`n = 0`),
+/// `coverage[u] = n`. Returns how many of them `full` frames cover.
+///
+/// # Safety
+/// As [`accumulate_row_gray`]; `sum`, `count`, `out` and `coverage` must hold
+/// at least `n8` values.
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+pub(super) unsafe fn finish_row_gray(
+    sum: &[u32],
+    count: &[u32],
+    out: &mut [u8],
+    coverage: &mut [u8],
+    n8: usize,
+    full: u32,
+    fill: u8,
+) -> usize {
+    debug_assert!(n8 & 7 == 0 && sum.len() >= n8 && count.len() >= n8);
+    debug_assert!(out.len() >= n8 && coverage.len() >= n8);
+    let (c256, half, one) = (
+        _mm512_set1_ps(256.0),
+        _mm512_set1_ps(0.5),
+        _mm512_set1_ps(1.0),
+    );
+    let (max, fill, full) = (
+        _mm512_set1_epi32(255),
+        _mm512_set1_epi32(fill as i32),
+        _mm512_set1_epi32(full as i32),
+    );
+    let mut complete = 0;
+    let mut u = 0;
+    while u < n8 {
+        let lanes: __mmask16 = if n8 - u >= 16 { 0xFFFF } else { 0x00FF };
+        let s = _mm512_maskz_loadu_epi32(lanes, sum.as_ptr().add(u) as *const i32);
+        let n = _mm512_maskz_loadu_epi32(lanes, count.as_ptr().add(u) as *const i32);
+        // `sum as f32 * (1 / (256 n)) + 0.5`: exact conversions (sums stay
+        // below 2^24), a correctly rounded division, no FMA. Where `n = 0`
+        // the product is 0 * inf = NaN, which converts to i32::MIN and
+        // clamps to 0, as `as u8` maps NaN.
+        let r = _mm512_div_ps(one, _mm512_mul_ps(c256, _mm512_cvtepi32_ps(n)));
+        let v = _mm512_add_ps(_mm512_mul_ps(_mm512_cvtepi32_ps(s), r), half);
+        let v = _mm512_min_epi32(
+            _mm512_max_epi32(_mm512_cvttps_epi32(v), _mm512_setzero_si512()),
+            max,
+        );
+        let empty = _mm512_cmpeq_epi32_mask(n, _mm512_setzero_si512());
+        let v = _mm512_mask_blend_epi32(empty, v, fill);
+        _mm_mask_storeu_epi8(
+            out.as_mut_ptr().add(u) as *mut i8,
+            lanes,
+            _mm512_cvtepi32_epi8(v),
+        );
+        _mm_mask_storeu_epi8(
+            coverage.as_mut_ptr().add(u) as *mut i8,
+            lanes,
+            _mm512_cvtepi32_epi8(n),
+        );
+        complete += _mm512_mask_cmpeq_epi32_mask(lanes, n, full).count_ones() as usize;
+        u += 16;
+    }
+    complete
+}
+
+/// The 8.8 fixed-point samples of output pixels `u..u + 16` of one plane (0 in
+/// lanes outside it or outside `lanes`) and the lanes inside it; `None` when
+/// no lane is inside.
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[inline]
+unsafe fn sample_gray16(
+    data: &[u8],
+    g: &KernelGeometry,
+    coord: &RowCoords<'_>,
+    u: usize,
+    lanes: __mmask16,
+) -> Option<(__m512i, __mmask16)> {
+    let t = taps16(g, row_coords16(coord, u, lanes), lanes)?;
+    let (top, bot) = window_pairs(data, g, &t).unwrap_or_else(|| gather_pairs(data, g, &t));
+    Some((interpolate(&t, top, bot), t.mask))
+}
+
+/// The bilinear value from the taps' 16-bit pairs `(left, right)` of the top
+/// and bottom rows: `(top by + bot ay + 128) >> 8` with `top = left bx + right
+/// ax`, written as `256 top + (bot - top) ay`, the same integer with one
+/// multiply instead of two; 0 in lanes outside the mask.
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[inline]
+unsafe fn interpolate(t: &Taps16, top: __m512i, bot: __m512i) -> __m512i {
+    let wx = _mm512_or_si512(t.bx, _mm512_slli_epi32::<16>(t.ax));
+    let top = _mm512_madd_epi16(top, wx);
+    let bot = _mm512_madd_epi16(bot, wx);
+    let v = _mm512_add_epi32(
+        _mm512_add_epi32(
+            _mm512_slli_epi32::<8>(top),
+            _mm512_mullo_epi32(_mm512_sub_epi32(bot, top), t.ay),
+        ),
+        _mm512_set1_epi32(128),
+    );
+    _mm512_maskz_mov_epi32(t.mask, _mm512_srli_epi32::<8>(v))
+}
+
+/// The taps' pairs picked out of 64-byte windows of the rows they lie on, or
+/// `None` when they do not fit (then [`gather_pairs`] fetches them): every
+/// lane's left tap within [`WINDOW_SPAN`] columns of the window's start, and
+/// every top tap on one of two neighbouring rows.
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[inline]
+unsafe fn window_pairs(data: &[u8], g: &KernelGeometry, t: &Taps16) -> Option<(__m512i, __m512i)> {
+    // The window starts at the run's ends: the first lane and the last one
+    // the chunk uses (the upper half is masked off in a last step of eight).
+    let last_quarter = if t.mask >> 8 == 0 { 1 } else { 3 };
+    let end = |v: __m512i| {
+        let q = if last_quarter == 1 {
+            _mm512_extracti32x4_epi32::<1>(v)
+        } else {
+            _mm512_extracti32x4_epi32::<3>(v)
+        };
+        (_mm512_cvtsi512_si32(v), _mm_extract_epi32::<3>(q))
+    };
+    let (xa, xb) = end(t.x0);
+    let (ya, yb) = end(t.y0);
+    let x_win = (xa.min(xb) - WINDOW_SLACK).max(0);
+    let y_win = ya.min(yb);
+    let off = _mm512_sub_epi32(t.x0, _mm512_set1_epi32(x_win));
+    let down = _mm512_sub_epi32(t.y0, _mm512_set1_epi32(y_win));
+    // Unsigned compares: a negative offset is out of the window too.
+    if _mm512_mask_cmpgt_epu32_mask(t.mask, off, _mm512_set1_epi32(WINDOW_SPAN)) != 0
+        || _mm512_mask_cmpgt_epu32_mask(t.mask, down, _mm512_set1_epi32(1)) != 0
+    {
+        return None;
+    }
+    // Lanes whose top tap is on the window's second row.
+    let lower = _mm512_mask_cmpneq_epi32_mask(t.mask, down, _mm512_setzero_si512());
+    // All three rows are read, whether or not a lane needs the third: a
+    // branch on it was mispredicted on about a third of the chunks under a
+    // slight roll, and cost more than the load.
+    let stride = g.stride as usize;
+    let start = y_win as usize * stride + x_win as usize;
+    if start + 2 * stride + 64 > data.len() {
+        return None;
+    }
+    // The row below the window, a line ahead: what the next output row's
+    // window at this place will read. Without it, those lines come from
+    // beyond L2 when they are first read (the frames of one output are ~6x
+    // the size of L2) and the kernel waits on them.
+    let ahead = data.as_ptr().wrapping_add(start + 3 * stride + 64);
+    _mm_prefetch::<_MM_HINT_T0>(ahead as *const i8);
+    // Byte 0 of each lane: the left tap's offset; byte 2: the right one's.
+    let index = _mm512_or_si512(
+        off,
+        _mm512_slli_epi32::<16>(_mm512_add_epi32(off, _mm512_set1_epi32(1))),
+    );
+    let row = |r: usize| {
+        let bytes = _mm512_loadu_si512(data.as_ptr().add(start + r * stride) as *const _);
+        _mm512_maskz_permutexvar_epi8(PAIR_BYTES, index, bytes)
+    };
+    let (first, second, third) = (row(0), row(1), row(2));
+    Some((
+        _mm512_mask_blend_epi32(lower, first, second),
+        _mm512_mask_blend_epi32(lower, second, third),
+    ))
+}
+
+/// The taps' pairs `(left, right)` of the top and bottom rows as 16-bit words,
+/// gathered: one 32-bit load per lane and row, from the tap's byte on.
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[inline]
+unsafe fn gather_pairs(data: &[u8], g: &KernelGeometry, t: &Taps16) -> (__m512i, __m512i) {
+    let stride = _mm512_set1_epi32(g.stride);
+    let i0 = _mm512_add_epi32(_mm512_mullo_epi32(t.y0, stride), t.x0);
+    let i1 = _mm512_add_epi32(i0, stride);
+    let z = _mm512_setzero_si512();
+    let base = data.as_ptr() as *const i32;
+    let p0 = _mm512_mask_i32gather_epi32::<1>(z, t.mask, i0, base);
+    let p1 = _mm512_mask_i32gather_epi32::<1>(z, t.mask, i1, base);
+    let (byte, hi_byte) = (_mm512_set1_epi32(0xFF), _mm512_set1_epi32(0xFF_0000));
+    let pair = |p: __m512i| {
+        _mm512_or_si512(
+            _mm512_and_si512(p, byte),
+            _mm512_and_si512(_mm512_slli_epi32::<8>(p), hi_byte),
+        )
+    };
+    (pair(p0), pair(p1))
+}
+
+/// Source coordinates of output pixels `u..u + 16` of one frame's row (lanes
+/// outside `lanes` are not read): loaded from its table, or evaluated from its
+/// homography exactly as the scalar formula does (no FMA, same order).
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[inline]
+unsafe fn row_coords16(coord: &RowCoords<'_>, u: usize, lanes: __mmask16) -> (__m512, __m512) {
+    match *coord {
+        RowCoords::Table(xs, ys) => (
+            _mm512_maskz_loadu_ps(lanes, xs.as_ptr().add(u)),
+            _mm512_maskz_loadu_ps(lanes, ys.as_ptr().add(u)),
+        ),
+        RowCoords::Homography {
+            x0,
+            y0,
+            z0,
+            dx,
+            dy,
+            dz,
+        } => {
+            let lane = _mm512_setr_ps(
+                0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0, 12.0, 13.0, 14.0,
+                15.0,
+            );
+            let uf = _mm512_add_ps(_mm512_set1_ps(u as f32), lane);
+            let z = _mm512_add_ps(_mm512_set1_ps(z0), _mm512_mul_ps(_mm512_set1_ps(dz), uf));
+            let ahead = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(z, _mm512_set1_ps(1e-6));
+            let iz = _mm512_mask_blend_ps(
+                ahead,
+                _mm512_set1_ps(f32::NAN),
+                _mm512_div_ps(_mm512_set1_ps(1.0), z),
+            );
+            let x = _mm512_add_ps(_mm512_set1_ps(x0), _mm512_mul_ps(_mm512_set1_ps(dx), uf));
+            let y = _mm512_add_ps(_mm512_set1_ps(y0), _mm512_mul_ps(_mm512_set1_ps(dy), uf));
+            (_mm512_mul_ps(x, iz), _mm512_mul_ps(y, iz))
+        }
+    }
+}
+
+/// The bilinear footprint of sixteen sample points, as `Taps8` in the AVX2
+/// kernel: the lanes inside the plane, the top-left tap `(x0, y0)` of each
+/// (0 outside), and the 8-bit weights `ax = round(256 fx)`, `bx = 256 - ax`, `ay`.
+struct Taps16 {
+    mask: __mmask16,
+    x0: __m512i,
+    y0: __m512i,
+    ax: __m512i,
+    ay: __m512i,
+    bx: __m512i,
+}
+
+/// [`Taps16`] of the points `(sx, sy)` of the lanes in `lanes`; `None` when
+/// no lane is inside (NaN compares false: NaN points are outside).
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[inline]
+unsafe fn taps16(
+    g: &KernelGeometry,
+    (sx, sy): (__m512, __m512),
+    lanes: __mmask16,
+) -> Option<Taps16> {
+    let lo = _mm512_set1_ps(-EDGE_TOLERANCE);
+    let mut mask = _mm512_mask_cmp_ps_mask::<_CMP_GE_OQ>(lanes, sx, lo);
+    mask = _mm512_mask_cmp_ps_mask::<_CMP_GE_OQ>(mask, sy, lo);
+    mask =
+        _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(mask, sx, _mm512_set1_ps(g.max_x + EDGE_TOLERANCE));
+    mask =
+        _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(mask, sy, _mm512_set1_ps(g.max_y + EDGE_TOLERANCE));
+    if mask == 0 {
+        return None;
+    }
+    // Lanes outside get coordinate 0; those inside are clamped onto the
+    // plane (edge tolerance), as the reference does.
+    let zero = _mm512_setzero_ps();
+    let sxv = _mm512_min_ps(
+        _mm512_max_ps(_mm512_maskz_mov_ps(mask, sx), zero),
+        _mm512_set1_ps(g.max_x),
+    );
+    let syv = _mm512_min_ps(
+        _mm512_max_ps(_mm512_maskz_mov_ps(mask, sy), zero),
+        _mm512_set1_ps(g.max_y),
+    );
+    let x0 = _mm512_min_epi32(_mm512_cvttps_epi32(sxv), _mm512_set1_epi32(g.max_x0));
+    let y0 = _mm512_min_epi32(_mm512_cvttps_epi32(syv), _mm512_set1_epi32(g.max_y0));
+    let (c256, half) = (_mm512_set1_ps(256.0), _mm512_set1_ps(0.5));
+    let fx = _mm512_sub_ps(sxv, _mm512_cvtepi32_ps(x0));
+    let fy = _mm512_sub_ps(syv, _mm512_cvtepi32_ps(y0));
+    let ax = _mm512_cvttps_epi32(_mm512_add_ps(_mm512_mul_ps(fx, c256), half));
+    let ay = _mm512_cvttps_epi32(_mm512_add_ps(_mm512_mul_ps(fy, c256), half));
+    Some(Taps16 {
+        mask,
+        x0,
+        y0,
+        ax,
+        ay,
+        bx: _mm512_sub_epi32(_mm512_set1_epi32(256), ax),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::common::Geometry;
+    use super::*;
+
+    /// The window path and the gathers fetch the same pairs wherever the window
+    /// applies, it applies to the rows a rotation makes (so the fast path is
+    /// what runs), and it declines runs that do not fit.
+    #[test]
+    fn window_pairs_match_gathers() {
+        if !available() {
+            eprintln!("skipped: no AVX-512 VBMI on this CPU");
+            return;
+        }
+        let (w, h) = (203usize, 97usize);
+        let plane: Vec<u8> = (0..w * h + 4)
+            .map(|i| (i.wrapping_mul(2654435761) >> 7) as u8)
+            .collect();
+        let g = KernelGeometry::of(&Geometry::plane(w, h, 1));
+        let pairs = |coord: RowCoords<'_>, u: usize| -> (Option<[[i32; 16]; 2]>, [[i32; 16]; 2]) {
+            // SAFETY: this CPU has the features (checked above); the plane is padded.
+            unsafe {
+                let t = taps16(&g, row_coords16(&coord, u, 0xFFFF), 0xFFFF).unwrap();
+                let words = |(a, b): (__m512i, __m512i)| {
+                    let (mut x, mut y) = ([0i32; 16], [0i32; 16]);
+                    _mm512_storeu_si512(
+                        x.as_mut_ptr() as *mut _,
+                        _mm512_maskz_mov_epi32(t.mask, a),
+                    );
+                    _mm512_storeu_si512(
+                        y.as_mut_ptr() as *mut _,
+                        _mm512_maskz_mov_epi32(t.mask, b),
+                    );
+                    [x, y]
+                };
+                (
+                    window_pairs(&plane, &g, &t).map(words),
+                    words(gather_pairs(&plane, &g, &t)),
+                )
+            }
+        };
+        let row = |x0: f32, y0: f32, dx: f32, dy: f32| RowCoords::Homography {
+            x0,
+            y0,
+            z0: 1.0,
+            dx,
+            dy,
+            dz: 0.0,
+        };
+        // A slight roll and zoom: the taps straddle two rows, then one.
+        for (coord, u) in [
+            (row(10.3, 40.6, 1.13, 0.07), 16),
+            (row(3.7, 20.2, 0.93, -0.04), 32),
+            (row(-0.4, 0.0, 1.0, 0.0), 0),
+        ] {
+            let (window, gathered) = pairs(coord, u);
+            assert_eq!(window, Some(gathered), "{coord:?} at {u}");
+        }
+        // Too steep (taps on four rows), too wide (a 5x zoom-out), too close to
+        // the plane's end for a 64-byte window: the gathers take over.
+        for (coord, u) in [
+            (row(10.3, 40.6, 0.9, 0.5), 16),
+            (row(1.0, 10.0, 5.0, 0.0), 0),
+            (row(180.0, (h - 2) as f32, 1.0, 0.0), 0),
+        ] {
+            assert_eq!(pairs(coord, u).0, None, "{coord:?} at {u}");
+        }
+    }
+}
