@@ -64,9 +64,17 @@ fn panorama() -> Frame {
 
 /// Frame `j` of a run over a clip played forwards, then backwards, and again.
 fn ping_pong(frames: &[Frame], j: usize) -> &Frame {
-    let n = frames.len();
+    &frames[ping_pong_index(frames.len(), j)]
+}
+
+/// The index of frame `j` of such a run over `n` frames.
+fn ping_pong_index(n: usize, j: usize) -> usize {
     let k = j % (2 * n - 2);
-    &frames[if k < n { k } else { 2 * n - 2 - k }]
+    if k < n {
+        k
+    } else {
+        2 * n - 2 - k
+    }
 }
 
 /// The frames converted to planar 4:2:0.
@@ -307,25 +315,12 @@ fn bench_render(c: &mut Criterion) {
             g.bench_function(format!("{w}x{h}-yuv420p-{kernel:?}"), |b| {
                 let mut j = 0usize;
                 b.iter(|| {
-                    let idx: Vec<usize> =
-                        (j..j + n_avg).map(|k| k % (2 * CLIP_FRAMES - 2)).collect();
-                    let frame = |i: usize| {
-                        let k = idx[i];
-                        if k < CLIP_FRAMES {
-                            k
-                        } else {
-                            2 * CLIP_FRAMES - 2 - k
-                        }
-                    };
+                    let frame = |i: usize| ping_pong_index(CLIP_FRAMES, j + i);
                     let rots: Vec<_> = (0..n_avg).map(|i| rotations[frame(i)]).collect();
                     let (oy, ou, ov) = amc_core::image::yuv_planes_mut(ow, oh, &mut img.data);
-                    let plane = |i: usize, p: usize| {
-                        let (y, u, v) = amc_core::image::yuv_planes(w, h, &yuv[frame(i)].data);
-                        // Each plane runs on to the frame's end (the padding).
-                        let data = &yuv[frame(i)].data;
-                        let start = [y, u, v][p].as_ptr() as usize - data.as_ptr() as usize;
-                        &data[start..]
-                    };
+                    // Each plane runs on to the frame's end (the padding).
+                    let plane =
+                        |i: usize, p: usize| &yuv[frame(i)].data[[0, w * h, w * h + cw * ch][p]..];
                     luma.average_plane_into(|i| plane(i, 0), w, h, &rots, oy, &mut coverage, 0);
                     chroma.average_plane_into(
                         |i| plane(i, 1),

@@ -4,8 +4,8 @@
 //! -pix_fmt rgb24 pipe:1`, or for [`PixelFormat::Yuv420p`] `-vf
 //! showinfo,scale=out_range=tv ... -pix_fmt yuv420p`: ffmpeg does every
 //! conversion (10-bit, 4:2:2, 4:4:4, full range to 8-bit limited-range 4:2:0);
-//! the usual limited-range 4:2:0 video goes without the scaler (`-vf showinfo`). Frames are read straight into the
-//! caller's buffer.
+//! the usual limited-range 4:2:0 video goes without the scaler (`-vf
+//! showinfo`). Frames are read straight into the caller's buffer.
 //! Presentation timestamps come from the `showinfo` filter's log lines on
 //! stderr, which ffmpeg writes before the frame itself reaches stdout, so each
 //! frame gets its real timestamp (variable frame rate clips exist) without a

@@ -112,7 +112,7 @@ pub struct Warper {
     /// Spacing of the grid nodes, output pixels.
     grid_step: usize,
     maps: Vec<RowMap>,
-    /// The row kernel: a vectorized one (AVX2 on this CPU, or wasm `simd128`)
+    /// The row kernel: a vectorized one (AVX-512 or AVX2 on this CPU, or wasm `simd128`)
     /// or the scalar reference, which leaves every pixel to the per-pixel path.
     kernel: Kernel,
     /// Readout rotations of the frames of the next render, in the order of

@@ -481,7 +481,7 @@ mod tests {
             };
             let reference = run(Kernel::Scalar);
             // Some pixels are covered by every frame, some by at most one.
-            assert!(reference[3].iter().any(|&c| c <= 1) && reference[3].iter().any(|&c| c >= 3));
+            assert!(reference[3].iter().any(|&c| c <= 1) && reference[3].contains(&4));
             for kernel in Kernel::available() {
                 assert_eq!(run(kernel), reference, "{kernel:?}");
             }
@@ -497,7 +497,9 @@ mod tests {
                 (acc, count)
             };
             let reference = run_gray(Kernel::Scalar);
-            assert!(reference.1.iter().any(|&c| c <= 2) && reference.1.iter().any(|&c| c >= 3));
+            // Some by every frame, some by at most one of the first three (the
+            // fourth, the slight roll, covers the whole row of the wider plane).
+            assert!(reference.1.iter().any(|&c| c <= 2) && reference.1.contains(&4));
             for kernel in Kernel::available() {
                 assert_eq!(run_gray(kernel), reference, "gray {kernel:?}");
             }
