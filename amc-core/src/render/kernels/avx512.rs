@@ -29,6 +29,17 @@ const WINDOW_SLACK: i32 = 8;
 /// and right tap (the other bytes are zeroed, leaving two 16-bit words).
 const PAIR_BYTES: __mmask64 = 0x5555_5555_5555_5555;
 
+/// The lanes of the step at pixel `u` of `n8` (a multiple of 8): all sixteen,
+/// or the lower eight in a last step of eight.
+#[inline(always)]
+fn step_lanes(n8: usize, u: usize) -> __mmask16 {
+    if n8 - u >= 16 {
+        0xFFFF
+    } else {
+        0x00FF
+    }
+}
+
 /// Whether this CPU can run this kernel.
 pub(super) fn available() -> bool {
     is_x86_feature_detected!("avx512f")
@@ -60,7 +71,7 @@ pub(super) unsafe fn accumulate_row_gray(
     let one = _mm512_set1_epi32(1);
     let mut u = 0;
     while u < n8 {
-        let lanes: __mmask16 = if n8 - u >= 16 { 0xFFFF } else { 0x00FF };
+        let lanes = step_lanes(n8, u);
         let (mut sum, mut sum_n) = (_mm512_setzero_si512(), _mm512_setzero_si512());
         for (data, coord) in datas.iter().zip(coords) {
             let Some((v, mask)) = sample_gray16(data, &g, coord, u, lanes) else {
@@ -109,7 +120,7 @@ pub(super) unsafe fn finish_row_gray(
     let mut complete = 0;
     let mut u = 0;
     while u < n8 {
-        let lanes: __mmask16 = if n8 - u >= 16 { 0xFFFF } else { 0x00FF };
+        let lanes = step_lanes(n8, u);
         let s = _mm512_maskz_loadu_epi32(lanes, sum.as_ptr().add(u) as *const i32);
         let n = _mm512_maskz_loadu_epi32(lanes, count.as_ptr().add(u) as *const i32);
         // `sum as f32 * (1 / (256 n)) + 0.5`: exact conversions (sums stay
@@ -184,16 +195,16 @@ unsafe fn interpolate(t: &Taps16, top: __m512i, bot: __m512i) -> __m512i {
 #[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
 #[inline]
 unsafe fn window_pairs(data: &[u8], g: &KernelGeometry, t: &Taps16) -> Option<(__m512i, __m512i)> {
-    // The window starts at the run's ends: the first lane and the last one
-    // the chunk uses (the upper half is masked off in a last step of eight).
-    let last_quarter = if t.mask >> 8 == 0 { 1 } else { 3 };
+    // The window starts at the run's ends: lane 0 and the last lane in use
+    // (lane 7 when the upper half is masked off, as in a last step of eight).
+    let upper = t.mask >> 8 != 0;
     let end = |v: __m512i| {
-        let q = if last_quarter == 1 {
-            _mm512_extracti32x4_epi32::<1>(v)
-        } else {
+        let last = if upper {
             _mm512_extracti32x4_epi32::<3>(v)
+        } else {
+            _mm512_extracti32x4_epi32::<1>(v)
         };
-        (_mm512_cvtsi512_si32(v), _mm_extract_epi32::<3>(q))
+        (_mm512_cvtsi512_si32(v), _mm_extract_epi32::<3>(last))
     };
     let (xa, xb) = end(t.x0);
     let (ya, yb) = end(t.y0);
