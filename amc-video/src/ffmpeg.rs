@@ -2,10 +2,14 @@
 //!
 //! Decoding: `ffmpeg -i IN -map 0:V -vf showinfo -fps_mode passthrough -f rawvideo
 //! -pix_fmt rgb24 pipe:1`, or for [`PixelFormat::Yuv420p`] `-vf
-//! showinfo,scale=out_range=tv ... -pix_fmt yuv420p`: ffmpeg does every
-//! conversion (10-bit, 4:2:2, 4:4:4, full range to 8-bit limited-range 4:2:0);
-//! the usual limited-range 4:2:0 video goes without the scaler (`-vf
-//! showinfo`). Frames are read straight into the caller's buffer.
+//! showinfo,scale=out_range=tv ... -pix_fmt yuv420p`: ffmpeg does the
+//! conversions (10-bit, 4:2:2, 4:4:4 to 8-bit limited-range 4:2:0). 8-bit
+//! 4:2:0 video, the usual kind, goes without the scaler (`-vf showinfo`, the
+//! decoder's own pixel format); a full-range one (phones, `yuvj420p`) is
+//! brought to limited range here, as it is read, with
+//! [`amc_core::color::yuv420p_full_to_limited_in_place`]: ffmpeg's scaler
+//! took ~8% of a 720p run's CPU for it. Frames are read straight into the
+//! caller's buffer.
 //! Presentation timestamps come from the `showinfo` filter's log lines on
 //! stderr, which ffmpeg writes before the frame itself reaches stdout, so each
 //! frame gets its real timestamp (variable frame rate clips exist) without a
@@ -34,6 +38,15 @@ use std::path::{Path, PathBuf};
 use std::sync::mpsc::{channel, Receiver};
 use std::sync::OnceLock;
 use std::time::Duration;
+
+/// Frames up to this many pixels (1920x1088) are decoded on one ffmpeg
+/// thread unless told otherwise. One thread decodes H.264 far faster than a
+/// run consumes it (~290 frames/s at 720p on this project's VM, against
+/// ~100 for the whole run), while frame threads cost ~40% more CPU for the
+/// same frames (2.9 against 2.1 s for 600 720p frames): CPU the stabilizer,
+/// on the same cores, needs. Larger frames keep ffmpeg's threads: one thread
+/// would decode 4K at about the run's rate.
+pub(crate) const ONE_DECODER_THREAD_PIXELS: usize = 1920 * 1088;
 
 /// How long to wait for a frame's `showinfo` line once the frame has arrived.
 /// The line is written before the frame, so this only matters if the ffmpeg
@@ -87,6 +100,9 @@ pub(crate) struct FfmpegSource {
     fps_override: Option<f64>,
     /// The format frames are decoded to (RGB8 or YUV 4:2:0).
     format: PixelFormat,
+    /// Whether ffmpeg gives full-range 4:2:0 frames, brought to limited range
+    /// as they are read.
+    full_range: bool,
     /// Raw timestamp of the first frame (timestamps are relative to it).
     first_pts: Option<f64>,
     last_t: f64,
@@ -138,7 +154,7 @@ impl FfmpegSource {
         let Probe {
             mut info,
             video_index,
-            limited_yuv420p,
+            native_420,
             ..
         } = probed;
         if let Some(fps) = opts.fps_override {
@@ -151,11 +167,16 @@ impl FfmpegSource {
         } else {
             "showinfo"
         };
+        let native = native_420.filter(|_| opts.pixel_format == PixelFormat::Yuv420p);
         let (filters, pix_fmt) = match opts.pixel_format {
-            // Limited-range 4:2:0 frames go out as decoded. Told an output
-            // range, the scaler copies every frame (a tenth of ffmpeg's time
-            // at 720p) even when there is nothing to convert.
-            PixelFormat::Yuv420p if limited_yuv420p => (showinfo.to_string(), "yuv420p"),
+            // 8-bit 4:2:0 frames go out as decoded (full range is brought to
+            // limited range as they are read). Told an output range, the
+            // scaler copies every frame (a tenth of ffmpeg's time at 720p)
+            // even when there is nothing to convert.
+            PixelFormat::Yuv420p if native.is_some() => (
+                showinfo.to_string(),
+                native.map_or("yuv420p", |n| n.pix_fmt),
+            ),
             // The scaler converts a full-range source to limited range only
             // when told: `yuvj420p` is converted anyway, but a `yuv420p`
             // stream merely tagged full range would pass through unchanged.
@@ -180,6 +201,8 @@ impl FfmpegSource {
         if let Some(n) = opts.ffmpeg_threads {
             let n = n.to_string();
             args.extend(os_args(&["-filter_threads", &n, "-threads", &n]));
+        } else if info.width * info.height <= ONE_DECODER_THREAD_PIXELS {
+            args.extend(os_args(&["-threads", "1"]));
         }
         if let Some(f) = format {
             args.extend(os_args(&["-f", f]));
@@ -215,6 +238,7 @@ impl FfmpegSource {
                 PixelFormat::Yuv420p => PixelFormat::Yuv420p,
                 _ => PixelFormat::Rgb8,
             },
+            full_range: native.is_some_and(|n| n.full_range),
             first_pts: None,
             last_t: 0.0,
             index: 0,
@@ -325,6 +349,13 @@ impl FrameSource for FfmpegSource {
                 });
             }
             return Err(self.proc.failure(status));
+        }
+        if self.full_range {
+            amc_core::color::yuv420p_full_to_limited_in_place(
+                self.info.width,
+                self.info.height,
+                &mut buf.data,
+            );
         }
         let t = self.timestamp();
         self.last_t = t;

@@ -18,9 +18,36 @@ pub(crate) struct Probe {
     pub audio_codec: Option<String>,
     /// ffmpeg's name for the container (`mov,mp4,m4a,3gp,3g2,mj2`, `png_pipe`, ...).
     pub format_name: String,
-    /// Whether the video stream decodes to limited-range 8-bit 4:2:0
-    /// (`yuv420p`, not tagged full range): planar frames need no conversion.
-    pub limited_yuv420p: bool,
+    /// The video stream's 8-bit 4:2:0 frames as its decoder gives them, when
+    /// it does: planar frames then come from ffmpeg unconverted.
+    pub native_420: Option<Native420>,
+}
+
+/// An 8-bit 4:2:0 video stream's frames as its decoder gives them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Native420 {
+    /// The pixel format to ask ffmpeg for: the decoder's own (`yuv420p` or
+    /// `yuvj420p`), so that ffmpeg inserts no scaler.
+    pub pix_fmt: &'static str,
+    /// Full range (Y 0..=255): `yuvj420p`, or `yuv420p` tagged `pc`.
+    pub full_range: bool,
+}
+
+impl Native420 {
+    /// The stream's, from ffprobe's `pix_fmt` and `color_range`.
+    fn of(pix_fmt: Option<&str>, color_range: Option<&str>) -> Option<Self> {
+        match pix_fmt? {
+            "yuv420p" => Some(Self {
+                pix_fmt: "yuv420p",
+                full_range: color_range == Some("pc"),
+            }),
+            "yuvj420p" => Some(Self {
+                pix_fmt: "yuvj420p",
+                full_range: true,
+            }),
+            _ => None,
+        }
+    }
 }
 
 /// Probes `path`. A file ffprobe cannot open, or one without a video stream,
@@ -172,8 +199,7 @@ fn parse(path: &Path, json: &[u8]) -> Result<Probe, VideoError> {
             .unwrap_or_default()
             .to_string(),
         video_index: video["index"].as_u64().unwrap_or(0),
-        limited_yuv420p: video["pix_fmt"].as_str() == Some("yuv420p")
-            && video["color_range"].as_str() != Some("pc"),
+        native_420: Native420::of(video["pix_fmt"].as_str(), video["color_range"].as_str()),
     })
 }
 

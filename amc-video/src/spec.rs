@@ -56,12 +56,15 @@ pub struct InputOptions {
     /// [`PixelFormat::Yuv420p`] (limited range; what video decoders deliver, so
     /// videos and 4:2:0 `.y4m` files need no colour conversion). Other inputs
     /// are converted: 10-bit, 4:2:2, 4:4:4 and full-range videos by ffmpeg,
-    /// `.y4m` and image folders here. [`PixelFormat::Rgba8`] is refused with
+    /// `.y4m` and image folders here (full-range 8-bit 4:2:0 too).
+    /// [`PixelFormat::Rgba8`] is refused with
     /// [`VideoError::UnsupportedPixelFormat`](crate::VideoError::UnsupportedPixelFormat).
     pub pixel_format: PixelFormat,
     /// Threads the ffmpeg decoder and its filters may use (`-threads N
-    /// -filter_threads N`); `None`: ffmpeg's own choice (about every core).
-    /// A run limited to N threads sets it so that it stays within N cores.
+    /// -filter_threads N`); `None`: one decoder thread for frames up to
+    /// 1920x1088 (it keeps up, and frame threads cost CPU the run needs),
+    /// ffmpeg's own choice (about every core) above. A run limited to N
+    /// threads sets it so that it stays within N cores.
     pub ffmpeg_threads: Option<usize>,
 }
 

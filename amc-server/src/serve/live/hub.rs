@@ -3,9 +3,13 @@
 //! stabilized by one processor thread and fanned out to `/live` viewers.
 //!
 //! ```text
-//! source thread --try_send--> [1 slot] --> processor thread --watch--> viewer tasks
-//! ingest socket --try_send-->            (stabilize, JPEG)    (latest frame only)
+//! source thread --try_send--> [1 slot] --> processor --[1 slot]--> JPEG thread --watch--> viewer tasks
+//! ingest socket --try_send-->            (stabilize)              (encode)     (latest frame only)
 //! ```
+//! The JPEG of frame j is encoded while frame j + 1 is stabilized: on two
+//! cores the stabilizer's single-threaded parts (tracking, the view) and the
+//! encoder then overlap instead of taking turns (53 -> 60 frames/s at 720p60,
+//! README "Speed").
 //! With no viewer the feed is paused: the source's ffmpeg child is stopped
 //! (and started again, from a file's beginning, for the first viewer) and
 //! a publisher's frames are dropped undecoded, so an unwatched feed costs
@@ -16,7 +20,7 @@
 //! fan-out is a `watch` channel holding only the newest frame, so a slow
 //! viewer skips frames instead of queueing them and never delays the others.
 
-use super::jpeg::{decode_ingest_frame, encode_jpeg};
+use super::jpeg::{decode_ingest_frame, JpegEncoder};
 use crate::serve::metrics::Metrics;
 use amc_core::view::Mode;
 use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams};
@@ -78,6 +82,15 @@ pub struct LiveFrame {
     pub jpeg: Bytes,
     /// The JSON telemetry text message.
     pub meta: String,
+}
+
+/// A stabilized frame on its way to the JPEG thread.
+struct Stabilized {
+    /// A copy of the stabilizer's output.
+    frame: Frame,
+    /// Its telemetry, `latency_ms` filled in once it is encoded.
+    meta: LiveTelemetry,
+    arrived: Instant,
 }
 
 /// The telemetry text message sent after each frame.
@@ -390,7 +403,22 @@ impl LiveHub {
         let mut stab: Option<Stabilizer> = None;
         let mut size = (0, 0);
         let mut rgb = Frame::new(0, 0, PixelFormat::Rgb8);
-        let mut jpeg = Vec::new();
+        // One frame may wait for the JPEG thread while it encodes another.
+        let (to_jpeg, frames) = mpsc::sync_channel::<Stabilized>(1);
+        let (spare, returned) = mpsc::channel::<Frame>();
+        let jpeg_thread = {
+            let hub = Arc::clone(&self);
+            std::thread::Builder::new()
+                .name("amc-live-jpeg".into())
+                .spawn(move || hub.encode_and_publish(frames, spare))
+        };
+        let jpeg_thread = match jpeg_thread {
+            Ok(t) => t,
+            Err(e) => {
+                tracing::error!(error = %e, "cannot start the live feed's JPEG thread");
+                return;
+            }
+        };
         let mut clock: Option<Instant> = None;
         let mut last_t = f64::NEG_INFINITY;
         let mut published = 0u64;
@@ -466,12 +494,6 @@ impl LiveHub {
                 }
             };
             let out = s.output();
-            jpeg.clear();
-            let encoded = encode_jpeg(&out, self.config.jpeg_quality, &mut jpeg);
-            if let Err(e) = encoded {
-                tracing::warn!(error = %e, "cannot encode a live frame");
-                continue;
-            }
             let speed = |v: [f64; 3]| {
                 (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
                     .sqrt()
@@ -484,17 +506,58 @@ impl LiveHub {
                 speed_view_dps: speed(tel.rate_view),
                 valid: tel.valid_fraction,
                 saccade: tel.saccade,
-                latency_ms: arrived.elapsed().as_secs_f64() * 1e3,
+                latency_ms: 0.0,
                 width: out.width,
                 height: out.height,
             };
+            // The JPEG thread hands its buffers back; at most three exist.
+            let mut copy = returned
+                .try_recv()
+                .unwrap_or_else(|_| Frame::new(0, 0, out.format));
+            copy.width = out.width;
+            copy.height = out.height;
+            copy.format = out.format;
+            copy.data.clear();
+            copy.data.extend_from_slice(out.data);
+            let sent = to_jpeg.send(Stabilized {
+                frame: copy,
+                meta,
+                arrived,
+            });
+            if sent.is_err() {
+                break;
+            }
+            published += 1;
+        }
+        drop(to_jpeg);
+        let _ = jpeg_thread.join();
+    }
+
+    /// The JPEG thread: encode each stabilized frame and publish it to the
+    /// viewers, handing its buffer back to the processor.
+    fn encode_and_publish(&self, frames: Receiver<Stabilized>, spare: mpsc::Sender<Frame>) {
+        let mut encoder = JpegEncoder::default();
+        let mut jpeg = Vec::new();
+        while let Ok(Stabilized {
+            frame,
+            mut meta,
+            arrived,
+        }) = frames.recv()
+        {
+            let encoded = encoder.encode(&frame.as_ref(), self.config.jpeg_quality, &mut jpeg);
+            let _ = spare.send(frame);
+            if let Err(e) = encoded {
+                tracing::warn!(error = %e, "cannot encode a live frame");
+                continue;
+            }
+            meta.latency_ms = arrived.elapsed().as_secs_f64() * 1e3;
+            let number = meta.frame;
             let meta = serde_json::to_string(&meta).unwrap_or_default();
             self.latest.send_replace(Some(Arc::new(LiveFrame {
-                frame: published,
+                frame: number,
                 jpeg: Bytes::copy_from_slice(&jpeg),
                 meta,
             })));
-            published += 1;
             self.metrics.live_frames.inc();
             self.metrics
                 .frames_processed

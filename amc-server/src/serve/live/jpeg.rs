@@ -3,95 +3,81 @@
 
 use amc_core::{Frame, PixelFormat};
 
-/// Encodes a stabilized frame for viewers (jpeg-encoder's SIMD path: a
-/// few milliseconds at 960x540, several times faster than `image`'s encoder).
-pub fn encode_jpeg(
-    frame: &amc_core::FrameRef<'_>,
-    quality: u8,
-    out: &mut Vec<u8>,
-) -> Result<(), String> {
-    let (Ok(w), Ok(h)) = (u16::try_from(frame.width), u16::try_from(frame.height)) else {
-        return Err(format!(
-            "{}x{} is too large for JPEG",
-            frame.width, frame.height
-        ));
-    };
-    let mut encoder = jpeg_encoder::Encoder::new(out, quality);
-    let done = match frame.format {
-        PixelFormat::Rgb8 => encoder.encode(frame.data, w, h, jpeg_encoder::ColorType::Rgb),
-        PixelFormat::Rgba8 => encoder.encode(frame.data, w, h, jpeg_encoder::ColorType::Rgba),
-        PixelFormat::Yuv420p => {
-            // JPEG is YCbCr too: the planes go in as they are (range expanded),
-            // no round trip through RGB.
-            encoder.set_sampling_factor(jpeg_encoder::SamplingFactor::F_2_2);
-            encoder.encode_image(Yuv420pImage::new(frame, w, h))
-        }
-    };
-    done.map_err(|e| e.to_string())
+/// The viewers' JPEG encoder: rusty_jpeg (a vectorized fork of
+/// jpeg-encoder writing the same bitstream, about 2x faster: 3.0 against 6.5
+/// ms for a 1280x720 4:2:0 frame on this project's VM), fed planar frames
+/// as planes. Keeps its full-range planes between frames.
+#[derive(Default)]
+pub struct JpegEncoder {
+    /// The frame's planes as JFIF's full-range YCbCr (`y`, then `u`, then `v`).
+    full_range: Vec<u8>,
 }
 
-/// A limited-range planar 4:2:0 frame as the full-range YCbCr rows JPEG
-/// (JFIF) stores: `Y' = (Y - 16) 255 / 219`, `C' = 128 + (C - 128) 255 / 224`.
-struct Yuv420pImage<'a> {
-    y: &'a [u8],
-    u: &'a [u8],
-    v: &'a [u8],
-    width: u16,
-    height: u16,
-    luma: [u8; 256],
-    chroma: [u8; 256],
-}
-
-impl<'a> Yuv420pImage<'a> {
-    fn new(frame: &amc_core::FrameRef<'a>, width: u16, height: u16) -> Self {
-        let (y, u, v) = frame.yuv_planes();
-        let expand = |k: f64, off: f64, mid: f64| {
-            let mut t = [0u8; 256];
-            for (i, o) in t.iter_mut().enumerate() {
-                *o = (mid + (i as f64 - off) * k).round().clamp(0.0, 255.0) as u8;
-            }
-            t
+impl JpegEncoder {
+    /// Encodes a stabilized frame into `out` (cleared first) at `quality` (1..=100).
+    pub fn encode(
+        &mut self,
+        frame: &amc_core::FrameRef<'_>,
+        quality: u8,
+        out: &mut Vec<u8>,
+    ) -> Result<(), String> {
+        let (Ok(w), Ok(h)) = (u16::try_from(frame.width), u16::try_from(frame.height)) else {
+            return Err(format!(
+                "{}x{} is too large for JPEG",
+                frame.width, frame.height
+            ));
         };
-        Self {
-            y,
-            u,
-            v,
-            width,
-            height,
-            luma: expand(255.0 / 219.0, 16.0, 0.0),
-            chroma: expand(255.0 / 224.0, 128.0, 128.0),
-        }
+        out.clear();
+        let encoder = rusty_jpeg::Encoder::new(&mut *out, quality);
+        let done = match frame.format {
+            PixelFormat::Rgb8 => encoder.encode(frame.data, w, h, rusty_jpeg::ColorType::Rgb),
+            PixelFormat::Rgba8 => encoder.encode(frame.data, w, h, rusty_jpeg::ColorType::Rgba),
+            PixelFormat::Yuv420p => {
+                // JPEG is YCbCr too: the planes go in as they are, range
+                // expanded, with no round trip through RGB and no chroma
+                // resampling.
+                let planes = expand_to_full_range(frame, &mut self.full_range);
+                let (y, u, v) = amc_core::image::yuv_planes(frame.width, frame.height, planes);
+                let cw = frame.width.div_ceil(2);
+                let image = rusty_jpeg::encode::PlanarYcbcrImage::new(
+                    y,
+                    u,
+                    v,
+                    [frame.width, cw, cw],
+                    w,
+                    h,
+                    (2, 2),
+                )
+                .ok_or_else(|| format!("{w}x{h} planes do not fit 4:2:0"))?;
+                let mut encoder = encoder;
+                encoder.set_sampling_factor(image.sampling_factor());
+                encoder.encode_image(image)
+            }
+        };
+        done.map_err(|e| e.to_string())
     }
 }
 
-impl jpeg_encoder::ImageBuffer for Yuv420pImage<'_> {
-    fn get_jpeg_color_type(&self) -> jpeg_encoder::JpegColorType {
-        jpeg_encoder::JpegColorType::Ycbcr
-    }
-
-    fn width(&self) -> u16 {
-        self.width
-    }
-
-    fn height(&self) -> u16 {
-        self.height
-    }
-
-    fn fill_buffers(&self, row: u16, buffers: &mut [Vec<u8>; 4]) {
-        let (w, r) = (self.width as usize, row as usize);
-        let cw = w.div_ceil(2);
-        let ys = &self.y[r * w..(r + 1) * w];
-        let (us, vs) = (
-            &self.u[(r / 2) * cw..(r / 2 + 1) * cw],
-            &self.v[(r / 2) * cw..(r / 2 + 1) * cw],
-        );
-        // Each row extended in one go (pushing pixel by pixel was an eighth
-        // of the encode); chroma repeated for the encoder to subsample again.
-        buffers[0].extend(ys.iter().map(|&y| self.luma[y as usize]));
-        for (buffer, plane) in buffers[1..3].iter_mut().zip([us, vs]) {
-            buffer.extend((0..w).map(|x| self.chroma[plane[x / 2] as usize]));
+/// A limited-range planar 4:2:0 frame's planes as the full-range YCbCr JPEG
+/// (JFIF) stores, written into `into`: `Y' = (Y - 16) 255 / 219`,
+/// `C' = 128 + (C - 128) 255 / 224`, rounded and clamped.
+fn expand_to_full_range<'a>(frame: &amc_core::FrameRef<'_>, into: &'a mut Vec<u8>) -> &'a [u8] {
+    let table = |k: f64, off: f64, mid: f64| {
+        let mut t = [0u8; 256];
+        for (i, o) in t.iter_mut().enumerate() {
+            *o = (mid + (i as f64 - off) * k).round().clamp(0.0, 255.0) as u8;
         }
-    }
+        t
+    };
+    let (luma, chroma) = (
+        table(255.0 / 219.0, 16.0, 0.0),
+        table(255.0 / 224.0, 128.0, 128.0),
+    );
+    let (y, u, v) = frame.yuv_planes();
+    into.clear();
+    into.extend(y.iter().map(|&p| luma[p as usize]));
+    into.extend(u.iter().chain(v).map(|&p| chroma[p as usize]));
+    into
 }
 
 /// Largest side of a frame a publisher may send (8K UHD is 7680).
@@ -147,8 +133,9 @@ mod tests {
         let mut yuv = Frame::new(w, h, PixelFormat::Yuv420p);
         amc_core::color::rgb_to_yuv420p_into(w, h, 3, &rgb.data, &mut yuv.data);
         let (mut a, mut b) = (Vec::new(), Vec::new());
-        encode_jpeg(&rgb.as_ref(), 95, &mut a).unwrap();
-        encode_jpeg(&yuv.as_ref(), 95, &mut b).unwrap();
+        let mut encoder = JpegEncoder::default();
+        encoder.encode(&rgb.as_ref(), 95, &mut a).unwrap();
+        encoder.encode(&yuv.as_ref(), 95, &mut b).unwrap();
         let (mut da, mut db) = (
             Frame::new(0, 0, PixelFormat::Rgb8),
             Frame::new(0, 0, PixelFormat::Rgb8),
