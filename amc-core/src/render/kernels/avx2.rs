@@ -467,24 +467,23 @@ unsafe fn taps8(g: &KernelGeometry, (sx, sy): (__m256, __m256)) -> Option<Taps8>
     if _mm256_testz_si256(mask, mask) != 0 {
         return None;
     }
-    // Invalid lanes get coordinate 0 so the integer conversions stay tame;
-    // valid ones are clamped onto the frame (edge tolerance).
-    let zero = _mm256_setzero_ps();
-    let sxv = _mm256_min_ps(
-        _mm256_max_ps(_mm256_and_ps(sx, valid), zero),
-        _mm256_set1_ps(g.max_x),
-    );
-    let syv = _mm256_min_ps(
-        _mm256_max_ps(_mm256_and_ps(sy, valid), zero),
-        _mm256_set1_ps(g.max_y),
-    );
-    let x0 = _mm256_min_epi32(_mm256_cvttps_epi32(sxv), _mm256_set1_epi32(g.max_x0));
-    let y0 = _mm256_min_epi32(_mm256_cvttps_epi32(syv), _mm256_set1_epi32(g.max_y0));
+    // In 8.8 fixed point, `p = trunc(256 s + 0.5)` with `s` clamped onto the
+    // frame (invalid lanes get coordinate 0): `256 s` is exact (a power of
+    // two), so `p = 256 floor(s) + round(256 (s - floor(s)))`, the
+    // reference's `x0` and `ax`; a point within the tolerance left of the
+    // frame gives 0 (truncation towards 0), one past its right end `256 max`.
+    // `x0` is then clamped to `max_x0` as the reference does (`ax = 256` on
+    // the last column), so no tap lies past the row.
     let (c256, half) = (_mm256_set1_ps(256.0), _mm256_set1_ps(0.5));
-    let fx = _mm256_sub_ps(sxv, _mm256_cvtepi32_ps(x0));
-    let fy = _mm256_sub_ps(syv, _mm256_cvtepi32_ps(y0));
-    let ax = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(fx, c256), half));
-    let ay = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(fy, c256), half));
+    let fixed = |s: __m256, max: f32, max0: i32| {
+        let s = _mm256_and_ps(s, valid);
+        let p = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(s, c256), half));
+        let p = _mm256_min_epi32(p, _mm256_set1_epi32((max * 256.0) as i32));
+        let p0 = _mm256_min_epi32(_mm256_srai_epi32::<8>(p), _mm256_set1_epi32(max0));
+        (p0, _mm256_sub_epi32(p, _mm256_slli_epi32::<8>(p0)))
+    };
+    let (x0, ax) = fixed(sx, g.max_x, g.max_x0);
+    let (y0, ay) = fixed(sy, g.max_y, g.max_y0);
     let i256 = _mm256_set1_epi32(256);
     Some(Taps8 {
         mask,

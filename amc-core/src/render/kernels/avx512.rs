@@ -341,24 +341,27 @@ unsafe fn taps16(
     if mask == 0 {
         return None;
     }
-    // Lanes outside get coordinate 0; those inside are clamped onto the
-    // plane (edge tolerance), as the reference does.
-    let zero = _mm512_setzero_ps();
-    let sxv = _mm512_min_ps(
-        _mm512_max_ps(_mm512_maskz_mov_ps(mask, sx), zero),
-        _mm512_set1_ps(g.max_x),
-    );
-    let syv = _mm512_min_ps(
-        _mm512_max_ps(_mm512_maskz_mov_ps(mask, sy), zero),
-        _mm512_set1_ps(g.max_y),
-    );
-    let x0 = _mm512_min_epi32(_mm512_cvttps_epi32(sxv), _mm512_set1_epi32(g.max_x0));
-    let y0 = _mm512_min_epi32(_mm512_cvttps_epi32(syv), _mm512_set1_epi32(g.max_y0));
+    // In 8.8 fixed point, `p = trunc(256 s + 0.5)` with `s` clamped onto the
+    // plane: `256 s` is exact (a power of two), so `p = 256 x0 + ax` with
+    // `x0 = floor(s)` and `ax = round(256 (s - x0))` exactly as the
+    // reference computes them. A point within the tolerance left of the
+    // plane gives `p = 0` (it truncates towards 0); one past its right end is
+    // clamped to `256 max`. Lanes outside are zeroed (coordinate 0).
     let (c256, half) = (_mm512_set1_ps(256.0), _mm512_set1_ps(0.5));
-    let fx = _mm512_sub_ps(sxv, _mm512_cvtepi32_ps(x0));
-    let fy = _mm512_sub_ps(syv, _mm512_cvtepi32_ps(y0));
-    let ax = _mm512_cvttps_epi32(_mm512_add_ps(_mm512_mul_ps(fx, c256), half));
-    let ay = _mm512_cvttps_epi32(_mm512_add_ps(_mm512_mul_ps(fy, c256), half));
+    let fixed = |s: __m512, max: f32| {
+        let p = _mm512_cvttps_epi32(_mm512_maskz_fmadd_ps(mask, s, c256, half));
+        _mm512_min_epi32(p, _mm512_set1_epi32((max * 256.0) as i32))
+    };
+    let (px, py) = (fixed(sx, g.max_x), fixed(sy, g.max_y));
+    // Where the reference takes `x0 = max_x0, ax = 256` at the right edge,
+    // this takes `x0 = max_x0 + 1, ax = 0`: the same value, its right tap
+    // weighted 0 (the byte after the row: the next row's first, or the
+    // frame padding). Rows are clamped as the reference does: a row below
+    // the last must not be read.
+    let x0 = _mm512_srai_epi32::<8>(px);
+    let ax = _mm512_and_si512(px, _mm512_set1_epi32(255));
+    let y0 = _mm512_min_epi32(_mm512_srai_epi32::<8>(py), _mm512_set1_epi32(g.max_y0));
+    let ay = _mm512_sub_epi32(py, _mm512_slli_epi32::<8>(y0));
     Some(Taps16 {
         mask,
         x0,

@@ -503,6 +503,37 @@ mod tests {
             for kernel in Kernel::available() {
                 assert_eq!(run_gray(kernel), reference, "gray {kernel:?}");
             }
+            // And points on the plane's own edges and corners (its right edge
+            // is past the tables above): within the tolerance outside, on the
+            // last column and row, and just inside them.
+            let edge = |r: &mut dyn FnMut() -> u32, size: usize| -> Vec<f32> {
+                let last = (size - 1) as f32;
+                let near = [
+                    -EDGE_TOLERANCE,
+                    0.0,
+                    last - 1.0 / 1024.0,
+                    last - 1.0 / 256.0,
+                    last,
+                    last + EDGE_TOLERANCE,
+                    last + 2.0 * EDGE_TOLERANCE,
+                ];
+                (0..n).map(|_| near[r() as usize % near.len()]).collect()
+            };
+            let (ex, ey) = (edge(&mut rand, w * channels), edge(&mut rand, h));
+            let edges = [RowCoords::Table(&ex, &ey)];
+            let run_edges = |kernel: Kernel| {
+                let (mut acc, mut count) = (vec![0u32; n], vec![0u32; n]);
+                // SAFETY: as above.
+                unsafe {
+                    kernel.accumulate_row_gray(&datas[..1], &gray, &edges, n, &mut acc, &mut count)
+                };
+                (acc, count)
+            };
+            let reference = run_edges(Kernel::Scalar);
+            assert!(reference.1.contains(&0) && reference.1.contains(&1));
+            for kernel in Kernel::available() {
+                assert_eq!(run_edges(kernel), reference, "gray edges {kernel:?}");
+            }
             // Finishing those sums into pixels, where a kernel has a pass for it:
             // as `average` rounds, `fill` where no frame covers the pixel.
             // Every fifth pixel made one that no frame covers (sum 0, as the
