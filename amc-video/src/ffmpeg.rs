@@ -78,9 +78,14 @@ fn caps() -> &'static Caps {
             .map(|(_, out, _)| String::from_utf8_lossy(&out).into_owned())
             .unwrap_or_default()
         };
+        // Both at once: each ffmpeg takes ~0.2 s just to start.
+        let (long, showinfo) = std::thread::scope(|s| {
+            let showinfo = s.spawn(|| help("filter=showinfo"));
+            (help("long"), showinfo.join().unwrap_or_default())
+        });
         Caps {
-            fps_mode: help("long").contains("-fps_mode"),
-            showinfo_checksum: help("filter=showinfo").contains("checksum"),
+            fps_mode: long.contains("-fps_mode"),
+            showinfo_checksum: showinfo.contains("checksum"),
         }
     })
 }

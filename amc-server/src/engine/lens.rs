@@ -78,10 +78,7 @@ pub fn resolve_lens(
         LensSpec::Fov(deg) => {
             let (w, h) = match size {
                 Some(s) => s,
-                None => {
-                    let src = video::open_input(input, opts)?;
-                    (src.info().width, src.info().height)
-                }
+                None => video::frame_size(input, opts)?,
             };
             given(CameraModel::pinhole_hfov(w, h, *deg).map_err(amc_core::AmcError::from)?)
         }
