@@ -85,13 +85,33 @@ fn y_box_downscale_into(src: &FrameRef<'_>, s: usize, dst: &mut GrayImage) {
         out.fill(0.0);
         for dy in 0..s {
             let row = &y[(v * s + dy) * sw..(v * s + dy + 1) * sw];
-            for (acc, block) in out.iter_mut().zip(row.chunks_exact(s)) {
-                *acc += block.iter().map(|&b| b as u32).sum::<u32>() as f32;
+            // The usual factors with the block width known to the compiler,
+            // which then vectorizes the loop (a third of the time at 4).
+            match s {
+                2 => add_block_sums::<2>(out, row),
+                3 => add_block_sums::<3>(out, row),
+                4 => add_block_sums::<4>(out, row),
+                6 => add_block_sums::<6>(out, row),
+                8 => add_block_sums::<8>(out, row),
+                _ => {
+                    for (acc, block) in out.iter_mut().zip(row.chunks_exact(s)) {
+                        *acc += block.iter().map(|&b| b as u32).sum::<u32>() as f32;
+                    }
+                }
             }
         }
         for o in out.iter_mut() {
             *o = (*o - bias) * norm;
         }
+    }
+}
+
+/// `out[u] += sum(row[S u..S u + S])` for every `u` of `out` that `row` covers.
+#[inline(always)]
+fn add_block_sums<const S: usize>(out: &mut [f32], row: &[u8]) {
+    let (blocks, _) = row.as_chunks::<S>();
+    for (acc, block) in out.iter_mut().zip(blocks) {
+        *acc += block.iter().map(|&b| b as u32).sum::<u32>() as f32;
     }
 }
 
