@@ -20,9 +20,9 @@ use std::arch::x86_64::*;
 /// neighbour is the window's last byte.
 const WINDOW_SPAN: i32 = 62;
 
-/// Columns the window starts left of the chunk's two end taps: lanes between
-/// the ends may wander left of both (a grid-interpolated row is monotonic
-/// only cell by cell), and 8 columns of slack still leave 54 for the run.
+/// Columns the window starts left of lane 0's left tap: later lanes may
+/// wander left of it (a grid-interpolated row is monotonic only cell by
+/// cell), and 8 columns of slack still leave 54 for the run.
 const WINDOW_SLACK: i32 = 8;
 
 /// Bytes 0 and 2 of every 32-bit lane: where the permute writes a lane's left
@@ -164,7 +164,8 @@ unsafe fn sample_gray16(
     lanes: __mmask16,
 ) -> Option<(__m512i, __mmask16)> {
     let t = taps16(g, row_coords16(coord, u, lanes), lanes)?;
-    let (top, bot) = window_pairs(data, g, &t).unwrap_or_else(|| gather_pairs(data, g, &t));
+    let (top, bot) =
+        window_pairs(data, g, &t, falls(coord, u)).unwrap_or_else(|| gather_pairs(data, g, &t));
     Some((interpolate(&t, top, bot), t.mask))
 }
 
@@ -175,7 +176,9 @@ unsafe fn sample_gray16(
 #[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
 #[inline]
 unsafe fn interpolate(t: &Taps16, top: __m512i, bot: __m512i) -> __m512i {
-    let wx = _mm512_or_si512(t.bx, _mm512_slli_epi32::<16>(t.ax));
+    // Lanes outside the mask get zero weights, so their value is
+    // `(0 + 128) >> 8 = 0` whatever their taps hold.
+    let wx = _mm512_maskz_or_epi32(t.mask, t.bx, _mm512_slli_epi32::<16>(t.ax));
     let top = _mm512_madd_epi16(top, wx);
     let bot = _mm512_madd_epi16(bot, wx);
     let v = _mm512_add_epi32(
@@ -185,7 +188,21 @@ unsafe fn interpolate(t: &Taps16, top: __m512i, bot: __m512i) -> __m512i {
         ),
         _mm512_set1_epi32(128),
     );
-    _mm512_maskz_mov_epi32(t.mask, _mm512_srli_epi32::<8>(v))
+    _mm512_srli_epi32::<8>(v)
+}
+
+/// Whether source `y` falls along the row from output pixel `u` on (a roll
+/// one way): then the window starts a row above lane 0's. For a homography
+/// `y(u) = (y0 + dy u) / (z0 + dz u)`, whose slope has the sign of
+/// `dy z0 - dz y0` along the whole row; for a table, from its first and
+/// eighth entries. Only where the window starts depends on it, never a
+/// result: the taps are checked against the window either way.
+#[inline(always)]
+fn falls(coord: &RowCoords<'_>, u: usize) -> bool {
+    match *coord {
+        RowCoords::Homography { y0, z0, dy, dz, .. } => dy * z0 < dz * y0,
+        RowCoords::Table(_, ys) => ys[u + 7] < ys[u],
+    }
 }
 
 /// The taps' pairs picked out of 64-byte windows of the rows they lie on, or
@@ -194,22 +211,18 @@ unsafe fn interpolate(t: &Taps16, top: __m512i, bot: __m512i) -> __m512i {
 /// every top tap on one of two neighbouring rows.
 #[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
 #[inline]
-unsafe fn window_pairs(data: &[u8], g: &KernelGeometry, t: &Taps16) -> Option<(__m512i, __m512i)> {
-    // The window starts at the run's ends: lane 0 and the last lane in use
-    // (lane 7 when the upper half is masked off, as in a last step of eight).
-    let upper = t.mask >> 8 != 0;
-    let end = |v: __m512i| {
-        let last = if upper {
-            _mm512_extracti32x4_epi32::<3>(v)
-        } else {
-            _mm512_extracti32x4_epi32::<1>(v)
-        };
-        (_mm512_cvtsi512_si32(v), _mm_extract_epi32::<3>(last))
-    };
-    let (xa, xb) = end(t.x0);
-    let (ya, yb) = end(t.y0);
-    let x_win = (xa.min(xb) - WINDOW_SLACK).max(0);
-    let y_win = ya.min(yb);
+unsafe fn window_pairs(
+    data: &[u8],
+    g: &KernelGeometry,
+    t: &Taps16,
+    falls: bool,
+) -> Option<(__m512i, __m512i)> {
+    // The window starts at lane 0's taps, [`WINDOW_SLACK`] columns to the
+    // left, on its top row or the row above where `y` falls along the row.
+    // Lane 0 alone: taking the run's far end too (two more extractions and
+    // their scalar work per frame and step) cost ~12% of the render.
+    let x_win = (_mm512_cvtsi512_si32(t.x0) - WINDOW_SLACK).max(0);
+    let y_win = (_mm512_cvtsi512_si32(t.y0) - falls as i32).max(0);
     let off = _mm512_sub_epi32(t.x0, _mm512_set1_epi32(x_win));
     let down = _mm512_sub_epi32(t.y0, _mm512_set1_epi32(y_win));
     // Unsigned compares: a negative offset is out of the window too.
@@ -408,7 +421,7 @@ mod tests {
                     [x, y]
                 };
                 (
-                    window_pairs(&plane, &g, &t).map(words),
+                    window_pairs(&plane, &g, &t, falls(&coord, u)).map(words),
                     words(gather_pairs(&plane, &g, &t)),
                 )
             }
