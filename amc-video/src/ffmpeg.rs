@@ -118,6 +118,10 @@ pub(crate) struct FfmpegSource {
 impl FfmpegSource {
     /// Probes `path` and starts decoding it.
     pub fn open(path: &Path, opts: &InputOptions) -> Result<Self, VideoError> {
+        // ffmpeg's capabilities are asked while ffprobe runs, not after it.
+        std::thread::spawn(|| {
+            caps();
+        });
         let probed = probe(path, opts.timeout)?;
         // ffmpeg happily decodes a PNG or JPEG (whatever its name) as a
         // one-frame video, which cannot be stabilized: say what it is.

@@ -52,7 +52,15 @@ impl Native420 {
 
 /// Probes `path`. A file ffprobe cannot open, or one without a video stream,
 /// is [`VideoError::NotAVideo`].
+///
+/// The container's own frame count (MP4, MOV) is taken as it is; only a file
+/// without one (MKV, WebM) is probed again counting its packets, which
+/// demuxes the whole file (~0.1 s for a 10 s 720p clip).
 pub(crate) fn probe(path: &Path, timeout: Duration) -> Result<Probe, VideoError> {
+    let quick = probe_with(path, timeout, false)?;
+    if quick.info.frame_count.is_some() {
+        return Ok(quick);
+    }
     probe_with(path, timeout, true)
 }
 
