@@ -8,8 +8,7 @@
 //! ```
 //! The JPEG of frame j is encoded while frame j + 1 is stabilized: on two
 //! cores the stabilizer's single-threaded parts (tracking, the view) and the
-//! encoder then overlap instead of taking turns (53 -> 60 frames/s at 720p60,
-//! README "Speed").
+//! encoder then overlap instead of taking turns (README, "Speed").
 //! With no viewer the feed is paused: the source's ffmpeg child is stopped
 //! (and started again, from a file's beginning, for the first viewer) and
 //! a publisher's frames are dropped undecoded, so an unwatched feed costs
