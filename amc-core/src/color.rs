@@ -2,7 +2,9 @@
 //! places that need RGB from a YUV pipeline or the reverse (PNG folders, the
 //! live feed's JPEG, the metrics' per-channel sharpness, RGB sources into a YUV
 //! run). BT.601 matrices in 16.16 fixed point, limited range unless told
-//! otherwise: the conversion ffmpeg applies by default.
+//! otherwise: the conversion ffmpeg applies by default. And 4:2:0 planes
+//! between full and limited range: full-range video (phones, `yuvj420p`) as
+//! it is decoded, JPEG's full-range YCbCr for the live feed.
 
 use crate::image::{chroma_size, yuv_planes, yuv_planes_mut};
 
@@ -31,6 +33,29 @@ fn map_codes(plane: &mut [u8], k: u16, add: u16, off: u8) {
         let x = *p as u16 * k + add;
         *p = ((x + 1 + (x >> 8)) >> 8) as u8 + off;
     }
+}
+
+/// A limited-range 4:2:0 frame's planes as full-range codes (what JPEG's
+/// JFIF stores), written into `into` (cleared first, the same layout):
+/// `Y' = (Y - 16) 255 / 219`, `C' = 128 + (C - 128) 255 / 224`, rounded and
+/// clamped; [`yuv420p_full_to_limited_in_place`] undoes it up to rounding.
+/// Panics when `data` is shorter than the frame.
+pub fn yuv420p_limited_to_full_into(width: usize, height: usize, data: &[u8], into: &mut Vec<u8>) {
+    let table = |k: f64, off: f64, mid: f64| {
+        let mut t = [0u8; 256];
+        for (i, o) in t.iter_mut().enumerate() {
+            *o = (mid + (i as f64 - off) * k).round().clamp(0.0, 255.0) as u8;
+        }
+        t
+    };
+    let (luma, chroma) = (
+        table(255.0 / 219.0, 16.0, 0.0),
+        table(255.0 / 224.0, 128.0, 128.0),
+    );
+    let (y, u, v) = yuv_planes(width, height, data);
+    into.clear();
+    into.extend(y.iter().map(|&p| luma[p as usize]));
+    into.extend(u.iter().chain(v).map(|&p| chroma[p as usize]));
 }
 
 /// BT.601 YCbCr -> RGB in 16.16 fixed point.
@@ -214,6 +239,21 @@ mod tests {
         extremes[5] = 255;
         yuv420p_full_to_limited_in_place(2, 2, &mut extremes);
         assert_eq!(&extremes[4..], [16, 240]);
+    }
+
+    /// Full range to limited and back: every code within one of where it began.
+    #[test]
+    fn range_conversions_undo_each_other() {
+        let (w, h) = (16usize, 16usize);
+        let full: Vec<u8> = (0..w * h * 3 / 2).map(|i| i as u8).collect();
+        let mut limited = full.clone();
+        yuv420p_full_to_limited_in_place(w, h, &mut limited);
+        let mut back = Vec::new();
+        yuv420p_limited_to_full_into(w, h, &limited, &mut back);
+        assert_eq!(back.len(), full.len());
+        for (i, (&a, &b)) in full.iter().zip(&back).enumerate() {
+            assert!(a.abs_diff(b) <= 1, "code {a} came back as {b} at {i}");
+        }
     }
 
     #[test]

@@ -36,8 +36,14 @@ impl JpegEncoder {
                 // JPEG is YCbCr too: the planes go in as they are, range
                 // expanded, with no round trip through RGB and no chroma
                 // resampling.
-                let planes = expand_to_full_range(frame, &mut self.full_range);
-                let (y, u, v) = amc_core::image::yuv_planes(frame.width, frame.height, planes);
+                amc_core::color::yuv420p_limited_to_full_into(
+                    frame.width,
+                    frame.height,
+                    frame.data,
+                    &mut self.full_range,
+                );
+                let (y, u, v) =
+                    amc_core::image::yuv_planes(frame.width, frame.height, &self.full_range);
                 let cw = frame.width.div_ceil(2);
                 let image = rusty_jpeg::encode::PlanarYcbcrImage::new(
                     y,
@@ -56,28 +62,6 @@ impl JpegEncoder {
         };
         done.map_err(|e| e.to_string())
     }
-}
-
-/// A limited-range planar 4:2:0 frame's planes as the full-range YCbCr JPEG
-/// (JFIF) stores, written into `into`: `Y' = (Y - 16) 255 / 219`,
-/// `C' = 128 + (C - 128) 255 / 224`, rounded and clamped.
-fn expand_to_full_range<'a>(frame: &amc_core::FrameRef<'_>, into: &'a mut Vec<u8>) -> &'a [u8] {
-    let table = |k: f64, off: f64, mid: f64| {
-        let mut t = [0u8; 256];
-        for (i, o) in t.iter_mut().enumerate() {
-            *o = (mid + (i as f64 - off) * k).round().clamp(0.0, 255.0) as u8;
-        }
-        t
-    };
-    let (luma, chroma) = (
-        table(255.0 / 219.0, 16.0, 0.0),
-        table(255.0 / 224.0, 128.0, 128.0),
-    );
-    let (y, u, v) = frame.yuv_planes();
-    into.clear();
-    into.extend(y.iter().map(|&p| luma[p as usize]));
-    into.extend(u.iter().chain(v).map(|&p| chroma[p as usize]));
-    into
 }
 
 /// Largest side of a frame a publisher may send (8K UHD is 7680).
