@@ -61,8 +61,10 @@ struct Caps {
     showinfo_checksum: bool,
 }
 
+/// What this machine's ffmpeg supports, once known.
+static CAPS: OnceLock<Caps> = OnceLock::new();
+
 fn caps() -> &'static Caps {
-    static CAPS: OnceLock<Caps> = OnceLock::new();
     CAPS.get_or_init(|| {
         let help = |topic: &str| -> String {
             let args: Vec<OsString> = ["-hide_banner", "-h", topic]
@@ -118,10 +120,13 @@ pub(crate) struct FfmpegSource {
 impl FfmpegSource {
     /// Probes `path` and starts decoding it.
     pub fn open(path: &Path, opts: &InputOptions) -> Result<Self, VideoError> {
-        // ffmpeg's capabilities are asked while ffprobe runs, not after it.
-        std::thread::spawn(|| {
-            caps();
-        });
+        // ffmpeg's capabilities, the first time, are asked while ffprobe
+        // runs rather than after it.
+        if CAPS.get().is_none() {
+            std::thread::spawn(|| {
+                caps();
+            });
+        }
         let probed = probe(path, opts.timeout)?;
         // ffmpeg happily decodes a PNG or JPEG (whatever its name) as a
         // one-frame video, which cannot be stabilized: say what it is.
@@ -177,19 +182,15 @@ impl FfmpegSource {
             "showinfo"
         };
         let native = native_420.filter(|_| opts.pixel_format == PixelFormat::Yuv420p);
-        let (filters, pix_fmt) = match opts.pixel_format {
+        let (filters, pix_fmt) = match (opts.pixel_format, native) {
             // 8-bit 4:2:0 frames go out as decoded (full range is brought to
             // limited range as they are read). Told an output range, the
             // scaler copies every frame (a tenth of ffmpeg's time at 720p)
             // even when there is nothing to convert.
-            PixelFormat::Yuv420p if native.is_some() => (
-                showinfo.to_string(),
-                native.map_or("yuv420p", |n| n.pix_fmt),
-            ),
-            // The scaler converts a full-range source to limited range only
-            // when told: `yuvj420p` is converted anyway, but a `yuv420p`
-            // stream merely tagged full range would pass through unchanged.
-            PixelFormat::Yuv420p => (format!("{showinfo},scale=out_range=tv"), "yuv420p"),
+            (PixelFormat::Yuv420p, Some(n)) => (showinfo.to_string(), n.pix_fmt),
+            // Other layouts (10-bit, 4:2:2, 4:4:4) through the scaler, told
+            // the range: without it a source tagged full range would keep it.
+            (PixelFormat::Yuv420p, None) => (format!("{showinfo},scale=out_range=tv"), "yuv420p"),
             _ => (showinfo.to_string(), "rgb24"),
         };
         let mut args = os_args(&[

@@ -513,11 +513,7 @@ impl LiveHub {
             let mut copy = returned
                 .try_recv()
                 .unwrap_or_else(|_| Frame::new(0, 0, out.format));
-            copy.width = out.width;
-            copy.height = out.height;
-            copy.format = out.format;
-            copy.data.clear();
-            copy.data.extend_from_slice(out.data);
+            copy.copy_from(&out);
             let sent = to_jpeg.send(Stabilized {
                 frame: copy,
                 meta,
