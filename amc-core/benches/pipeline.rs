@@ -349,5 +349,42 @@ fn bench_render(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_tracking, bench_stabilize, bench_render);
+/// The paper's image metrics of an output frame (normal flow and change
+/// against the previous one, sharpness over R, G and B), as `--metrics` and
+/// the service measure every output: consecutive frames of the clip, planar
+/// and packed, with a black border a tenth of the width wide on each side.
+fn bench_metrics(c: &mut Criterion) {
+    use amc_core::metrics::MetricsAccumulator;
+    let mut g = c.benchmark_group("metrics");
+    g.throughput(Throughput::Elements(1));
+    g.sampling_mode(criterion::SamplingMode::Flat);
+    g.sample_size(20);
+    for (w, h) in [(320, 180), (1280, 720)] {
+        let (_, rgb) = clip(w, h);
+        let yuv = to_yuv(&rgb);
+        let coverage: Vec<u8> = (0..w * h)
+            .map(|i| u8::from((w / 10..w - w / 10).contains(&(i % w))) * 6)
+            .collect();
+        for (name, frames) in [("yuv420p", &yuv), ("rgb", &rgb)] {
+            let mut acc = MetricsAccumulator::new();
+            g.bench_function(format!("{w}x{h}-{name}"), |b| {
+                let mut j = 0usize;
+                b.iter(|| {
+                    let f = &frames[ping_pong_index(CLIP_FRAMES, j)];
+                    black_box(acc.push(&f.as_ref(), &coverage, 0.8, None));
+                    j += 1;
+                })
+            });
+        }
+    }
+    g.finish();
+}
+
+criterion_group!(
+    benches,
+    bench_tracking,
+    bench_stabilize,
+    bench_render,
+    bench_metrics
+);
 criterion_main!(benches);

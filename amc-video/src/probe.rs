@@ -5,8 +5,9 @@ use crate::process::run_capture;
 use crate::spec::{VideoInfo, DEFAULT_IMAGE_FPS};
 use serde_json::Value;
 use std::ffi::OsString;
-use std::path::Path;
-use std::time::Duration;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::{Duration, SystemTime};
 
 /// What ffprobe says about a file.
 #[derive(Clone, Debug)]
@@ -64,6 +65,43 @@ pub(crate) fn probe(path: &Path, timeout: Duration) -> Result<Probe, VideoError>
     probe_with(path, timeout, true)
 }
 
+/// What identifies a regular file's content for [`RECENT`]: a file rewritten
+/// since it was probed has another length, time or inode.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct FileKey {
+    path: PathBuf,
+    len: u64,
+    modified: SystemTime,
+    #[cfg(unix)]
+    inode: (u64, u64),
+}
+
+impl FileKey {
+    /// The key of `path`, when it is a regular file with a modification time.
+    fn of(path: &Path) -> Option<Self> {
+        let meta = std::fs::metadata(path).ok().filter(|m| m.is_file())?;
+        Some(Self {
+            path: path.to_path_buf(),
+            len: meta.len(),
+            modified: meta.modified().ok()?,
+            #[cfg(unix)]
+            inode: {
+                use std::os::unix::fs::MetadataExt;
+                (meta.dev(), meta.ino())
+            },
+        })
+    }
+}
+
+/// The latest probes of files, each with whether it counted packets: a run
+/// asks about its input up to three times (its frame size for the lens,
+/// opening it, its audio for the output; the service once more on upload),
+/// and each ffprobe takes ~0.1 s before the first frame.
+static RECENT: Mutex<Vec<(FileKey, bool, Probe)>> = Mutex::new(Vec::new());
+
+/// Probes kept in [`RECENT`].
+const RECENT_PROBES: usize = 4;
+
 /// Probes `path`; `count_packets` demuxes the whole input for a frame count
 /// (never for a live stream, which has no end).
 pub(crate) fn probe_with(
@@ -94,7 +132,30 @@ pub(crate) fn probe_with(
         .map(OsString::from),
     );
     args.push(path.as_os_str().to_owned());
-    run_probe(path, &args, timeout)
+    let key = FileKey::of(path);
+    let recent = |k: &FileKey| {
+        let recent = RECENT.lock().unwrap_or_else(|e| e.into_inner());
+        // A probe that counted packets answers one that does not need to.
+        recent
+            .iter()
+            .find(|(key, counted, _)| key == k && (*counted || !count_packets))
+            .map(|(_, _, p)| p.clone())
+    };
+    if let Some(p) = key.as_ref().and_then(recent) {
+        return Ok(p);
+    }
+    crate::ffmpeg::prefetch_caps();
+    let probed = run_probe(path, &args, timeout)?;
+    // Kept only if the file did not change while it was probed.
+    if let Some(key) = key.filter(|k| FileKey::of(path).as_ref() == Some(k)) {
+        let mut recent = RECENT.lock().unwrap_or_else(|e| e.into_inner());
+        recent.retain(|(k, _, _)| *k != key);
+        if recent.len() == RECENT_PROBES {
+            recent.remove(0);
+        }
+        recent.push((key, count_packets, probed.clone()));
+    }
+    Ok(probed)
 }
 
 /// Probes a capture device opened with ffmpeg format `format` (`v4l2`, ...).

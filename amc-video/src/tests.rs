@@ -140,6 +140,33 @@ fn reads_generated_mp4() {
 }
 
 #[test]
+fn a_file_rewritten_in_place_is_probed_again() {
+    // Probes are remembered per file; one rewritten under the same name (an
+    // upload's temporary path reused, a clip re-exported) must not be
+    // answered from memory.
+    if !have_ffmpeg() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let clip = make_clip(dir.path());
+    let first = inspect(&clip, Duration::from_secs(30)).unwrap();
+    assert_eq!((first.info.width, first.info.height), (64, 48));
+    // Asked again, the same answer (from memory or not).
+    assert_eq!(
+        inspect(&clip, Duration::from_secs(30)).unwrap().info,
+        first.info
+    );
+    let other = dir.path().join("other.mp4");
+    test_clip(&other, 96, 64, 30, 0.5);
+    std::fs::rename(&other, &clip).unwrap();
+    let second = inspect(&clip, Duration::from_secs(30)).unwrap();
+    assert_eq!((second.info.width, second.info.height), (96, 64));
+    assert_eq!(second.info.frame_count, Some(15));
+    let (w, h) = frame_size(&clip, &InputOptions::default()).unwrap();
+    assert_eq!((w, h), (96, 64));
+}
+
+#[test]
 fn keeps_variable_frame_rate_timestamps() {
     if !have_ffmpeg() {
         return;

@@ -15,13 +15,14 @@
 //! ```
 //! Clip values pool the squares of all frames before the square root.
 
-use crate::color::yuv420p_channel_row_into;
-#[cfg(doc)]
-use crate::color::yuv420p_to_rgb_into;
+mod luma;
+mod sharpness;
+
 use crate::image::{y_to_unit, FrameRef, GrayImage, PixelFormat, LUMA_WEIGHTS};
-use crate::lanes::lane_sum;
 use crate::stabilizer::Telemetry;
+use luma::{FlowRows, LumaPlane};
 use serde::{Deserialize, Serialize};
+use sharpness::ChannelRows;
 
 /// Gradient magnitude under which normal flow is not measured (paper: 15/255).
 pub const NORMAL_FLOW_MIN_GRADIENT: f32 = 15.0 / 255.0;
@@ -139,12 +140,12 @@ impl MotionAccumulator {
 /// Accumulates per-frame and per-clip metrics over a stream of outputs.
 #[derive(Clone, Debug, Default)]
 pub struct MetricsAccumulator {
-    prev: GrayImage,
-    cur: GrayImage,
-    /// One row of squared gradients (reused).
-    row: Vec<f32>,
-    /// One row of one RGB channel of a planar frame (reused).
-    channel_row: Vec<u8>,
+    prev: LumaPlane,
+    cur: LumaPlane,
+    /// The interior pixels of a row with all nine neighbours valid (reused).
+    interior: Vec<u8>,
+    flow: FlowRows,
+    channels: ChannelRows,
     has_prev: bool,
     nf_sq: f64,
     nf_n: u64,
@@ -153,6 +154,16 @@ pub struct MetricsAccumulator {
     sh_sq: f64,
     sh_n: u64,
     motion: MotionAccumulator,
+}
+
+/// One frame's sums, each with its count of terms: normal flow
+/// (`|n|^2` in pixels^2), change (in `L^2`, see [`luma`]) and sharpness (in
+/// bytes, see [`sharpness::SCALE`]).
+#[derive(Clone, Copy, Default)]
+struct FrameSums {
+    flow: (f64, u64),
+    change: (u64, u64),
+    sharpness: (u64, u64),
 }
 
 /// Luma of `frame` into `dst`, `NaN` where `coverage` is 0.
@@ -185,99 +196,21 @@ pub fn masked_luma_into(frame: &FrameRef<'_>, coverage: &[u8], dst: &mut GrayIma
     }
 }
 
-/// `|Sobel / 8|^2` of the interior pixels of one row, from the rows above,
-/// at and below it (all of width `w`), into `out` (`w - 2` values; `NaN`
-/// where any neighbour is invalid). Written over equal-length slices so the
-/// compiler vectorizes it.
-fn sobel_sq_row(above: &[f32], row: &[f32], below: &[f32], out: &mut [f32]) {
+/// `out[x - 1] = 1` where all nine neighbours of interior pixel `x` are
+/// valid (`rows`: validity 0 or 1 of the rows above, at and below); returns
+/// how many are.
+#[inline(always)]
+fn interior_valid([above, at, below]: [&[u8]; 3], out: &mut [u8]) -> u64 {
     let n = out.len();
-    let (a0, a1, a2) = (&above[..n], &above[1..n + 1], &above[2..n + 2]);
-    let (l, r) = (&row[..n], &row[2..n + 2]);
-    let (b0, b1, b2) = (&below[..n], &below[1..n + 1], &below[2..n + 2]);
+    let ([a0, a1, a2], [r0, r1, r2], [b0, b1, b2]) = [above, at, below]
+        .map(|r| [&r[..n], &r[1..n + 1], &r[2..n + 2]])
+        .into();
+    let mut count = 0u32;
     for i in 0..n {
-        let gx = ((a2[i] + 2.0 * r[i] + b2[i]) - (a0[i] + 2.0 * l[i] + b0[i])) * 0.125;
-        let gy = ((b0[i] + 2.0 * b1[i] + b2[i]) - (a0[i] + 2.0 * a1[i] + a2[i])) * 0.125;
-        out[i] = gx * gx + gy * gy;
+        out[i] = a0[i] & a1[i] & a2[i] & r0[i] & r1[i] & r2[i] & b0[i] & b1[i] & b2[i];
+        count += out[i] as u32;
     }
-}
-
-/// Sum and count of the finite values of `v` (per row in `f32`, which holds
-/// a row's sum to ~1e-7; rows are added in `f64`).
-fn finite_sum(v: &[f32]) -> (f64, u64) {
-    let (s, n) = lane_sum(v, v, v, |x, _, _| (x, x.is_finite()));
-    (s as f64, n as u64)
-}
-
-/// Channel `ch` (0 R, 1 G, 2 B) of `frame` in [0, 1] into `chan` (resized),
-/// `NaN` where `coverage` is 0. A planar frame is measured in the RGB a
-/// player would show ([`yuv420p_to_rgb_into`]'s bytes), converted a row and
-/// a channel at a time into `bytes` rather than into a packed copy.
-fn channel_into(
-    frame: &FrameRef<'_>,
-    ch: usize,
-    coverage: &[u8],
-    chan: &mut GrayImage,
-    bytes: &mut Vec<u8>,
-) {
-    let (w, h) = (frame.width, frame.height);
-    chan.resize(w, h);
-    let unit = |b: u8, cv: u8| if cv == 0 { f32::NAN } else { b as f32 / 255.0 };
-    if frame.format.is_planar() {
-        bytes.resize(w, 0);
-        for (y, (o, cov)) in chan
-            .data
-            .chunks_exact_mut(w)
-            .zip(coverage.chunks_exact(w))
-            .enumerate()
-        {
-            yuv420p_channel_row_into(w, h, frame.data, ch, y, bytes);
-            for ((o, &b), &cv) in o.iter_mut().zip(bytes.iter()).zip(cov) {
-                *o = unit(b, cv);
-            }
-        }
-        return;
-    }
-    let c = frame.format.channels();
-    for ((o, px), &cv) in chan
-        .data
-        .iter_mut()
-        .zip(frame.data.chunks_exact(c))
-        .zip(coverage)
-    {
-        *o = unit(px[ch], cv);
-    }
-}
-
-/// Sum of squared Sobel magnitudes over R, G, B and the number of terms.
-fn sharpness_sums(
-    frame: &FrameRef<'_>,
-    coverage: &[u8],
-    chan: &mut GrayImage,
-    row: &mut Vec<f32>,
-    bytes: &mut Vec<u8>,
-) -> (f64, u64) {
-    let (w, h) = (frame.width, frame.height);
-    let (mut sum, mut n) = (0f64, 0u64);
-    if w < 3 || h < 3 {
-        return (sum, n);
-    }
-    row.resize(w - 2, 0.0);
-    for ch in 0..3 {
-        channel_into(frame, ch, coverage, chan, bytes);
-        for v in 1..h - 1 {
-            let d = &chan.data;
-            sobel_sq_row(
-                &d[(v - 1) * w..v * w],
-                &d[v * w..(v + 1) * w],
-                &d[(v + 1) * w..(v + 2) * w],
-                row,
-            );
-            let (s, k) = finite_sum(row);
-            sum += s;
-            n += k;
-        }
-    }
-    (sum, n)
+    count as u64
 }
 
 impl MetricsAccumulator {
@@ -295,79 +228,115 @@ impl MetricsAccumulator {
         valid_fraction: f64,
         telemetry: Option<&Telemetry>,
     ) -> FrameMetrics {
-        let (w, h) = (frame.width, frame.height);
-        masked_luma_into(frame, coverage, &mut self.cur);
+        self.cur.reset(frame);
+        let against_prev = self.has_prev
+            && (self.prev.width, self.prev.height, self.prev.scale)
+                == (self.cur.width, self.cur.height, self.cur.scale);
+        let sums = self.measure(frame, coverage, against_prev);
         let mut m = FrameMetrics {
             valid_fraction,
             ..Default::default()
         };
-        let same_size = self.has_prev && self.prev.width == w && self.prev.height == h;
-        if same_size {
-            let (mut nf, mut nf_n, mut ch, mut ch_n) = (0f64, 0u64, 0f64, 0u64);
-            let (cur, prev) = (&self.cur.data, &self.prev.data);
-            let min_g2 = NORMAL_FLOW_MIN_GRADIENT * NORMAL_FLOW_MIN_GRADIENT;
-            self.row.resize(w.saturating_sub(2), 0.0);
-            for v in 0..h {
-                let (c_row, p_row) = (&cur[v * w..(v + 1) * w], &prev[v * w..(v + 1) * w]);
-                // Frame change over every pixel valid in both frames.
-                let (s, k) = lane_sum(c_row, p_row, p_row, |a, b, _| {
-                    let it = a - b;
-                    (it * it, it.is_finite())
-                });
-                ch += s as f64;
-                ch_n += k as u64;
-                // Normal flow where the gradient (interior pixels, all nine
-                // neighbours valid) is strong enough.
-                if v == 0 || v + 1 == h || w < 3 {
-                    continue;
-                }
-                sobel_sq_row(
-                    &cur[(v - 1) * w..v * w],
-                    c_row,
-                    &cur[(v + 1) * w..(v + 2) * w],
-                    &mut self.row,
-                );
-                let (c_in, p_in) = (&c_row[1..w - 1], &p_row[1..w - 1]);
-                let (s, k) = lane_sum(&self.row, c_in, p_in, |g2, a, b| {
-                    let it = a - b;
-                    // NaN compares false: invalid pixels drop out here.
-                    let ok = g2 >= min_g2 && it.is_finite() && g2.is_finite();
-                    (it * it / g2, ok)
-                });
-                nf += s as f64;
-                nf_n += k as u64;
-            }
-            if nf_n > 0 {
-                m.rms_normal_flow = Some((nf / nf_n as f64).sqrt());
-                self.nf_sq += nf;
-                self.nf_n += nf_n;
-            }
-            if ch_n > 0 {
-                m.rms_change = Some((ch / ch_n as f64).sqrt());
-                self.ch_sq += ch;
-                self.ch_n += ch_n;
-            }
+        let (nf, nf_n) = sums.flow;
+        if nf_n > 0 {
+            m.rms_normal_flow = Some((nf / nf_n as f64).sqrt());
+            self.nf_sq += nf;
+            self.nf_n += nf_n;
         }
-        let mut chan = std::mem::take(&mut self.prev);
-        // Sharpness is defined over R, G and B: a planar frame is measured in
-        // the RGB a player would show.
-        let (s, n) = sharpness_sums(
-            frame,
-            coverage,
-            &mut chan,
-            &mut self.row,
-            &mut self.channel_row,
-        );
-        self.prev = chan;
-        if n > 0 {
-            m.sharpness = (s / n as f64).sqrt();
-            self.sh_sq += s;
-            self.sh_n += n;
+        let (ch, ch_n) = sums.change;
+        if ch_n > 0 {
+            let ch = ch as f64 / (self.cur.scale as f64).powi(2);
+            m.rms_change = Some((ch / ch_n as f64).sqrt());
+            self.ch_sq += ch;
+            self.ch_n += ch_n;
+        }
+        let (sh, sh_n) = sums.sharpness;
+        if sh_n > 0 {
+            let sh = sh as f64 / sharpness::SCALE;
+            m.sharpness = (sh / sh_n as f64).sqrt();
+            self.sh_sq += sh;
+            self.sh_n += sh_n;
         }
         std::mem::swap(&mut self.prev, &mut self.cur);
         self.has_prev = true;
         self.motion.push(valid_fraction, telemetry);
         m
+    }
+
+    /// The frame's sums, by the widest integer lanes this CPU has.
+    fn measure(&mut self, frame: &FrameRef<'_>, coverage: &[u8], against_prev: bool) -> FrameSums {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2.
+            return unsafe { self.measure_avx2(frame, coverage, against_prev) };
+        }
+        self.measure_body(frame, coverage, against_prev)
+    }
+
+    /// [`Self::measure_body`] compiled for AVX2 (the same code: the compiler
+    /// vectorizes its 16-bit loops sixteen pixels wide instead of eight).
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn measure_avx2(
+        &mut self,
+        frame: &FrameRef<'_>,
+        coverage: &[u8],
+        against_prev: bool,
+    ) -> FrameSums {
+        self.measure_body(frame, coverage, against_prev)
+    }
+
+    /// One pass down the rows: row `y`'s luma, validity and channels are
+    /// made, its change against the previous frame summed, and row `y - 1`,
+    /// whose neighbours are now all made, measured for normal flow and
+    /// sharpness.
+    #[inline(always)]
+    fn measure_body(
+        &mut self,
+        frame: &FrameRef<'_>,
+        coverage: &[u8],
+        against_prev: bool,
+    ) -> FrameSums {
+        let (w, h) = (frame.width, frame.height);
+        let mut sums = FrameSums::default();
+        let interior = w >= 3 && h >= 3;
+        self.interior.resize(w.saturating_sub(2), 0);
+        for y in 0..h {
+            self.cur.fill_row(frame, coverage, y);
+            if interior {
+                self.channels.fill_row(frame, y);
+            }
+            if against_prev {
+                let (s, k) = luma::change_sum(self.cur.row(y), self.prev.row(y));
+                sums.change.0 += s;
+                sums.change.1 += k;
+            }
+            if !interior || y < 2 {
+                continue;
+            }
+            let v = y - 1;
+            let (above, at, below) = (self.cur.row(v - 1), self.cur.row(v), self.cur.row(y));
+            let valid = interior_valid([above.1, at.1, below.1], &mut self.interior);
+            if valid == 0 {
+                continue;
+            }
+            sums.sharpness.0 += self.channels.sum(v, &self.interior);
+            sums.sharpness.1 += 3 * valid;
+            if against_prev {
+                let (s, k) = self.flow.sum(
+                    [above.0, at.0, below.0],
+                    self.prev.row(v),
+                    &self.interior,
+                    self.cur.scale,
+                );
+                sums.flow.0 += s;
+                sums.flow.1 += k;
+            }
+        }
+        sums
     }
 
     /// Metrics of everything pushed so far.
@@ -392,6 +361,131 @@ impl MetricsAccumulator {
 mod tests {
     use super::*;
     use crate::image::{Frame, PixelFormat};
+
+    /// Squared sums and counts of the metrics' definitions, one pixel at a
+    /// time in `f64`: `[normal flow, change, sharpness]`.
+    fn definitions(prev: (&Frame, &[u8]), cur: (&Frame, &[u8])) -> [(f64, u64); 3] {
+        let (w, h) = (cur.0.width, cur.0.height);
+        let rgb = |f: &Frame| -> Vec<f64> {
+            let mut packed = Vec::new();
+            let (bytes, c) = if f.format.is_planar() {
+                crate::color::yuv420p_to_rgb_into(w, h, &f.data, false, 3, &mut packed);
+                (&packed[..], 3)
+            } else {
+                (&f.data[..], f.format.channels())
+            };
+            (0..w * h)
+                .flat_map(|i| (0..3).map(move |ch| bytes[i * c + ch] as f64 / 255.0))
+                .collect()
+        };
+        let luma = |f: &Frame| -> Vec<f64> {
+            if f.format.is_planar() {
+                f.data[..w * h]
+                    .iter()
+                    .map(|&y| (y.clamp(16, 235) - 16) as f64 / 219.0)
+                    .collect()
+            } else {
+                let c = rgb(f);
+                (0..w * h)
+                    .map(|i| 0.299 * c[3 * i] + 0.587 * c[3 * i + 1] + 0.114 * c[3 * i + 2])
+                    .collect()
+            }
+        };
+        let sobel = |img: &dyn Fn(usize, usize) -> f64, x: usize, y: usize| {
+            let p = |dx: usize, dy: usize| img(x + dx - 1, y + dy - 1);
+            let gx = (p(2, 0) + 2.0 * p(2, 1) + p(2, 2)) - (p(0, 0) + 2.0 * p(0, 1) + p(0, 2));
+            let gy = (p(0, 2) + 2.0 * p(1, 2) + p(2, 2)) - (p(0, 0) + 2.0 * p(1, 0) + p(2, 0));
+            (gx / 8.0).powi(2) + (gy / 8.0).powi(2)
+        };
+        let (lp, lc, c) = (luma(prev.0), luma(cur.0), rgb(cur.0));
+        let valid = |cov: &[u8], x: usize, y: usize| cov[y * w + x] != 0;
+        let mut out = [(0.0, 0u64); 3];
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                let both = valid(cur.1, x, y) && valid(prev.1, x, y);
+                if both {
+                    out[1].0 += (lc[i] - lp[i]).powi(2);
+                    out[1].1 += 1;
+                }
+                let inside = x > 0 && y > 0 && x + 1 < w && y + 1 < h;
+                if !inside || !(y - 1..=y + 1).all(|v| (x - 1..=x + 1).all(|u| valid(cur.1, u, v)))
+                {
+                    continue;
+                }
+                for ch in 0..3 {
+                    out[2].0 += sobel(&|u, v| c[3 * (v * w + u) + ch], x, y);
+                    out[2].1 += 1;
+                }
+                let g2 = sobel(&|u, v| lc[v * w + u], x, y);
+                if both && g2 >= (15.0f64 / 255.0).powi(2) {
+                    out[0].0 += (lc[i] - lp[i]).powi(2) / g2;
+                    out[0].1 += 1;
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn sums_are_the_definitions() {
+        // Smooth ramps (gradients either side of the normal-flow threshold)
+        // with texture, the extreme bytes (the largest Sobel responses),
+        // odd sizes, holes in the coverage; planar and packed.
+        for (w, h) in [(3usize, 3usize), (37, 21), (1100, 5)] {
+            for format in [PixelFormat::Yuv420p, PixelFormat::Rgb8, PixelFormat::Rgba8] {
+                let frame = |shift: usize| {
+                    let mut f = Frame::new(w, h, format);
+                    for (i, b) in f.data.iter_mut().enumerate() {
+                        let i = i + shift;
+                        *b = match i % 11 {
+                            0..=2 => 255 * ((i / 3) % 2) as u8,
+                            3..=6 => (i * 31 + (i * i) % 251) as u8,
+                            _ => (i / 5 % 200) as u8 + 20,
+                        };
+                    }
+                    f
+                };
+                let coverage = |shift: usize| -> Vec<u8> {
+                    (0..w * h)
+                        .map(|i| u8::from((i + shift) % 13 != 5) * 3)
+                        .collect()
+                };
+                let (a, b) = (frame(0), frame(7));
+                let (ca, cb) = (coverage(0), coverage(4));
+                let mut acc = MetricsAccumulator::new();
+                acc.push(&a.as_ref(), &ca, 1.0, None);
+                let m = acc.push(&b.as_ref(), &cb, 1.0, None);
+                let [nf, ch, sh] = definitions((&a, &ca), (&b, &cb));
+                let rms = |(s, n): (f64, u64)| (n > 0).then(|| (s / n as f64).sqrt());
+                // Planar luma is exact (normal flow's ratios are taken in
+                // `f32`); packed luma is held to 12 bits.
+                let tol = if format.is_planar() { 1e-6 } else { 2e-3 };
+                let close = |got: Option<f64>, want: Option<f64>| match (got, want) {
+                    (Some(g), Some(w)) => (g - w).abs() <= tol * w.max(1e-3),
+                    (g, w) => g == w,
+                };
+                let what = format!("{w}x{h} {format:?}");
+                assert!(
+                    close(m.rms_change, rms(ch)),
+                    "{what}: change {:?} vs {:?}",
+                    m.rms_change,
+                    rms(ch)
+                );
+                assert!(
+                    close(m.rms_normal_flow, rms(nf)),
+                    "{what}: flow {:?} vs {:?}",
+                    m.rms_normal_flow,
+                    rms(nf)
+                );
+                assert!(
+                    (m.sharpness - rms(sh).unwrap_or(0.0)).abs() <= 1e-9,
+                    "{what}: sharpness"
+                );
+                assert_eq!(acc.summary().frames, 2);
+            }
+        }
+    }
 
     /// A horizontal ramp `I(u) = a u` shifted by `d` pixels has `I_t = -a d` and
     /// `|grad I| = a`: normal flow exactly `d`.
