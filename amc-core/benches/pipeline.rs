@@ -322,20 +322,12 @@ fn bench_render(c: &mut Criterion) {
                     let plane =
                         |i: usize, p: usize| &yuv[frame(i)].data[[0, w * h, w * h + cw * ch][p]..];
                     luma.average_plane_into(|i| plane(i, 0), w, h, &rots, oy, &mut coverage, 0);
-                    chroma.average_plane_into(
-                        |i| plane(i, 1),
+                    chroma.average_plane_pair_into(
+                        |i| (plane(i, 1), plane(i, 2)),
                         cw,
                         ch,
                         &rots,
                         ou,
-                        &mut coverage,
-                        128,
-                    );
-                    chroma.average_plane_into(
-                        |i| plane(i, 2),
-                        cw,
-                        ch,
-                        &rots,
                         ov,
                         &mut coverage,
                         128,

@@ -702,17 +702,16 @@ impl Rendering {
                     &mut self.acc.count,
                     16,
                 );
-                for (at, out) in [(u_at, ou), (v_at, ov)] {
-                    self.chroma.average_plane_into(
-                        |i| plane(i, at),
-                        cw,
-                        ch,
-                        &self.rotations,
-                        out,
-                        &mut self.chroma_cov,
-                        128,
-                    );
-                }
+                self.chroma.average_plane_pair_into(
+                    |i| (plane(i, u_at), plane(i, v_at)),
+                    cw,
+                    ch,
+                    &self.rotations,
+                    ou,
+                    ov,
+                    &mut self.chroma_cov,
+                    128,
+                );
                 complete as f64 / (ow * oh).max(1) as f64
             } else {
                 self.warper.average_into(

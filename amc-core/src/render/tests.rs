@@ -302,17 +302,22 @@ fn render_planar_deghost(
         &mut cov,
         16,
     );
-    for (at, plane) in [(n, ou), (n + nc, ov)] {
-        chroma.average_plane_into(
-            |i| &frames[i].data[at..],
-            sc.width,
-            sc.height,
-            &rots,
-            plane,
-            &mut ccov,
-            128,
-        );
-    }
+    // U and V as a pair (one pass of the vector kernels; the scalar and
+    // ghost-free paths take them in turn).
+    let chroma_full = chroma.average_plane_pair_into(
+        |i| (&frames[i].data[n..], &frames[i].data[n + nc..]),
+        sc.width,
+        sc.height,
+        &rots,
+        ou,
+        ov,
+        &mut ccov,
+        128,
+    );
+    assert_eq!(
+        chroma_full,
+        ccov.iter().filter(|&&c| c as usize == rots.len()).count()
+    );
     (img.data, cov, full)
 }
 

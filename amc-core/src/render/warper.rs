@@ -131,6 +131,8 @@ pub struct Warper {
     /// that a warmed-up render allocates nothing).
     #[cfg_attr(not(feature = "parallel"), allow(dead_code))]
     band_scratch: Vec<RowScratch>,
+    /// [`Warper::average_plane_pair_into`]'s rows of both planes (reused).
+    pair_rows: Vec<u8>,
 }
 
 /// Most frames one output may average (the range of `n_avg`).
@@ -189,6 +191,7 @@ impl Warper {
             deghost: None,
             scratch: RowScratch::default(),
             band_scratch: Vec::new(),
+            pair_rows: Vec::new(),
         }
     }
 
@@ -360,8 +363,17 @@ impl Warper {
 
     /// Runs the vector kernel over the first `n8` pixels of row `v` of every
     /// frame of `pass`, into `scratch.sums` (three channels, or one when
-    /// `gray`) and `scratch.count`, after filling the coordinate tables.
-    fn accumulate_row(&self, pass: &Pass<'_, '_>, v: usize, scratch: &mut RowScratch, gray: bool) {
+    /// `gray`) and `scratch.count`, after filling the coordinate tables. With
+    /// `pair` (a second plane of the same geometry and maps, gray), its sums
+    /// go to `scratch.sums[1]`.
+    fn accumulate_row(
+        &self,
+        pass: &Pass<'_, '_>,
+        pair: Option<&Pass<'_, '_>>,
+        v: usize,
+        scratch: &mut RowScratch,
+        gray: bool,
+    ) {
         if pass.tables {
             for (f, map) in pass.maps.iter().enumerate() {
                 self.fill_row(map, v, &mut scratch.xs[f], &mut scratch.ys[f]);
@@ -375,10 +387,22 @@ impl Warper {
         let [r, g, b] = &mut scratch.sums;
         // SAFETY: `self.kernel` comes from `Kernel::detect` (vectorized only when
         // `n8 > 0`, a multiple of 8); `pass` checked every buffer's padding (the
-        // whole frame or plane plus `FRAME_PADDING` bytes); all row buffers hold
-        // `ow >= n8` values.
+        // whole frame or plane plus `FRAME_PADDING` bytes), and so did `pair`
+        // (the same `n8`); all row buffers hold `ow >= n8` values.
         unsafe {
-            if gray {
+            if let Some(pair) = pair {
+                debug_assert!(gray && pair.n8 == pass.n8 && pair.datas.len() >= n);
+                self.kernel.accumulate_row_gray_pair(
+                    &pass.datas[..n],
+                    &pair.datas[..n],
+                    &pass.geom,
+                    &coords[..n],
+                    pass.n8,
+                    r,
+                    g,
+                    &mut scratch.count,
+                );
+            } else if gray {
                 self.kernel.accumulate_row_gray(
                     &pass.datas[..n],
                     &pass.geom,
@@ -602,7 +626,7 @@ impl Warper {
                     w.merge_row(&pass, v, scratch, false, deghost);
                     finish_merged_rgb_row(w.kernel, scratch, out_row, cov_row, channels, full)
                 } else {
-                    w.accumulate_row(&pass, v, scratch, false);
+                    w.accumulate_row(&pass, None, v, scratch, false);
                     finish_rgb_row(w.kernel, &pass, scratch, out_row, cov_row, channels, full)
                 }
             },
@@ -655,10 +679,91 @@ impl Warper {
                 w.merge_row(&pass, v, scratch, true, deghost);
                 finish_merged_gray_row(scratch, out_row, cov_row, full, fill)
             } else {
-                w.accumulate_row(&pass, v, scratch, true);
-                finish_gray_row(w.kernel, &pass, scratch, out_row, cov_row, full, fill)
+                w.accumulate_row(&pass, None, v, scratch, true);
+                finish_gray_row(w.kernel, &pass, scratch, 0, out_row, cov_row, full, fill)
             }
         });
+        self.maps = maps;
+        complete
+    }
+
+    /// [`Warper::average_plane_into`] of two planes of one size through the
+    /// same rotations (the U and V planes of 4:2:0 frames): `planes_at(i)` is
+    /// frame `i`'s pair, the averages go to `out_a` and `out_b`, the covering
+    /// frames (the same for both) to `coverage`. The vector kernels sample both
+    /// planes along a row at once, finding each pixel's taps once (see
+    /// [`Kernel::accumulate_row_gray_pair`]); ghost-free averaging and
+    /// unpadded planes take the planes one after the other. Returns how many
+    /// pixels every frame covers.
+    #[allow(clippy::too_many_arguments)]
+    pub fn average_plane_pair_into<'a, F: Fn(usize) -> (&'a [u8], &'a [u8])>(
+        &mut self,
+        planes_at: F,
+        width: usize,
+        height: usize,
+        rotations: &[Matrix3<f64>],
+        out_a: &mut [u8],
+        out_b: &mut [u8],
+        coverage: &mut Vec<u8>,
+        fill: u8,
+    ) -> usize {
+        let (ow, oh) = (self.out.width, self.out.height);
+        let n_frames = rotations.len().min(MAX_FRAMES);
+        let mut datas: [[&[u8]; MAX_FRAMES]; 2] = [[&[]; MAX_FRAMES]; 2];
+        for f in 0..n_frames {
+            let (a, b) = planes_at(f);
+            for (d, p) in datas.iter_mut().zip([a, b]) {
+                if p.len() >= width * height {
+                    d[f] = p;
+                }
+            }
+        }
+        let padded = |d: &[&[u8]]| d.iter().all(|p| p.len() >= width * height + FRAME_PADDING);
+        let fused = self.deghost.filter(|_| n_frames > 1).is_none()
+            && self.kernel.is_vectorized()
+            && padded(&datas[0][..n_frames])
+            && padded(&datas[1][..n_frames]);
+        if !fused {
+            let [a, b] = datas;
+            let complete =
+                self.average_plane_into(|i| a[i], width, height, rotations, out_a, coverage, fill);
+            self.average_plane_into(|i| b[i], width, height, rotations, out_b, coverage, fill);
+            return complete;
+        }
+        coverage.clear();
+        coverage.resize(ow * oh, 0);
+        let maps = self.prepare_maps(rotations);
+        let full = rotations.len() as u8;
+        let geom = Geometry::plane(width, height, 1);
+        let pass_a = self.pass(&maps[..n_frames], &datas[0][..n_frames], geom, height);
+        let pass_b = self.pass(&maps[..n_frames], &datas[1][..n_frames], geom, height);
+        // The pair's rows side by side in one buffer, so that the rows can be
+        // shared out among threads as one image; then copied to their planes.
+        let mut rows = std::mem::take(&mut self.pair_rows);
+        rows.resize(2 * ow * oh, 0);
+        let complete = self.for_each_row(
+            &mut rows,
+            2 * ow,
+            coverage,
+            |w, scratch, v, out_row, cov_row| {
+                scratch.fit(n_frames, ow, pass_a.tables, false);
+                w.accumulate_row(&pass_a, Some(&pass_b), v, scratch, true);
+                let (row_a, row_b) = out_row.split_at_mut(ow);
+                let complete =
+                    finish_gray_row(w.kernel, &pass_a, scratch, 0, row_a, cov_row, full, fill);
+                finish_gray_row(w.kernel, &pass_b, scratch, 1, row_b, cov_row, full, fill);
+                complete
+            },
+        );
+        for ((pair, a), b) in rows
+            .chunks_exact(2 * ow)
+            .zip(out_a.chunks_exact_mut(ow))
+            .zip(out_b.chunks_exact_mut(ow))
+        {
+            a.copy_from_slice(&pair[..ow]);
+            b.copy_from_slice(&pair[ow..]);
+        }
+        self.pair_rows = rows;
         self.maps = maps;
         complete
     }
@@ -714,7 +819,7 @@ impl Warper {
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.fit(1, ow, pass.tables, false);
         for v in 0..oh {
-            self.accumulate_row(&pass, v, &mut scratch, false);
+            self.accumulate_row(&pass, None, v, &mut scratch, false);
             let vals = &mut slot.value[3 * v * ow..3 * (v + 1) * ow];
             let cov = &mut slot.covered[v * ow..(v + 1) * ow];
             let [r, g, b] = &scratch.sums;
@@ -764,7 +869,7 @@ impl Warper {
             .zip(covered.chunks_mut(ow))
             .enumerate()
         {
-            self.accumulate_row(&pass, v, &mut scratch, true);
+            self.accumulate_row(&pass, None, v, &mut scratch, true);
             for u in 0..pass.n8 {
                 vals[u] = scratch.sums[0][u] as u16;
                 cov[u] = scratch.count[u] as u8;
@@ -844,17 +949,19 @@ fn finish_rgb_row(
 
 /// Writes one single-channel output row (uncovered pixels `fill`); returns the
 /// pixels every frame covers.
+#[allow(clippy::too_many_arguments)]
 fn finish_gray_row(
     kernel: Kernel,
     pass: &Pass<'_, '_>,
     scratch: &RowScratch,
+    sums: usize,
     out_row: &mut [u8],
     cov_row: &mut [u8],
     full: u8,
     fill: u8,
 ) -> usize {
     let (n8, ow) = (pass.n8, cov_row.len());
-    let (sum, n) = (&scratch.sums[0][..n8], &scratch.count[..n8]);
+    let (sum, n) = (&scratch.sums[sums][..n8], &scratch.count[..n8]);
     // SAFETY: `n8 > 0` only with a vectorized kernel from `Kernel::detect`
     // (a multiple of 8), and every row buffer holds `ow >= n8` values.
     let finished =

@@ -86,6 +86,57 @@ pub(super) unsafe fn accumulate_row_gray(
     }
 }
 
+/// [`accumulate_row_gray`] of two planes of one geometry at once (the U and
+/// V planes of 4:2:0 frames): `acc_a` and `acc_b` from `datas_a` and
+/// `datas_b`, one `count`. Each chunk's coordinates, taps and window are
+/// found once for both planes; only the loads and the arithmetic after them
+/// are done twice.
+///
+/// # Safety
+/// As [`accumulate_row_gray`], for both planes' data.
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe fn accumulate_row_gray_pair(
+    datas_a: &[&[u8]],
+    datas_b: &[&[u8]],
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    n8: usize,
+    acc_a: &mut [u32],
+    acc_b: &mut [u32],
+    count: &mut [u32],
+) {
+    debug_assert!(n8 & 7 == 0 && datas_a.len() == coords.len() && datas_b.len() == coords.len());
+    debug_assert!(acc_a.len() >= n8 && acc_b.len() >= n8 && count.len() >= n8);
+    let one = _mm512_set1_epi32(1);
+    let mut u = 0;
+    while u < n8 {
+        let lanes = step_lanes(n8, u);
+        let (mut sum_a, mut sum_b, mut sum_n) = (
+            _mm512_setzero_si512(),
+            _mm512_setzero_si512(),
+            _mm512_setzero_si512(),
+        );
+        for ((a, b), coord) in datas_a.iter().zip(datas_b).zip(coords) {
+            let Some(t) = taps16(&g, row_coords16(coord, u, lanes), lanes) else {
+                continue;
+            };
+            let ((top_a, bot_a), (top_b, bot_b)) =
+                match window(&g, &t, falls(coord, u), a.len().min(b.len())) {
+                    Some(w) => (window_fetch(a, &g, &w), window_fetch(b, &g, &w)),
+                    None => (gather_pairs(a, &g, &t), gather_pairs(b, &g, &t)),
+                };
+            sum_a = _mm512_add_epi32(sum_a, interpolate(&t, top_a, bot_a));
+            sum_b = _mm512_add_epi32(sum_b, interpolate(&t, top_b, bot_b));
+            sum_n = _mm512_mask_add_epi32(sum_n, t.mask, sum_n, one);
+        }
+        _mm512_mask_storeu_epi32(acc_a.as_mut_ptr().add(u) as *mut i32, lanes, sum_a);
+        _mm512_mask_storeu_epi32(acc_b.as_mut_ptr().add(u) as *mut i32, lanes, sum_b);
+        _mm512_mask_storeu_epi32(count.as_mut_ptr().add(u) as *mut i32, lanes, sum_n);
+        u += 16;
+    }
+}
+
 /// Finishes the first `n8` pixels (a multiple of 8) of a single-channel output
 /// row from [`accumulate_row_gray`]'s sums: `out[u] = round(sum / (256 n))`
 /// computed as the scalar `average` does (the same `f32` operations, and its
@@ -217,6 +268,23 @@ unsafe fn window_pairs(
     t: &Taps16,
     falls: bool,
 ) -> Option<(__m512i, __m512i)> {
+    let w = window(g, t, falls, data.len())?;
+    Some(window_fetch(data, g, &w))
+}
+
+/// Where a chunk's taps lie in a plane: the window's first byte, each lane's
+/// byte offsets in it, and the lanes whose top tap is on its second row.
+struct Window {
+    start: usize,
+    index: __m512i,
+    lower: __mmask16,
+}
+
+/// The [`Window`] of taps `t` in planes of `len` bytes (see [`window_pairs`]);
+/// it depends on the geometry alone, so planes of one geometry share it.
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[inline]
+unsafe fn window(g: &KernelGeometry, t: &Taps16, falls: bool, len: usize) -> Option<Window> {
     // The window starts at lane 0's taps, [`WINDOW_SLACK`] columns to the
     // left, on its top row or the row above where `y` falls along the row.
     // Lane 0 alone: taking the run's far end too (two more extractions and
@@ -231,36 +299,45 @@ unsafe fn window_pairs(
     {
         return None;
     }
-    // Lanes whose top tap is on the window's second row.
-    let lower = _mm512_mask_cmpneq_epi32_mask(t.mask, down, _mm512_setzero_si512());
     // All three rows are read, whether or not a lane needs the third: a
     // branch on it was mispredicted on about a third of the chunks under a
     // slight roll, and cost more than the load.
-    let stride = g.stride as usize;
-    let start = y_win as usize * stride + x_win as usize;
-    if start + 2 * stride + 64 > data.len() {
+    let start = y_win as usize * g.stride as usize + x_win as usize;
+    if start + 2 * g.stride as usize + 64 > len {
         return None;
     }
+    Some(Window {
+        start,
+        // Lanes whose top tap is on the window's second row.
+        lower: _mm512_mask_cmpneq_epi32_mask(t.mask, down, _mm512_setzero_si512()),
+        // Byte 0 of each lane: the left tap's offset; byte 2: the right one's.
+        index: _mm512_or_si512(
+            off,
+            _mm512_slli_epi32::<16>(_mm512_add_epi32(off, _mm512_set1_epi32(1))),
+        ),
+    })
+}
+
+/// The taps' pairs of the top and bottom rows, out of window `w` of `data`.
+#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[inline]
+unsafe fn window_fetch(data: &[u8], g: &KernelGeometry, w: &Window) -> (__m512i, __m512i) {
+    let stride = g.stride as usize;
     // The row below the window, a line ahead: what the next output row's
     // window at this place will read. Without it, those lines come from
     // beyond L2 when they are first read (the frames of one output are ~6x
     // the size of L2) and the kernel waits on them.
-    let ahead = data.as_ptr().wrapping_add(start + 3 * stride + 64);
+    let ahead = data.as_ptr().wrapping_add(w.start + 3 * stride + 64);
     _mm_prefetch::<_MM_HINT_T0>(ahead as *const i8);
-    // Byte 0 of each lane: the left tap's offset; byte 2: the right one's.
-    let index = _mm512_or_si512(
-        off,
-        _mm512_slli_epi32::<16>(_mm512_add_epi32(off, _mm512_set1_epi32(1))),
-    );
     let row = |r: usize| {
-        let bytes = _mm512_loadu_si512(data.as_ptr().add(start + r * stride) as *const _);
-        _mm512_maskz_permutexvar_epi8(PAIR_BYTES, index, bytes)
+        let bytes = _mm512_loadu_si512(data.as_ptr().add(w.start + r * stride) as *const _);
+        _mm512_maskz_permutexvar_epi8(PAIR_BYTES, w.index, bytes)
     };
     let (first, second, third) = (row(0), row(1), row(2));
-    Some((
-        _mm512_mask_blend_epi32(lower, first, second),
-        _mm512_mask_blend_epi32(lower, second, third),
-    ))
+    (
+        _mm512_mask_blend_epi32(w.lower, first, second),
+        _mm512_mask_blend_epi32(w.lower, second, third),
+    )
 }
 
 /// The taps' pairs `(left, right)` of the top and bottom rows as 16-bit words,

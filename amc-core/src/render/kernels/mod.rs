@@ -231,6 +231,43 @@ impl Kernel {
         }
     }
 
+    /// [`Kernel::accumulate_row_gray`] of two planes of one geometry (the U
+    /// and V planes of 4:2:0 frames) into `acc_a` and `acc_b`, one `count`.
+    /// The AVX-512 kernel finds each chunk's taps once for both; the others
+    /// run the plane kernel twice.
+    ///
+    /// # Safety
+    /// As [`Kernel::accumulate_row_gray`], for both planes' data.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub(crate) unsafe fn accumulate_row_gray_pair(
+        self,
+        datas_a: &[&[u8]],
+        datas_b: &[&[u8]],
+        geom: &Geometry,
+        coords: &[RowCoords<'_>],
+        n: usize,
+        acc_a: &mut [u32],
+        acc_b: &mut [u32],
+        count: &mut [u32],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if self == Kernel::Avx512 {
+            return avx512::accumulate_row_gray_pair(
+                datas_a,
+                datas_b,
+                common::KernelGeometry::of(geom),
+                coords,
+                n,
+                acc_a,
+                acc_b,
+                count,
+            );
+        }
+        self.accumulate_row_gray(datas_a, geom, coords, n, acc_a, count);
+        self.accumulate_row_gray(datas_b, geom, coords, n, acc_b, count);
+    }
+
     /// The ghost-free form of [`Kernel::accumulate_row`] (see
     /// [`crate::render::robust`]): for `u in 0..n`, with the last frame the
     /// reference, `sum_{r,g,b}[u] = sum_f w_f sample_f`, `weight[u] = sum_f w_f`
