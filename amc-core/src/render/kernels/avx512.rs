@@ -1,4 +1,4 @@
-//! The x86-64 AVX-512 plane kernel (AVX-512 F, BW and VBMI, chosen at run
+//! The x86-64 AVX-512 plane kernel (AVX-512 F, BW, VL and VBMI, chosen at run
 //! time): the single-channel rows of planar frames, sixteen output pixels at
 //! a time, bit-exact with the scalar reference in `scalar.rs`.
 //!
@@ -44,6 +44,7 @@ fn step_lanes(n8: usize, u: usize) -> __mmask16 {
 pub(super) fn available() -> bool {
     is_x86_feature_detected!("avx512f")
         && is_x86_feature_detected!("avx512bw")
+        && is_x86_feature_detected!("avx512vl")
         && is_x86_feature_detected!("avx512vbmi")
 }
 
@@ -53,11 +54,11 @@ pub(super) fn available() -> bool {
 /// step of eight runs with the upper lanes masked off.
 ///
 /// # Safety
-/// The CPU must support AVX-512 F, BW and VBMI ([`available`]); every
+/// The CPU must support AVX-512 F, BW, VL and VBMI ([`available`]); every
 /// `datas[f]` must hold the whole plane plus 2 readable bytes
 /// ([`super::FRAME_PADDING`] covers it); coordinate tables and the outputs
 /// must have at least `n8` elements.
-#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
 pub(super) unsafe fn accumulate_row_gray(
     datas: &[&[u8]],
     g: KernelGeometry,
@@ -94,7 +95,7 @@ pub(super) unsafe fn accumulate_row_gray(
 ///
 /// # Safety
 /// As [`accumulate_row_gray`], for both planes' data.
-#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
 #[allow(clippy::too_many_arguments)]
 pub(super) unsafe fn accumulate_row_gray_pair(
     datas_a: &[&[u8]],
@@ -146,7 +147,7 @@ pub(super) unsafe fn accumulate_row_gray_pair(
 /// # Safety
 /// As [`accumulate_row_gray`]; `sum`, `count`, `out` and `coverage` must hold
 /// at least `n8` values.
-#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
 pub(super) unsafe fn finish_row_gray(
     sum: &[u32],
     count: &[u32],
@@ -205,7 +206,7 @@ pub(super) unsafe fn finish_row_gray(
 /// The 8.8 fixed-point samples of output pixels `u..u + 16` of one plane (0 in
 /// lanes outside it or outside `lanes`) and the lanes inside it; `None` when
 /// no lane is inside.
-#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
 #[inline]
 unsafe fn sample_gray16(
     data: &[u8],
@@ -224,7 +225,7 @@ unsafe fn sample_gray16(
 /// and bottom rows: `(top by + bot ay + 128) >> 8` with `top = left bx + right
 /// ax`, written as `256 top + (bot - top) ay`, the same integer with one
 /// multiply instead of two; 0 in lanes outside the mask.
-#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
 #[inline]
 unsafe fn interpolate(t: &Taps16, top: __m512i, bot: __m512i) -> __m512i {
     // Lanes outside the mask get zero weights, so their value is
@@ -260,7 +261,7 @@ fn falls(coord: &RowCoords<'_>, u: usize) -> bool {
 /// `None` when they do not fit (then [`gather_pairs`] fetches them): every
 /// lane's left tap within [`WINDOW_SPAN`] columns of the window's start, and
 /// every top tap on one of two neighbouring rows.
-#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
 #[inline]
 unsafe fn window_pairs(
     data: &[u8],
@@ -282,7 +283,7 @@ struct Window {
 
 /// The [`Window`] of taps `t` in planes of `len` bytes (see [`window_pairs`]);
 /// it depends on the geometry alone, so planes of one geometry share it.
-#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
 #[inline]
 unsafe fn window(g: &KernelGeometry, t: &Taps16, falls: bool, len: usize) -> Option<Window> {
     // The window starts at lane 0's taps, [`WINDOW_SLACK`] columns to the
@@ -319,7 +320,7 @@ unsafe fn window(g: &KernelGeometry, t: &Taps16, falls: bool, len: usize) -> Opt
 }
 
 /// The taps' pairs of the top and bottom rows, out of window `w` of `data`.
-#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
 #[inline]
 unsafe fn window_fetch(data: &[u8], g: &KernelGeometry, w: &Window) -> (__m512i, __m512i) {
     let stride = g.stride as usize;
@@ -342,7 +343,7 @@ unsafe fn window_fetch(data: &[u8], g: &KernelGeometry, w: &Window) -> (__m512i,
 
 /// The taps' pairs `(left, right)` of the top and bottom rows as 16-bit words,
 /// gathered: one 32-bit load per lane and row, from the tap's byte on.
-#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
 #[inline]
 unsafe fn gather_pairs(data: &[u8], g: &KernelGeometry, t: &Taps16) -> (__m512i, __m512i) {
     let stride = _mm512_set1_epi32(g.stride);
@@ -365,7 +366,7 @@ unsafe fn gather_pairs(data: &[u8], g: &KernelGeometry, t: &Taps16) -> (__m512i,
 /// Source coordinates of output pixels `u..u + 16` of one frame's row (lanes
 /// outside `lanes` are not read): loaded from its table, or evaluated from its
 /// homography exactly as the scalar formula does (no FMA, same order).
-#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
 #[inline]
 unsafe fn row_coords16(coord: &RowCoords<'_>, u: usize, lanes: __mmask16) -> (__m512, __m512) {
     match *coord {
@@ -414,7 +415,7 @@ struct Taps16 {
 
 /// [`Taps16`] of the points `(sx, sy)` of the lanes in `lanes`; `None` when
 /// no lane is inside (NaN compares false: NaN points are outside).
-#[target_feature(enable = "avx512f,avx512bw,avx512vbmi")]
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
 #[inline]
 unsafe fn taps16(
     g: &KernelGeometry,

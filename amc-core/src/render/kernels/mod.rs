@@ -42,7 +42,7 @@ pub fn avx2_available() -> bool {
     }
 }
 
-/// Whether the AVX-512 plane kernel can run on this CPU (AVX-512 F, BW and VBMI).
+/// Whether the AVX-512 plane kernel can run on this CPU (AVX-512 F, BW, VL and VBMI).
 pub fn avx512_available() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
@@ -68,7 +68,7 @@ pub enum Kernel {
     /// x86-64 AVX2, eight pixels at a time with gathers (`avx2.rs`).
     #[cfg(target_arch = "x86_64")]
     Avx2,
-    /// x86-64 AVX-512 (F, BW, VBMI): the planes' rows sixteen pixels at a
+    /// x86-64 AVX-512 (F, BW, VL, VBMI): the planes' rows sixteen pixels at a
     /// time, their taps picked by byte permutes (`avx512.rs`); interleaved and
     /// ghost-free rows run the AVX2 kernel, which every such CPU has.
     #[cfg(target_arch = "x86_64")]
