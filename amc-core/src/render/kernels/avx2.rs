@@ -134,40 +134,66 @@ unsafe fn sample_gray8(
     coord: &RowCoords<'_>,
     u: usize,
 ) -> Option<(__m256i, __m256i)> {
-    let stride = _mm256_set1_epi32(g.stride);
-    let i128 = _mm256_set1_epi32(128);
-    let byte = _mm256_set1_epi32(0xFF);
-    let hi_byte = _mm256_set1_epi32(0xFF_0000);
-    let base = data.as_ptr() as *const i32;
-    let Taps8 {
-        mask,
-        x0,
-        y0,
-        ax,
-        ay,
-        bx,
-        by,
-    } = taps8(g, row_coords8(coord, u))?;
-    let i0 = _mm256_add_epi32(_mm256_mullo_epi32(y0, stride), x0);
-    let i1 = _mm256_add_epi32(i0, stride);
-    let z = _mm256_setzero_si256();
-    let p0 = _mm256_mask_i32gather_epi32::<1>(z, base, i0, mask);
-    let p1 = _mm256_mask_i32gather_epi32::<1>(z, base, i1, mask);
-    // Bytes (left, right) of each dword spread to 16-bit lanes for madd.
-    let wx = _mm256_or_si256(bx, _mm256_slli_epi32::<16>(ax));
-    let pair = |p: __m256i| {
-        _mm256_or_si256(
-            _mm256_and_si256(p, byte),
-            _mm256_and_si256(_mm256_slli_epi32::<8>(p), hi_byte),
-        )
-    };
-    let top = _mm256_madd_epi16(pair(p0), wx);
-    let bot = _mm256_madd_epi16(pair(p1), wx);
-    let v = _mm256_add_epi32(
-        _mm256_add_epi32(_mm256_mullo_epi32(top, by), _mm256_mullo_epi32(bot, ay)),
-        i128,
-    );
-    Some((_mm256_and_si256(_mm256_srli_epi32::<8>(v), mask), mask))
+    let t = PlaneTaps8::of(g, taps8(g, row_coords8(coord, u))?);
+    Some((t.sample(data), t.mask))
+}
+
+/// [`Taps8`] as a plane's kernel uses them: where each lane's taps start in
+/// the plane (top and bottom row) and its weights; the same for every plane
+/// of one geometry.
+struct PlaneTaps8 {
+    mask: __m256i,
+    top: __m256i,
+    bottom: __m256i,
+    /// `bx` in the low 16 bits of each lane, `ax` in the high ones.
+    wx: __m256i,
+    ay: __m256i,
+    by: __m256i,
+}
+
+impl PlaneTaps8 {
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn of(g: &KernelGeometry, t: Taps8) -> Self {
+        let top = _mm256_add_epi32(_mm256_mullo_epi32(t.y0, _mm256_set1_epi32(g.stride)), t.x0);
+        Self {
+            mask: t.mask,
+            top,
+            bottom: _mm256_add_epi32(top, _mm256_set1_epi32(g.stride)),
+            wx: _mm256_or_si256(t.bx, _mm256_slli_epi32::<16>(t.ax)),
+            ay: t.ay,
+            by: t.by,
+        }
+    }
+
+    /// The samples of `data` (0 in lanes outside the mask): each lane's two
+    /// dwords gathered, their bytes (left, right) spread to 16-bit lanes for
+    /// `madd`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn sample(&self, data: &[u8]) -> __m256i {
+        let base = data.as_ptr() as *const i32;
+        let z = _mm256_setzero_si256();
+        let p0 = _mm256_mask_i32gather_epi32::<1>(z, base, self.top, self.mask);
+        let p1 = _mm256_mask_i32gather_epi32::<1>(z, base, self.bottom, self.mask);
+        let (byte, hi_byte) = (_mm256_set1_epi32(0xFF), _mm256_set1_epi32(0xFF_0000));
+        let pair = |p: __m256i| {
+            _mm256_or_si256(
+                _mm256_and_si256(p, byte),
+                _mm256_and_si256(_mm256_slli_epi32::<8>(p), hi_byte),
+            )
+        };
+        let top = _mm256_madd_epi16(pair(p0), self.wx);
+        let bot = _mm256_madd_epi16(pair(p1), self.wx);
+        let v = _mm256_add_epi32(
+            _mm256_add_epi32(
+                _mm256_mullo_epi32(top, self.by),
+                _mm256_mullo_epi32(bot, self.ay),
+            ),
+            _mm256_set1_epi32(128),
+        );
+        _mm256_and_si256(_mm256_srli_epi32::<8>(v), self.mask)
+    }
 }
 
 /// The ghost-free weights of eight samples differing by `d` from the
@@ -365,6 +391,48 @@ pub(super) unsafe fn accumulate_row_gray(
             sum_n = _mm256_add_epi32(sum_n, _mm256_and_si256(mask, one));
         }
         _mm256_storeu_si256(acc.as_mut_ptr().add(u) as *mut __m256i, sum);
+        _mm256_storeu_si256(count.as_mut_ptr().add(u) as *mut __m256i, sum_n);
+        u += 8;
+    }
+}
+
+/// [`accumulate_row_gray`] of two planes of one geometry at once (the U and
+/// V planes of 4:2:0 frames): `acc_a` and `acc_b` from `datas_a` and
+/// `datas_b`, one `count`; each chunk's coordinates, taps and gather
+/// offsets are found once for both planes.
+///
+/// # Safety
+/// As [`accumulate_row_gray`], for both planes' data.
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe fn accumulate_row_gray_pair(
+    datas_a: &[&[u8]],
+    datas_b: &[&[u8]],
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    n8: usize,
+    acc_a: &mut [u32],
+    acc_b: &mut [u32],
+    count: &mut [u32],
+) {
+    debug_assert!(n8 & 7 == 0 && datas_a.len() == coords.len() && datas_b.len() == coords.len());
+    debug_assert!(acc_a.len() >= n8 && acc_b.len() >= n8 && count.len() >= n8);
+    let one = _mm256_set1_epi32(1);
+    let mut u = 0;
+    while u < n8 {
+        let z = _mm256_setzero_si256();
+        let (mut sum_a, mut sum_b, mut sum_n) = (z, z, z);
+        for ((a, b), coord) in datas_a.iter().zip(datas_b).zip(coords) {
+            let Some(t) = taps8(&g, row_coords8(coord, u)) else {
+                continue;
+            };
+            let t = PlaneTaps8::of(&g, t);
+            sum_a = _mm256_add_epi32(sum_a, t.sample(a));
+            sum_b = _mm256_add_epi32(sum_b, t.sample(b));
+            sum_n = _mm256_add_epi32(sum_n, _mm256_and_si256(t.mask, one));
+        }
+        _mm256_storeu_si256(acc_a.as_mut_ptr().add(u) as *mut __m256i, sum_a);
+        _mm256_storeu_si256(acc_b.as_mut_ptr().add(u) as *mut __m256i, sum_b);
         _mm256_storeu_si256(count.as_mut_ptr().add(u) as *mut __m256i, sum_n);
         u += 8;
     }

@@ -233,8 +233,8 @@ impl Kernel {
 
     /// [`Kernel::accumulate_row_gray`] of two planes of one geometry (the U
     /// and V planes of 4:2:0 frames) into `acc_a` and `acc_b`, one `count`.
-    /// The AVX-512 kernel finds each chunk's taps once for both; the others
-    /// run the plane kernel twice.
+    /// The vector kernels find each chunk's taps once for both planes; the
+    /// scalar reference runs the plane kernel twice.
     ///
     /// # Safety
     /// As [`Kernel::accumulate_row_gray`], for both planes' data.
@@ -252,8 +252,34 @@ impl Kernel {
         count: &mut [u32],
     ) {
         #[cfg(target_arch = "x86_64")]
+        if self == Kernel::Avx2 {
+            return avx2::accumulate_row_gray_pair(
+                datas_a,
+                datas_b,
+                common::KernelGeometry::of(geom),
+                coords,
+                n,
+                acc_a,
+                acc_b,
+                count,
+            );
+        }
+        #[cfg(target_arch = "x86_64")]
         if self == Kernel::Avx512 {
             return avx512::accumulate_row_gray_pair(
+                datas_a,
+                datas_b,
+                common::KernelGeometry::of(geom),
+                coords,
+                n,
+                acc_a,
+                acc_b,
+                count,
+            );
+        }
+        #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+        if self == Kernel::Simd128 {
+            return simd128::accumulate_row_gray_pair(
                 datas_a,
                 datas_b,
                 common::KernelGeometry::of(geom),
@@ -539,6 +565,35 @@ mod tests {
             assert!(reference.1.iter().any(|&c| c <= 2) && reference.1.contains(&4));
             for kernel in Kernel::available() {
                 assert_eq!(run_gray(kernel), reference, "gray {kernel:?}");
+            }
+            // Two planes of that geometry at once (the frames in another
+            // order for the second): each the gray kernel's sums.
+            let mut others = datas.clone();
+            others.rotate_left(1);
+            let run_other = |kernel: Kernel| {
+                let (mut acc, mut count) = (vec![0u32; n], vec![0u32; n]);
+                // SAFETY: as above.
+                unsafe {
+                    kernel.accumulate_row_gray(&others, &gray, &coords, n, &mut acc, &mut count)
+                };
+                (acc, count)
+            };
+            let other = run_other(Kernel::Scalar);
+            assert_ne!(other.0, reference.0);
+            for kernel in Kernel::available() {
+                let (mut a, mut b, mut count) = (vec![0u32; n], vec![0u32; n], vec![0u32; n]);
+                // SAFETY: as above, for both sets of planes.
+                unsafe {
+                    kernel.accumulate_row_gray_pair(
+                        &datas, &others, &gray, &coords, n, &mut a, &mut b, &mut count,
+                    )
+                };
+                assert_eq!(
+                    (&a, &count),
+                    (&reference.0, &reference.1),
+                    "pair, first {kernel:?}"
+                );
+                assert_eq!(b, other.0, "pair, second {kernel:?}");
             }
             // And points on the plane's own edges and corners (its right edge
             // is past the tables above): within the tolerance outside, on the

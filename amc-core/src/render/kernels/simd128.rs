@@ -380,6 +380,49 @@ pub(super) unsafe fn accumulate_row_gray(
     }
 }
 
+/// [`accumulate_row_gray`] of two planes of one geometry at once (the U and
+/// V planes of 4:2:0 frames): `acc_a` and `acc_b` from `datas_a` and
+/// `datas_b`, one `count`; each chunk's coordinates and taps are found once
+/// for both planes.
+///
+/// # Safety
+/// As [`accumulate_row_gray`], for both planes' data.
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe fn accumulate_row_gray_pair(
+    datas_a: &[&[u8]],
+    datas_b: &[&[u8]],
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    n8: usize,
+    acc_a: &mut [u32],
+    acc_b: &mut [u32],
+    count: &mut [u32],
+) {
+    debug_assert!(n8 % 4 == 0 && datas_a.len() == coords.len() && datas_b.len() == coords.len());
+    debug_assert!(acc_a.len() >= n8 && acc_b.len() >= n8 && count.len() >= n8);
+    let one = i32x4_splat(1);
+    acc_a[..n8].fill(0);
+    acc_b[..n8].fill(0);
+    count[..n8].fill(0);
+    for ((a, b), coord) in datas_a.iter().zip(datas_b).zip(coords) {
+        let mut u = 0;
+        while u < n8 {
+            if let Some(t) = taps4(&g, row_coords4(coord, u)) {
+                let t = PlaneTaps4::of(&g, t);
+                for (dst, v) in [
+                    (acc_a.as_mut_ptr(), t.sample(a)),
+                    (acc_b.as_mut_ptr(), t.sample(b)),
+                    (count.as_mut_ptr(), v128_and(t.valid, one)),
+                ] {
+                    let p = dst.add(u) as *mut v128;
+                    v128_store(p, i32x4_add(v128_load(p), v));
+                }
+            }
+            u += 4;
+        }
+    }
+}
+
 /// The 8.8 fixed-point samples of four output pixels `u..u + 4` of one plane
 /// (0 in lanes outside it) and the lanes inside it; `None` when no lane is inside.
 #[inline(always)]
@@ -389,50 +432,77 @@ unsafe fn sample_gray4(
     coord: &RowCoords<'_>,
     u: usize,
 ) -> Option<(v128, v128)> {
-    let stride = i32x4_splat(g.stride);
-    let i128 = i32x4_splat(128);
-    let byte = i32x4_splat(0xFF);
-    let hi_byte = i32x4_splat(0xFF_0000);
-    let s = g.stride as usize;
-    let stride_f = f32x4_splat(g.stride as f32);
-    let small_frame = (g.max_y0 as i64 * g.stride as i64 + g.max_x0 as i64) < (1 << 23);
-    let base = data.as_ptr();
-    let Taps4 {
-        valid,
-        x0f,
-        y0f,
-        ax,
-        ay,
-        bx,
-        by,
-    } = taps4(g, row_coords4(coord, u))?;
-    let i00 = if small_frame {
-        to_int(f32x4_add(f32x4_mul(y0f, stride_f), x0f))
-    } else {
-        i32x4_add(i32x4_mul(to_int(y0f), stride), to_int(x0f))
-    };
-    let load = |i: usize| (base.add(i) as *const u16).read_unaligned() as u32;
-    macro_rules! taps {
-        ($l:literal) => {{
-            let i = i32x4_extract_lane::<$l>(i00) as usize;
-            (load(i), load(i + s))
-        }};
+    let t = PlaneTaps4::of(g, taps4(g, row_coords4(coord, u))?);
+    Some((t.sample(data), t.valid))
+}
+
+/// [`Taps4`] as a plane's kernel uses them: where each lane's top-left tap
+/// is in the plane and its weights; the same for every plane of one geometry.
+struct PlaneTaps4 {
+    valid: v128,
+    index: v128,
+    stride: usize,
+    /// `bx` in the low 16 bits of each lane, `ax` in the high ones (0 in
+    /// lanes outside the plane, whose samples then come out 0).
+    wx: v128,
+    ay: v128,
+    by: v128,
+}
+
+impl PlaneTaps4 {
+    #[inline(always)]
+    unsafe fn of(g: &KernelGeometry, t: Taps4) -> Self {
+        let small_frame = (g.max_y0 as i64 * g.stride as i64 + g.max_x0 as i64) < (1 << 23);
+        let index = if small_frame {
+            to_int(f32x4_add(
+                f32x4_mul(t.y0f, f32x4_splat(g.stride as f32)),
+                t.x0f,
+            ))
+        } else {
+            i32x4_add(
+                i32x4_mul(to_int(t.y0f), i32x4_splat(g.stride)),
+                to_int(t.x0f),
+            )
+        };
+        Self {
+            valid: t.valid,
+            index,
+            stride: g.stride as usize,
+            wx: v128_and(v128_or(t.bx, i32x4_shl(t.ax, 16)), t.valid),
+            ay: t.ay,
+            by: t.by,
+        }
     }
-    let (a0, a1) = taps!(0);
-    let (b0, b1) = taps!(1);
-    let (c0, c1) = taps!(2);
-    let (d0, d1) = taps!(3);
-    // (left, right) bytes to 16-bit lanes, then the dot product with
-    // (bx, ax); invalid lanes get zero weights and come out 0.
-    let spread = |p: v128| v128_or(v128_and(p, byte), v128_and(i32x4_shl(p, 8), hi_byte));
-    let wx = v128_and(v128_or(bx, i32x4_shl(ax, 16)), valid);
-    let top = i32x4_dot_i16x8(spread(u32x4(a0, b0, c0, d0)), wx);
-    let bot = i32x4_dot_i16x8(spread(u32x4(a1, b1, c1, d1)), wx);
-    let v = u32x4_shr(
-        i32x4_add(i32x4_add(i32x4_mul(top, by), i32x4_mul(bot, ay)), i128),
-        8,
-    );
-    Some((v, valid))
+
+    /// The samples of `data`: each lane's two pairs of taps loaded, their
+    /// (left, right) bytes spread to 16-bit lanes, then the dot product with
+    /// (bx, ax).
+    #[inline(always)]
+    unsafe fn sample(&self, data: &[u8]) -> v128 {
+        let (base, s) = (data.as_ptr(), self.stride);
+        let load = |i: usize| (base.add(i) as *const u16).read_unaligned() as u32;
+        macro_rules! taps {
+            ($l:literal) => {{
+                let i = i32x4_extract_lane::<$l>(self.index) as usize;
+                (load(i), load(i + s))
+            }};
+        }
+        let (a0, a1) = taps!(0);
+        let (b0, b1) = taps!(1);
+        let (c0, c1) = taps!(2);
+        let (d0, d1) = taps!(3);
+        let (byte, hi_byte) = (i32x4_splat(0xFF), i32x4_splat(0xFF_0000));
+        let spread = |p: v128| v128_or(v128_and(p, byte), v128_and(i32x4_shl(p, 8), hi_byte));
+        let top = i32x4_dot_i16x8(spread(u32x4(a0, b0, c0, d0)), self.wx);
+        let bot = i32x4_dot_i16x8(spread(u32x4(a1, b1, c1, d1)), self.wx);
+        u32x4_shr(
+            i32x4_add(
+                i32x4_add(i32x4_mul(top, self.by), i32x4_mul(bot, self.ay)),
+                i32x4_splat(128),
+            ),
+            8,
+        )
+    }
 }
 
 /// Source coordinates of output pixels `u..u + 4` of one frame's row: loaded
