@@ -23,20 +23,20 @@
 //! kind are converted here before they are piped.
 
 use crate::atomic::AtomicFile;
+use crate::caps::{caps, prefetch_caps};
 use crate::error::VideoError;
 use crate::frame::{
     as_rgb, as_yuv420p, check_frame, extension, no_frames, shape, FrameSink, FrameSource,
 };
 use crate::mkv::RawFormat;
 use crate::probe::{probe, probe_device, probe_with, Probe};
-use crate::process::{run_capture, Proc};
+use crate::process::Proc;
 use crate::spec::{InputOptions, Inspection, OutputSpec, VideoInfo};
 use amc_core::image::{Frame, FrameRef, PixelFormat};
 use std::ffi::OsString;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{channel, Receiver};
-use std::sync::OnceLock;
 use std::time::Duration;
 
 /// Frames up to this many pixels (1920x1088) are decoded on one ffmpeg
@@ -52,56 +52,6 @@ pub(crate) const ONE_DECODER_THREAD_PIXELS: usize = 1920 * 1088;
 /// The line is written before the frame, so this only matters if the ffmpeg
 /// build prints something else, in which case we fall back to `i / fps`.
 const PTS_LINE_WAIT: Duration = Duration::from_secs(2);
-
-/// Options that differ between ffmpeg versions, detected once.
-struct Caps {
-    /// `-fps_mode` (ffmpeg >= 5.1); older ones only know `-vsync`.
-    fps_mode: bool,
-    /// `showinfo=checksum=0` (ffmpeg >= 5.0) skips hashing every frame.
-    showinfo_checksum: bool,
-}
-
-/// What this machine's ffmpeg supports, once known.
-static CAPS: OnceLock<Caps> = OnceLock::new();
-
-fn caps() -> &'static Caps {
-    CAPS.get_or_init(|| {
-        let help = |topic: &str| -> String {
-            let args: Vec<OsString> = ["-hide_banner", "-h", topic]
-                .iter()
-                .map(OsString::from)
-                .collect();
-            run_capture(
-                "ffmpeg",
-                &args,
-                Path::new("ffmpeg"),
-                Duration::from_secs(20),
-            )
-            .map(|(_, out, _)| String::from_utf8_lossy(&out).into_owned())
-            .unwrap_or_default()
-        };
-        // Both at once: each ffmpeg takes ~0.2 s just to start.
-        let (long, showinfo) = std::thread::scope(|s| {
-            let showinfo = s.spawn(|| help("filter=showinfo"));
-            (help("long"), showinfo.join().unwrap_or_default())
-        });
-        Caps {
-            fps_mode: long.contains("-fps_mode"),
-            showinfo_checksum: showinfo.contains("checksum"),
-        }
-    })
-}
-
-/// Starts asking ffmpeg for its capabilities on a thread, the first time: a
-/// video that is probed is about to be decoded, and asking takes ~0.1 s that
-/// can overlap ffprobe's instead of following it.
-pub(crate) fn prefetch_caps() {
-    if CAPS.get().is_none() {
-        std::thread::spawn(|| {
-            caps();
-        });
-    }
-}
 
 fn os_args(args: &[&str]) -> Vec<OsString> {
     args.iter().map(OsString::from).collect()

@@ -19,6 +19,7 @@
 #![deny(missing_docs)]
 
 pub mod atomic;
+mod caps;
 pub mod cleanup;
 mod error;
 mod ffmpeg;

@@ -144,7 +144,7 @@ pub(crate) fn probe_with(
     if let Some(p) = key.as_ref().and_then(recent) {
         return Ok(p);
     }
-    crate::ffmpeg::prefetch_caps();
+    crate::caps::prefetch_caps();
     let probed = run_probe(path, &args, timeout)?;
     // Kept only if the file did not change while it was probed.
     if let Some(key) = key.filter(|k| FileKey::of(path).as_ref() == Some(k)) {

@@ -14,9 +14,11 @@
 //! and the gradient threshold is one on the integer `gx^2 + gy^2`. The change
 //! is an exact integer sum, divided by `s^2` at the end.
 
-use super::NORMAL_FLOW_MIN_GRADIENT;
 use crate::image::{FrameRef, LUMA_WEIGHTS};
 use crate::lanes::lane_sum;
+
+/// Gradient magnitude under which normal flow is not measured (paper: 15/255).
+pub const NORMAL_FLOW_MIN_GRADIENT: f32 = 15.0 / 255.0;
 
 /// The scale of a planar frame's luma: `Y` 16..=235.
 const PLANAR_SCALE: u16 = 219;

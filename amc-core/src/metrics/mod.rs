@@ -20,12 +20,10 @@ mod sharpness;
 
 use crate::image::{y_to_unit, FrameRef, GrayImage, PixelFormat, LUMA_WEIGHTS};
 use crate::stabilizer::Telemetry;
+pub use luma::NORMAL_FLOW_MIN_GRADIENT;
 use luma::{FlowRows, LumaPlane};
 use serde::{Deserialize, Serialize};
 use sharpness::ChannelRows;
-
-/// Gradient magnitude under which normal flow is not measured (paper: 15/255).
-pub const NORMAL_FLOW_MIN_GRADIENT: f32 = 15.0 / 255.0;
 
 /// Metrics of one output frame. `None` where undefined (first frame).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
