@@ -251,47 +251,29 @@ impl Kernel {
         acc_b: &mut [u32],
         count: &mut [u32],
     ) {
-        #[cfg(target_arch = "x86_64")]
-        if self == Kernel::Avx2 {
-            return avx2::accumulate_row_gray_pair(
-                datas_a,
-                datas_b,
-                common::KernelGeometry::of(geom),
-                coords,
-                n,
-                acc_a,
-                acc_b,
-                count,
-            );
+        debug_assert_eq!(geom.channels, 1);
+        let (a, b) = (datas_a, datas_b);
+        #[cfg(any(
+            target_arch = "x86_64",
+            all(target_arch = "wasm32", target_feature = "simd128")
+        ))]
+        let g = common::KernelGeometry::of(geom);
+        match self {
+            Kernel::Scalar => {
+                scalar::accumulate_row_gray(a, geom, coords, n, acc_a, count);
+                scalar::accumulate_row_gray(b, geom, coords, n, acc_b, count);
+            }
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2 => avx2::accumulate_row_gray_pair(a, b, g, coords, n, acc_a, acc_b, count),
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx512 => {
+                avx512::accumulate_row_gray_pair(a, b, g, coords, n, acc_a, acc_b, count)
+            }
+            #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+            Kernel::Simd128 => {
+                simd128::accumulate_row_gray_pair(a, b, g, coords, n, acc_a, acc_b, count)
+            }
         }
-        #[cfg(target_arch = "x86_64")]
-        if self == Kernel::Avx512 {
-            return avx512::accumulate_row_gray_pair(
-                datas_a,
-                datas_b,
-                common::KernelGeometry::of(geom),
-                coords,
-                n,
-                acc_a,
-                acc_b,
-                count,
-            );
-        }
-        #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
-        if self == Kernel::Simd128 {
-            return simd128::accumulate_row_gray_pair(
-                datas_a,
-                datas_b,
-                common::KernelGeometry::of(geom),
-                coords,
-                n,
-                acc_a,
-                acc_b,
-                count,
-            );
-        }
-        self.accumulate_row_gray(datas_a, geom, coords, n, acc_a, count);
-        self.accumulate_row_gray(datas_b, geom, coords, n, acc_b, count);
     }
 
     /// The ghost-free form of [`Kernel::accumulate_row`] (see
