@@ -14,6 +14,12 @@
 //! angular speed    RMS over frames of |log(R_{j-1}^T R_j)| / dt, in deg/s
 //! ```
 //! Clip values pool the squares of all frames before the square root.
+//!
+//! Measured in one pass down the rows, in integers where the definitions
+//! allow: `luma.rs` (luma as 16-bit integers with a scale; change and normal
+//! flow), `sharpness.rs` (R, G and B a row at a time; exact Sobel sums). A row
+//! is measured once the rows below it are made, and nothing frame-sized is
+//! kept but the previous output's luma and validity.
 
 mod luma;
 mod sharpness;

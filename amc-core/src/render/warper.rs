@@ -947,8 +947,9 @@ fn finish_rgb_row(
     complete
 }
 
-/// Writes one single-channel output row (uncovered pixels `fill`); returns the
-/// pixels every frame covers.
+/// Writes one single-channel output row from the vector kernel's sums in
+/// `scratch.sums[sums]` and the scalar reference past them (uncovered pixels
+/// `fill`); returns the pixels every frame covers.
 #[allow(clippy::too_many_arguments)]
 fn finish_gray_row(
     kernel: Kernel,
