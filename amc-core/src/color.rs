@@ -87,17 +87,20 @@ impl YccToRgb {
         }
     }
 
-    /// Channel `CH` (0 R, 1 G, 2 B) of one pixel.
+    /// The chroma sample's terms of R, G and B (`kr e`, `kgu d + kgv e`,
+    /// `kb d`), shared by the pixels of its 2x2 block.
     #[inline(always)]
-    fn channel<const CH: usize>(&self, l: u8, cb: u8, cr: u8) -> u8 {
-        let c = (l as i32 - self.off) * self.ky + 32768;
+    fn chroma(&self, cb: u8, cr: u8) -> (i32, i32, i32) {
         let (d, e) = (cb as i32 - 128, cr as i32 - 128);
-        let v = match CH {
-            0 => c + self.kr * e,
-            1 => c - self.kgu * d - self.kgv * e,
-            _ => c + self.kb * d,
-        };
-        (v >> 16).clamp(0, 255) as u8
+        (self.kr * e, self.kgu * d + self.kgv * e, self.kb * d)
+    }
+
+    /// R, G and B of a pixel of luma `l` with its chroma's terms.
+    #[inline(always)]
+    fn rgb(&self, l: u8, (dr, dg, db): (i32, i32, i32)) -> (u8, u8, u8) {
+        let c = (l as i32 - self.off) * self.ky + 32768;
+        let byte = |v: i32| (v >> 16).clamp(0, 255) as u8;
+        (byte(c + dr), byte(c - dg), byte(c + db))
     }
 }
 
@@ -124,10 +127,8 @@ pub fn yuv420p_to_rgb_into(
         let row = &mut out[y * width * channels..(y + 1) * width * channels];
         let crow = (y >> 1) * cw;
         for (x, (px, &l)) in row.chunks_exact_mut(channels).zip(yrow).enumerate() {
-            let (u, v) = (cb[crow + (x >> 1)], cr[crow + (x >> 1)]);
-            px[0] = k.channel::<0>(l, u, v);
-            px[1] = k.channel::<1>(l, u, v);
-            px[2] = k.channel::<2>(l, u, v);
+            let t = k.chroma(cb[crow + (x >> 1)], cr[crow + (x >> 1)]);
+            (px[0], px[1], px[2]) = k.rgb(l, t);
         }
     }
 }
@@ -153,15 +154,6 @@ pub fn yuv420p_rgb_row_into(
     let crow = (y >> 1) * cw;
     let (cb, cr) = (&cb[crow..crow + cw], &cr[crow..crow + cw]);
     let (r, g, b) = (&mut r[..width], &mut g[..width], &mut b[..width]);
-    let pixel = |l: u8, (dr, dg, db): (i32, i32, i32)| {
-        let c = (l as i32 - k.off) * k.ky + 32768;
-        let byte = |v: i32| (v >> 16).clamp(0, 255) as u8;
-        (byte(c + dr), byte(c - dg), byte(c + db))
-    };
-    let terms = |u: u8, v: u8| {
-        let (d, e) = (u as i32 - 128, v as i32 - 128);
-        (k.kr * e, k.kgu * d + k.kgv * e, k.kb * d)
-    };
     // Two pixels per chroma sample: pairs, then an odd width's last pixel.
     let pairs = r
         .chunks_exact_mut(2)
@@ -169,13 +161,13 @@ pub fn yuv420p_rgb_row_into(
         .zip(b.chunks_exact_mut(2))
         .zip(yrow.chunks_exact(2));
     for ((((r, g), b), l), (&u, &v)) in pairs.zip(cb.iter().zip(cr)) {
-        let t = terms(u, v);
-        (r[0], g[0], b[0]) = pixel(l[0], t);
-        (r[1], g[1], b[1]) = pixel(l[1], t);
+        let t = k.chroma(u, v);
+        (r[0], g[0], b[0]) = k.rgb(l[0], t);
+        (r[1], g[1], b[1]) = k.rgb(l[1], t);
     }
     if width % 2 == 1 {
         let x = width - 1;
-        (r[x], g[x], b[x]) = pixel(yrow[x], terms(cb[x / 2], cr[x / 2]));
+        (r[x], g[x], b[x]) = k.rgb(yrow[x], k.chroma(cb[x / 2], cr[x / 2]));
     }
 }
 
