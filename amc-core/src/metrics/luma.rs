@@ -14,6 +14,7 @@
 //! and the gradient threshold is one on the integer `gx^2 + gy^2`. The change
 //! is an exact integer sum, divided by `s^2` at the end.
 
+use super::sobel::{columns_into, magnitude_sq};
 use crate::image::{FrameRef, LUMA_WEIGHTS};
 use crate::lanes::lane_sum;
 
@@ -144,21 +145,9 @@ impl FlowRows {
     ) -> (f64, u64) {
         let w = at.len();
         let n = w - 2;
-        self.sums.resize(w, 0);
-        self.diffs.resize(w, 0);
         self.gradient.resize(n, 0.0);
         self.change.resize(n, 0.0);
-        for ((((s, d), &a), &r), &b) in self
-            .sums
-            .iter_mut()
-            .zip(self.diffs.iter_mut())
-            .zip(above)
-            .zip(at)
-            .zip(below)
-        {
-            *s = (a + 2 * r + b) as i16;
-            *d = b as i16 - a as i16;
-        }
+        columns_into([above, at, below], &mut self.sums, &mut self.diffs);
         // |grad I| >= t  <=>  gx^2 + gy^2 >= 64 s^2 t^2, in integers.
         let t = NORMAL_FLOW_MIN_GRADIENT as f64 * scale as f64 * 8.0;
         let min_g2 = (t * t).ceil() as i32;
@@ -173,9 +162,7 @@ impl FlowRows {
             &mut self.change[..n],
         );
         for i in 0..n {
-            let gx = sr[i] - sl[i];
-            let gy = dl[i] + 2 * dc[i] + dr[i];
-            let g2 = gx as i32 * gx as i32 + gy as i32 * gy as i32;
+            let g2 = magnitude_sq(sl[i], sr[i], dl[i], dc[i], dr[i]);
             let it = lc[i] as i32 - lp[i] as i32;
             let ok = interior[i] & vp[i] != 0 && g2 >= min_g2;
             gradient[i] = if ok { g2 as f32 } else { 0.0 };

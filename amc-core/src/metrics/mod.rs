@@ -17,12 +17,14 @@
 //!
 //! Measured in one pass down the rows, in integers where the definitions
 //! allow: `luma.rs` (luma as 16-bit integers with a scale; change and normal
-//! flow), `sharpness.rs` (R, G and B a row at a time; exact Sobel sums). A row
+//! flow), `sharpness.rs` (R, G and B a row at a time; exact Sobel sums), both
+//! through `sobel.rs`. A row
 //! is measured once the rows below it are made, and nothing frame-sized is
 //! kept but the previous output's luma and validity.
 
 mod luma;
 mod sharpness;
+mod sobel;
 
 use crate::image::{y_to_unit, FrameRef, GrayImage, PixelFormat, LUMA_WEIGHTS};
 use crate::stabilizer::Telemetry;

@@ -4,13 +4,12 @@
 //! With `C = c / 255` for a channel's byte `c`, the Sobel responses of the
 //! bytes are integers, `gx, gy` in `-1020..=1020`, and
 //! `|Sobel C / 8|^2 = (gx^2 + gy^2) / (64 255^2)`: summing the integers is
-//! exact, and the one division comes at the end. Separable: with the column
-//! sums `s = above + 2 row + below` and differences `d = below - above`,
-//! `gx = s[x + 1] - s[x - 1]` and `gy = d[x - 1] + 2 d[x] + d[x + 1]`, all in
-//! 16-bit lanes, and `gx^2 + gy^2` is one multiply-add of 16-bit pairs into
-//! 32 bits. Rows stream through a ring of three, so nothing the size of a
-//! frame is written.
+//! exact, and the one division comes at the end. The operator is the
+//! separable one of `sobel.rs`, in 16-bit lanes, `gx^2 + gy^2` in 32 bits.
+//! Rows stream through a ring of three, so nothing the size of a frame is
+//! written.
 
+use super::sobel::{columns_into, magnitude_sq};
 use crate::color::yuv420p_rgb_row_into;
 use crate::image::FrameRef;
 
@@ -83,21 +82,8 @@ fn sobel_sq_sum(
     sums: &mut Vec<i16>,
     diffs: &mut Vec<i16>,
 ) -> u64 {
-    let w = at.len();
-    sums.resize(w, 0);
-    diffs.resize(w, 0);
-    let (above, below) = (&above[..w], &below[..w]);
-    for ((((s, d), &a), &r), &b) in sums
-        .iter_mut()
-        .zip(diffs.iter_mut())
-        .zip(above)
-        .zip(at)
-        .zip(below)
-    {
-        *s = a as i16 + 2 * r as i16 + b as i16;
-        *d = b as i16 - a as i16;
-    }
-    let n = w - 2;
+    columns_into([above, at, below], sums, diffs);
+    let n = at.len() - 2;
     let mut total = 0u64;
     for start in (0..n).step_by(BLOCK) {
         let end = (start + BLOCK).min(n);
@@ -112,9 +98,7 @@ fn sobel_sq_sum(
         let valid = &valid[start..end];
         let mut block = 0u32;
         for i in 0..len {
-            let gx = sr[i] - sl[i];
-            let gy = dl[i] + 2 * dc[i] + dr[i];
-            let g2 = (gx as i32 * gx as i32 + gy as i32 * gy as i32) as u32;
+            let g2 = magnitude_sq(sl[i], sr[i], dl[i], dc[i], dr[i]) as u32;
             block += if valid[i] != 0 { g2 } else { 0 };
         }
         total += block as u64;
