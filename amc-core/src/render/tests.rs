@@ -433,10 +433,28 @@ fn parallel_bands_match_one_thread() {
             .build()
             .unwrap()
     };
+    // And supersampled (the blocks are averaged in bands too).
+    let view = CameraModel::pinhole(160, 90, cam.fx / 2.0, cam.fy / 2.0, 79.5, 44.5);
+    let frames: Vec<Frame> = (0..3)
+        .map(|i| noise_frame(320, 180, PixelFormat::Rgb8, i))
+        .collect();
+    let rots: Vec<Matrix3<f64>> = (0..3)
+        .map(|i| *so3::exp(&Tangent::new(0.03 * i as f64, -0.12, 0.05)).matrix())
+        .collect();
+    let supersampled = || {
+        let mut w = Warper::supersampled(&cam, &view, 2);
+        let mut img = vec![0u8; 160 * 90 * 3];
+        let mut cov = Vec::new();
+        let vf = w.average_into(|i| frames[i].as_ref(), &rots, &mut img, 3, &mut cov);
+        let mut slot = WarpedFrame::default();
+        w.warp_into_slot(&frames[0].as_ref(), &rots[1], &mut slot, 0);
+        (img, cov, vf, slot.value, slot.covered)
+    };
     let both = || {
         (
             render(&cam, true, PixelFormat::Rgb8),
             render_planar(&cam, true, 1.0),
+            supersampled(),
         )
     };
     let one = pool(1).install(both);

@@ -1374,14 +1374,18 @@ fn box_down(
 ) -> usize {
     let rw = s * ow;
     let all = (s * s) as u32;
-    let mut complete = 0;
-    for v in 0..oh {
-        for u in 0..ow {
+    let row = |v: usize, out_row: &mut [u8], cov_row: &mut [u8]| {
+        let mut complete = 0;
+        for (u, (px, c_out)) in out_row
+            .chunks_exact_mut(channels)
+            .zip(cov_row.iter_mut())
+            .enumerate()
+        {
             let (mut least, mut n) = (u8::MAX, 0u32);
             let (mut sum_cov, mut sum_all) = ([0u32; 4], [0u32; 4]);
             for l in 0..s {
-                let row = (s * v + l) * rw + s * u;
-                for i in row..row + s {
+                let first = (s * v + l) * rw + s * u;
+                for i in first..first + s {
                     let c = src_cov[i];
                     least = least.min(c);
                     let covered = (c > 0) as u32;
@@ -1394,15 +1398,21 @@ fn box_down(
                 }
             }
             let (sum, n) = if n > 0 { (sum_cov, n) } else { (sum_all, all) };
-            let o = (v * ow + u) * channels;
-            for ch in 0..channels {
-                out[o + ch] = ((sum[ch] + n / 2) / n) as u8;
+            for (o, &t) in px.iter_mut().zip(&sum) {
+                *o = ((t + n / 2) / n) as u8;
             }
-            cov[v * ow + u] = least;
+            *c_out = least;
             complete += (least == full) as usize;
         }
-    }
-    complete
+        complete
+    };
+    by_rows(
+        &mut out[..ow * oh * channels],
+        &mut cov[..ow * oh],
+        ow,
+        channels,
+        row,
+    )
 }
 
 /// Averages each `s x s` block of a supersampled saccade slot (`values`:
@@ -1422,30 +1432,67 @@ fn box_down_slot(
 ) {
     let rw = s * ow;
     let n = (s * s) as u32;
-    for v in 0..oh {
-        for u in 0..ow {
+    let row = |v: usize, out_row: &mut [u16], cov_row: &mut [u8]| {
+        for (u, (px, c_out)) in out_row
+            .chunks_exact_mut(channels)
+            .zip(cov_row.iter_mut())
+            .enumerate()
+        {
             let mut all = true;
             let mut sum = [0u32; 3];
             for l in 0..s {
-                let row = (s * v + l) * rw + s * u;
-                for i in row..row + s {
+                let first = (s * v + l) * rw + s * u;
+                for i in first..first + s {
                     all &= covered[i] != 0;
                     for (ch, acc) in sum.iter_mut().enumerate().take(channels) {
                         *acc += values[i * channels + ch] as u32;
                     }
                 }
             }
-            let o = (v * ow + u) * channels;
-            for ch in 0..channels {
-                out_values[o + ch] = if all {
-                    ((sum[ch] + n / 2) / n) as u16
-                } else {
-                    0
-                };
+            for (o, &t) in px.iter_mut().zip(&sum) {
+                *o = if all { ((t + n / 2) / n) as u16 } else { 0 };
             }
-            out_covered[v * ow + u] = all as u8;
+            *c_out = all as u8;
+        }
+        0
+    };
+    let (values, covered) = (
+        &mut out_values[..ow * oh * channels],
+        &mut out_covered[..ow * oh],
+    );
+    by_rows(values, covered, ow, channels, row);
+}
+
+/// Calls `row(v, out_row, coverage_row)` for the rows of an `ow`-wide image
+/// of `channels` values per pixel and its coverage, and sums what it returns:
+/// on the rayon pool with the `parallel` feature and more than one thread.
+fn by_rows<T: Send>(
+    out: &mut [T],
+    coverage: &mut [u8],
+    ow: usize,
+    channels: usize,
+    row: impl Fn(usize, &mut [T], &mut [u8]) -> usize + Sync,
+) -> usize {
+    if ow == 0 || channels == 0 {
+        return 0;
+    }
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        if rayon::current_num_threads() > 1 {
+            return out
+                .par_chunks_mut(ow * channels)
+                .zip(coverage.par_chunks_mut(ow))
+                .enumerate()
+                .map(|(v, (o, c))| row(v, o, c))
+                .sum();
         }
     }
+    out.chunks_mut(ow * channels)
+        .zip(coverage.chunks_mut(ow))
+        .enumerate()
+        .map(|(v, (o, c))| row(v, o, c))
+        .sum()
 }
 
 /// Bilinear interpolation of a node grid (`grid_w x grid_h`, spacing
