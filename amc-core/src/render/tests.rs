@@ -472,7 +472,7 @@ fn checkerboard(w: usize, h: usize, format: PixelFormat) -> Frame {
         let n = w * h;
         for (i, b) in f.data.iter_mut().enumerate() {
             *b = if i < n {
-                if (i % w + i / w) % 2 == 0 {
+                if (i % w + i / w) & 1 == 0 {
                     16
                 } else {
                     235
@@ -483,7 +483,7 @@ fn checkerboard(w: usize, h: usize, format: PixelFormat) -> Frame {
         }
     } else {
         for (i, px) in f.data.chunks_exact_mut(c).enumerate() {
-            let v = if (i % w + i / w) % 2 == 0 { 0 } else { 255 };
+            let v = if (i % w + i / w) & 1 == 0 { 0 } else { 255 };
             px[..3].fill(v);
             if c == 4 {
                 px[3] = 255;
