@@ -444,6 +444,7 @@ mod tests {
                 "mode" => "saccade",
                 "roll" => "lock",
                 "zoom" => "static",
+                "antialias" => "off",
                 "max_crop" => "0.3",
                 "rate_b" => "30",
                 "fov" => "90",
@@ -473,9 +474,11 @@ mod tests {
             ("lookahead", "3"),
             ("rate_a", "0.5"),
             ("rate_b", "10"),
+            ("antialias", "off"),
         ] {
             o.set(k, v).unwrap();
         }
+        assert_eq!(o.params.render.antialias, crate::render::Antialias::Off);
         assert_eq!(o.readout, ReadoutSpec::Ms(14.5));
         o.validate().unwrap();
         assert_eq!(o.params.view.mode, Mode::Saccade);
