@@ -303,16 +303,37 @@ fn bench_render(c: &mut Criterion) {
             .map(|j| *shake.orientation_at(j as f64 / FPS).inverse().matrix())
             .collect();
         let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
-        let (ow, oh) = (out.width, out.height);
-        for kernel in Kernel::available() {
-            let mut luma = Warper::new(&cam, &out);
-            let mut chroma = Warper::new(&chroma_camera(&cam), &chroma_camera(&out));
+        // Every kernel at the default output size (one sample per pixel), and
+        // with the detected kernel an output half as wide (`-half`: 2 source
+        // pixels per output pixel) plainly and with `antialias` (2x2 samples).
+        let mut cases: Vec<(String, CameraModel, usize, Kernel)> = Kernel::available()
+            .into_iter()
+            .map(|k| (format!("{w}x{h}-yuv420p-{k:?}"), out.clone(), 1, k))
+            .collect();
+        if w == 1280 {
+            let params = RenderParams {
+                output_width: Some(out.width / 2),
+                ..RenderParams::default()
+            };
+            let half = params
+                .output_camera_with_margin(&cam, 0.125)
+                .expect("output camera");
+            let s = params.supersample(&cam, &half);
+            for (name, s) in [("off", 1), ("antialias", s)] {
+                let name = format!("{w}x{h}-yuv420p-half-{name}");
+                cases.push((name, half.clone(), s, Kernel::detect()));
+            }
+        }
+        for (name, out, s, kernel) in cases {
+            let (ow, oh) = (out.width, out.height);
+            let mut luma = Warper::supersampled(&cam, &out, s);
+            let mut chroma = Warper::supersampled(&chroma_camera(&cam), &chroma_camera(&out), s);
             if !(luma.set_kernel(kernel) && chroma.set_kernel(kernel)) {
                 continue;
             }
             let mut img = Frame::new(ow, oh, PixelFormat::Yuv420p);
             let mut coverage = Vec::new();
-            g.bench_function(format!("{w}x{h}-yuv420p-{kernel:?}"), |b| {
+            g.bench_function(name, |b| {
                 let mut j = 0usize;
                 b.iter(|| {
                     let frame = |i: usize| ping_pong_index(CLIP_FRAMES, j + i);

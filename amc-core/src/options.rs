@@ -127,6 +127,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         allowed: Allowed::range(0.0, crate::render::MAX_DEGHOST),
     },
     OptionSpec {
+        name: "antialias",
+        flag: "antialias",
+        value_name: "auto|off",
+        help: "anti-aliasing of outputs smaller than the input: auto (where an output pixel spans more than 1.5 input pixels, e.g. --output-width below two thirds of the input's, it averages S x S samples, S = that span rounded up, at most 4: S^2 times the render work; outputs of the input's size are unchanged) or off (one sample per pixel) (default auto)",
+        allowed: Allowed::Words(&["auto", "off"]),
+    },
+    OptionSpec {
         name: "n_track",
         flag: "n-track",
         value_name: "N",
@@ -336,6 +343,7 @@ impl StabilizerOptions {
             "readout_ms" => self.readout = ReadoutSpec::parse(value)?,
             "n_avg" => p.render.n_avg = parse_value(spec, value)?,
             "deghost" => p.render.deghost = parse_value(spec, value)?,
+            "antialias" => p.render.antialias = value.trim().parse()?,
             "n_track" => p.tracker.n_track = parse_value(spec, value)?,
             "margin" => p.render.margin = parse_value(spec, value)?,
             "zoom" => p.framing.zoom = value.trim().parse()?,
@@ -436,6 +444,7 @@ mod tests {
                 "mode" => "saccade",
                 "roll" => "lock",
                 "zoom" => "static",
+                "antialias" => "off",
                 "max_crop" => "0.3",
                 "rate_b" => "30",
                 "fov" => "90",
@@ -465,9 +474,11 @@ mod tests {
             ("lookahead", "3"),
             ("rate_a", "0.5"),
             ("rate_b", "10"),
+            ("antialias", "off"),
         ] {
             o.set(k, v).unwrap();
         }
+        assert_eq!(o.params.render.antialias, crate::render::Antialias::Off);
         assert_eq!(o.readout, ReadoutSpec::Ms(14.5));
         o.validate().unwrap();
         assert_eq!(o.params.view.mode, Mode::Saccade);

@@ -282,8 +282,12 @@ impl Stabilizer {
         } else {
             needed_zoom(&cam, &border, &[nalgebra::Matrix3::identity()], &[])
         };
-        let mut warper = Warper::new(&cam, &out_cam);
-        let mut chroma = Warper::new(&chroma_camera(&cam), &chroma_camera(&out_cam));
+        // Anti-aliasing of minified outputs: the chroma planes have the same
+        // footprint (both cameras halved), so one factor serves all planes.
+        let supersample = params.render.supersample(&cam, &out_cam);
+        let mut warper = Warper::supersampled(&cam, &out_cam, supersample);
+        let mut chroma =
+            Warper::supersampled(&chroma_camera(&cam), &chroma_camera(&out_cam), supersample);
         warper.set_deghost(params.render.deghost());
         chroma.set_deghost(params.render.deghost());
         Ok(Self {

@@ -34,6 +34,9 @@ mod tests;
 mod warper;
 
 pub use accumulator::{Accumulator, WarpedFrame};
-pub use params::{RenderParams, DEFAULT_DEGHOST, SUGGESTED_DEGHOST};
+pub use params::{
+    footprint, Antialias, RenderParams, DEFAULT_DEGHOST, MAX_SUPERSAMPLE, SUGGESTED_DEGHOST,
+    SUPERSAMPLE_ABOVE,
+};
 pub use robust::{Deghost, MAX_DEGHOST};
 pub use warper::{chroma_camera, Warper, GRID_STEP};

@@ -25,6 +25,94 @@ pub struct RenderParams {
     /// scene comes from the newest frame only); 0 (the default) = the plain
     /// average. Range 0..=64 (see [`super::robust`]; 6 suits compressed video).
     pub deghost: f64,
+    /// Anti-aliasing of minified outputs (default `auto`): see [`Antialias`].
+    pub antialias: Antialias,
+}
+
+/// Anti-aliasing of outputs rendered smaller than the source.
+///
+/// One bilinear sample per output pixel is a fine resampler while an output
+/// pixel covers at most about one source pixel; when it covers more (an output
+/// narrower than the input, 4K to 1080p), the samples skip source pixels and
+/// alias, and as the view moves the skipped pixels change from frame to frame:
+/// the aliasing shimmers. `auto` then renders `S x S` samples per output pixel
+/// and averages them (a box prefilter; see [`RenderParams::supersample`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Antialias {
+    /// `S = 1` while an output pixel's footprint in the source is at most
+    /// [`SUPERSAMPLE_ABOVE`] source pixels (every output of the input's size
+    /// and zoom >= 1: bit-identical to `off`), else `S = ceil(footprint)`,
+    /// at most [`MAX_SUPERSAMPLE`]: `S^2` times the render work.
+    #[default]
+    Auto,
+    /// One sample per output pixel, whatever the footprint.
+    Off,
+}
+
+impl std::str::FromStr for Antialias {
+    type Err = AmcError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "auto" => Ok(Antialias::Auto),
+            "off" => Ok(Antialias::Off),
+            _ => Err(AmcError::invalid("antialias", s, "auto or off")),
+        }
+    }
+}
+
+impl std::fmt::Display for Antialias {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Antialias::Auto => "auto",
+            Antialias::Off => "off",
+        })
+    }
+}
+
+/// Footprint (source pixels per output pixel) up to which `antialias = auto`
+/// keeps one sample per output pixel: a bilinear sample spaced up to 1.5
+/// source pixels from the next still sees every source pixel with some weight.
+pub const SUPERSAMPLE_ABOVE: f64 = 1.5;
+
+/// Most samples per axis of a supersampled output pixel (`S^2 = 16` times the
+/// render work); larger footprints (beyond 4x minification) stay partly aliased.
+pub const MAX_SUPERSAMPLE: usize = 4;
+
+/// The footprint of an output pixel in the source, source pixels per output
+/// pixel: the largest singular value of the Jacobian of the map output pixel
+/// -> source pixel at the output's principal point under the identity rotation
+/// (central differences over +-0.5 output pixels), i.e. the longest side of
+/// the ellipse an output pixel covers there. For pinhole cameras this is the
+/// ratio of focal lengths `f_src / f_out`; distorted lenses have their
+/// centre's scale (fisheye and barrel lenses compress the periphery, so an
+/// output pixel covers fewer source pixels there than at the centre). Zoom
+/// (`>= 1`) only shrinks it, so the framing's zoom is left out. Returns 1 when
+/// the centre does not project (a degenerate pair of cameras).
+pub fn footprint(src: &CameraModel, out: &CameraModel) -> f64 {
+    let map = |dx: f64, dy: f64| {
+        let p = nalgebra::Vector2::new(out.cx + dx, out.cy + dy);
+        out.unproject(&p).and_then(|ray| src.project(&ray))
+    };
+    let h = 0.5;
+    let (Some(xp), Some(xm), Some(yp), Some(ym)) =
+        (map(h, 0.0), map(-h, 0.0), map(0.0, h), map(0.0, -h))
+    else {
+        return 1.0;
+    };
+    // Columns of the Jacobian: d(src)/du and d(src)/dv.
+    let (a, c) = ((xp.x - xm.x) / (2.0 * h), (xp.y - xm.y) / (2.0 * h));
+    let (b, d) = ((yp.x - ym.x) / (2.0 * h), (yp.y - ym.y) / (2.0 * h));
+    // Largest singular value of [[a, b], [c, d]]: sigma^2 is the larger
+    // eigenvalue of J^T J, (t + sqrt(t^2 - 4 det^2)) / 2 with t = |J|_F^2.
+    let t = a * a + b * b + c * c + d * d;
+    let det = a * d - b * c;
+    let s = ((t + (t * t - 4.0 * det * det).max(0.0).sqrt()) / 2.0).sqrt();
+    if s.is_finite() {
+        s
+    } else {
+        1.0
+    }
 }
 
 impl Default for RenderParams {
@@ -35,6 +123,7 @@ impl Default for RenderParams {
             output_width: None,
             output_height: None,
             deghost: DEFAULT_DEGHOST,
+            antialias: Antialias::Auto,
         }
     }
 }
@@ -87,6 +176,20 @@ impl RenderParams {
     /// The ghost-free averaging weights; `None` for the plain average.
     pub fn deghost(&self) -> Option<super::Deghost> {
         super::Deghost::new(self.deghost)
+    }
+
+    /// Samples per axis of each output pixel from `src` into `out` (see
+    /// [`Antialias`]): 1 with `off` or while the [`footprint`] is at most
+    /// [`SUPERSAMPLE_ABOVE`], else its ceiling, at most [`MAX_SUPERSAMPLE`].
+    /// A footprint within 1% above a whole number counts as that number (an
+    /// output rounded to even pixels is a hair smaller than exactly half).
+    pub fn supersample(&self, src: &CameraModel, out: &CameraModel) -> usize {
+        let f = footprint(src, out);
+        if self.antialias == Antialias::Off || f <= SUPERSAMPLE_ABOVE {
+            1
+        } else {
+            ((f - 0.01).ceil() as usize).clamp(2, MAX_SUPERSAMPLE)
+        }
     }
 
     /// The output camera for a source camera: a pinhole with the source's focal

@@ -433,13 +433,412 @@ fn parallel_bands_match_one_thread() {
             .build()
             .unwrap()
     };
+    // And supersampled (the blocks are averaged in bands too).
+    let view = CameraModel::pinhole(160, 90, cam.fx / 2.0, cam.fy / 2.0, 79.5, 44.5);
+    let frames: Vec<Frame> = (0..3)
+        .map(|i| noise_frame(320, 180, PixelFormat::Rgb8, i))
+        .collect();
+    let rots: Vec<Matrix3<f64>> = (0..3)
+        .map(|i| *so3::exp(&Tangent::new(0.03 * i as f64, -0.12, 0.05)).matrix())
+        .collect();
+    let supersampled = || {
+        let mut w = Warper::supersampled(&cam, &view, 2);
+        let mut img = vec![0u8; 160 * 90 * 3];
+        let mut cov = Vec::new();
+        let vf = w.average_into(|i| frames[i].as_ref(), &rots, &mut img, 3, &mut cov);
+        let mut slot = WarpedFrame::default();
+        w.warp_into_slot(&frames[0].as_ref(), &rots[1], &mut slot, 0);
+        (img, cov, vf, slot.value, slot.covered)
+    };
     let both = || {
         (
             render(&cam, true, PixelFormat::Rgb8),
             render_planar(&cam, true, 1.0),
+            supersampled(),
         )
     };
     let one = pool(1).install(both);
     let four = pool(4).install(both);
     assert_eq!(one, four);
+}
+
+/// A frame of 1-px stripes (columns alternately 0 and 255) crossed with
+/// 1-px rows of a second phase: the highest frequency a frame can hold.
+fn checkerboard(w: usize, h: usize, format: PixelFormat) -> Frame {
+    let mut f = Frame::new(w, h, format);
+    let c = format.channels();
+    if format == PixelFormat::Yuv420p {
+        // Luma checkered, chroma neutral grey.
+        let n = w * h;
+        for (i, b) in f.data.iter_mut().enumerate() {
+            *b = if i < n {
+                if (i % w + i / w) & 1 == 0 {
+                    16
+                } else {
+                    235
+                }
+            } else {
+                128
+            };
+        }
+    } else {
+        for (i, px) in f.data.chunks_exact_mut(c).enumerate() {
+            let v = if (i % w + i / w) & 1 == 0 { 0 } else { 255 };
+            px[..3].fill(v);
+            if c == 4 {
+                px[3] = 255;
+            }
+        }
+    }
+    f.data.extend_from_slice(&[0; FRAME_PADDING]);
+    f
+}
+
+/// The footprint is the ratio of focal lengths for pinholes, and the auto
+/// factor follows the documented rule.
+#[test]
+fn supersample_factor_follows_the_footprint() {
+    let src = CameraModel::pinhole_hfov(320, 180, 80.0).unwrap();
+    let at = |w: Option<usize>, antialias: Antialias| {
+        let p = RenderParams {
+            output_width: w,
+            margin: 0.0,
+            antialias,
+            ..Default::default()
+        };
+        let out = p.output_camera(&src).unwrap();
+        (footprint(&src, &out), p.supersample(&src, &out))
+    };
+    let (f, s) = at(None, Antialias::Auto);
+    assert!((f - 1.0).abs() < 1e-9 && s == 1, "{f} {s}");
+    // 1.5 source px per output px: still one sample.
+    let (f, s) = at(Some(214), Antialias::Auto);
+    assert!(f > 1.49 && f < 1.5 && s == 1, "{f} {s}");
+    let (f, s) = at(Some(160), Antialias::Auto);
+    assert!((f - 2.0).abs() < 1e-9 && s == 2, "{f} {s}");
+    assert_eq!(at(Some(160), Antialias::Off).1, 1);
+    assert_eq!(at(Some(100), Antialias::Auto).1, 4);
+    assert_eq!(at(Some(16), Antialias::Auto).1, MAX_SUPERSAMPLE);
+    // The default output of the default parameters (margins cropped).
+    let out = RenderParams::default().output_camera(&src).unwrap();
+    assert_eq!(RenderParams::default().supersample(&src, &out), 1);
+    // A fisheye source: the centre's scale (the lens map's slope at the
+    // centre is the focal length whatever the distortion).
+    let mut fish = src.clone();
+    fish.distortion = crate::camera::Distortion::Fisheye {
+        k1: 0.05,
+        k2: -0.01,
+        k3: 0.0,
+        k4: 0.0,
+    };
+    let out = CameraModel::pinhole(160, 90, src.fx / 3.0, src.fy / 3.0, 79.5, 44.5);
+    assert!((footprint(&fish, &out) - 3.0).abs() < 1e-3);
+    assert_eq!(RenderParams::default().supersample(&fish, &out), 3);
+    assert!("OFF".parse::<Antialias>().unwrap() == Antialias::Off);
+    assert!("wobble".parse::<Antialias>().is_err());
+}
+
+/// A warper built with `S = 1` is the plain one: bit-identical output on
+/// every entry point (the default runs, whose factor is 1, are unchanged).
+#[test]
+fn supersample_one_is_the_plain_render() {
+    let cam = CameraModel::pinhole_hfov(211, 117, 80.0).unwrap();
+    let out = RenderParams::default().output_camera(&cam).unwrap();
+    let a = Warper::new(&cam, &out);
+    let b = Warper::supersampled(&cam, &out, 1);
+    assert_eq!(b.supersample(), 1);
+    assert_eq!(a.render_size(), b.render_size());
+    let frames: Vec<Frame> = (0..3)
+        .map(|i| noise_frame(211, 117, PixelFormat::Rgb8, i))
+        .collect();
+    let rots: Vec<Matrix3<f64>> = (0..3)
+        .map(|i| *so3::exp(&Tangent::new(0.02 * i as f64, -0.05, 0.03)).matrix())
+        .collect();
+    let run = |mut w: Warper| {
+        let mut img = vec![0u8; out.width * out.height * 3];
+        let mut cov = Vec::new();
+        w.average_into(|i| frames[i].as_ref(), &rots, &mut img, 3, &mut cov);
+        let mut slot = WarpedFrame::default();
+        w.warp_into_slot(&frames[0].as_ref(), &rots[1], &mut slot, 1);
+        (img, cov, slot.value, slot.covered)
+    };
+    assert_eq!(run(a), run(b));
+}
+
+/// What [`Warper::supersampled`] must equal: the plain render at `S` times
+/// the size (the output camera rescaled), each `S x S` block averaged by
+/// hand with the documented rule. Returns (image, coverage).
+fn box_by_hand(
+    fine: &[u8],
+    fine_cov: &[u8],
+    s: usize,
+    channels: usize,
+    (ow, oh): (usize, usize),
+) -> (Vec<u8>, Vec<u8>) {
+    let mut img = vec![0u8; ow * oh * channels];
+    let mut cov = vec![0u8; ow * oh];
+    for v in 0..oh {
+        for u in 0..ow {
+            let idx: Vec<usize> = (0..s * s)
+                .map(|k| (s * v + k / s) * s * ow + s * u + k % s)
+                .collect();
+            let covered: Vec<usize> = idx.iter().copied().filter(|&i| fine_cov[i] > 0).collect();
+            let used = if covered.is_empty() { &idx } else { &covered };
+            for ch in 0..channels {
+                let sum: u32 = used.iter().map(|&i| fine[i * channels + ch] as u32).sum();
+                let n = used.len() as u32;
+                img[(v * ow + u) * channels + ch] = ((sum + n / 2) / n) as u8;
+            }
+            cov[v * ow + u] = idx.iter().map(|&i| fine_cov[i]).min().unwrap();
+        }
+    }
+    (img, cov)
+}
+
+/// Supersampling is exactly the plain render at `S` times the size, box
+/// averaged: interleaved (RGB, RGBA) and planar (Y, U and V as a pair),
+/// plain and ghost-free averages, pinhole and fisheye sources, a rolling
+/// shutter; and the saccade slots likewise, covered only where every sample is.
+#[test]
+fn supersampled_equals_fine_render_box_averaged() {
+    let pinhole = CameraModel::pinhole_hfov(203, 117, 80.0).unwrap();
+    let mut fisheye = pinhole.clone();
+    fisheye.distortion = crate::camera::Distortion::Fisheye {
+        k1: 0.05,
+        k2: -0.01,
+        k3: 0.0,
+        k4: 0.0,
+    };
+    let rots: Vec<Matrix3<f64>> = (0..3)
+        .map(|i| *so3::exp(&Tangent::new(0.03 * i as f64, -0.12, 0.05)).matrix())
+        .collect();
+    let rows: Vec<RollingProjector> = (0..3)
+        .map(|i| {
+            let intra = IntraFrame {
+                phi: Tangent::new(0.03, -0.02 * i as f64, 0.01),
+                psi: Tangent::new(-0.01, 0.005, 0.0),
+                chi: Tangent::zeros(),
+                xi: Tangent::zeros(),
+            };
+            let mut p = RollingProjector::default();
+            p.set(&intra, pinhole.height);
+            p
+        })
+        .collect();
+    for (cam, s, rolling, deghost) in [
+        (&pinhole, 2, false, None),
+        (&fisheye, 3, false, None),
+        (&pinhole, 2, true, Deghost::new(60.0)),
+        (&fisheye, 2, false, Deghost::new(60.0)),
+    ] {
+        // 101 x 57: an odd size (odd chroma planes, a scalar tail per row).
+        let view = CameraModel::pinhole(101, 57, cam.fx / 2.0, cam.fy / 2.0, 50.0, 28.0);
+        let fine_cam = view.rescaled(s * 101, s * 57);
+        let setup = |w: &mut Warper| {
+            w.set_deghost(deghost);
+            if rolling {
+                w.set_readout_rows(&rows);
+            }
+        };
+        let mut ss = Warper::supersampled(cam, &view, s);
+        let mut fine = Warper::new(cam, &fine_cam);
+        setup(&mut ss);
+        setup(&mut fine);
+        assert_eq!(ss.output_size(), (101, 57));
+        assert_eq!(ss.render_size(), (s * 101, s * 57));
+        for format in [PixelFormat::Rgb8, PixelFormat::Rgba8] {
+            let c = format.channels();
+            let frames: Vec<Frame> = (0..3).map(|i| noise_frame(203, 117, format, i)).collect();
+            let mut img = vec![0u8; 101 * 57 * c];
+            let mut cov = Vec::new();
+            let vf = ss.average_into(|i| frames[i].as_ref(), &rots, &mut img, c, &mut cov);
+            let mut fimg = vec![0u8; s * s * 101 * 57 * c];
+            let mut fcov = Vec::new();
+            fine.average_into(|i| frames[i].as_ref(), &rots, &mut fimg, c, &mut fcov);
+            let want = box_by_hand(&fimg, &fcov, s, c, (101, 57));
+            assert_eq!((&img, &cov), (&want.0, &want.1), "{format:?} s {s}");
+            let full = cov.iter().filter(|&&k| k == 3).count();
+            assert_eq!(vf, full as f64 / (101.0 * 57.0));
+            assert!(full > 0 && full < 101 * 57, "some border: {full}");
+            // The saccade slot (one frame, its own readout rows).
+            let (mut a, mut b) = (WarpedFrame::default(), WarpedFrame::default());
+            ss.warp_into_slot(&frames[1].as_ref(), &rots[2], &mut a, 4);
+            fine.warp_into_slot(&frames[1].as_ref(), &rots[2], &mut b, 4);
+            let (mut value, mut covered) = (vec![0u16; 3 * 101 * 57], vec![0u8; 101 * 57]);
+            for p in 0..101 * 57 {
+                let (u, v) = (p % 101, p / 101);
+                let idx: Vec<usize> = (0..s * s)
+                    .map(|k| (s * v + k / s) * s * 101 + s * u + k % s)
+                    .collect();
+                if idx.iter().all(|&i| b.covered[i] == 1) {
+                    covered[p] = 1;
+                    for ch in 0..3 {
+                        let sum: u32 = idx.iter().map(|&i| b.value[3 * i + ch] as u32).sum();
+                        let n = (s * s) as u32;
+                        value[3 * p + ch] = ((sum + n / 2) / n) as u16;
+                    }
+                }
+            }
+            assert_eq!(a.index, 4);
+            assert_eq!((&a.value, &a.covered), (&value, &covered));
+            // The scalar reference slot agrees.
+            let mut r = WarpedFrame::default();
+            r.fill(&mut ss, &frames[1].as_ref(), &rots[2], 4);
+            assert_eq!((&r.value, &r.covered), (&value, &covered));
+        }
+        // Planar 4:2:0: Y, then U and V as a pair, through the chroma cameras.
+        let n = 203 * 117;
+        let (scw, sch) = crate::image::chroma_size(203, 117);
+        let nc = scw * sch;
+        let frames: Vec<Vec<u8>> = (0..3)
+            .map(|i| {
+                let mut f = noise_frame(203, 117, PixelFormat::Rgb8, i + 7).data;
+                f.truncate(n + 2 * nc);
+                f.extend_from_slice(&[0; FRAME_PADDING]);
+                f
+            })
+            .collect();
+        let cv = chroma_camera(&view);
+        // The chroma view rescaled (not the fine luma's chroma: odd sizes round).
+        let cf = cv.rescaled(s * cv.width, s * cv.height);
+        let mut ss_c = Warper::supersampled(&chroma_camera(cam), &cv, s);
+        let mut fine_c = Warper::new(&chroma_camera(cam), &cf);
+        setup(&mut ss_c);
+        setup(&mut fine_c);
+        let mut y = vec![0u8; 101 * 57];
+        let mut cov = Vec::new();
+        let k = ss.average_plane_into(|i| &frames[i], 203, 117, &rots, &mut y, &mut cov, 16);
+        let mut fy = vec![0u8; s * s * 101 * 57];
+        let mut fcov = Vec::new();
+        fine.average_plane_into(|i| &frames[i], 203, 117, &rots, &mut fy, &mut fcov, 16);
+        let want = box_by_hand(&fy, &fcov, s, 1, (101, 57));
+        assert_eq!((&y, &cov), (&want.0, &want.1), "luma s {s}");
+        assert_eq!(k, cov.iter().filter(|&&c| c == 3).count());
+        let (ocw, och) = (cv.width, cv.height);
+        let (mut u, mut v) = (vec![0u8; ocw * och], vec![0u8; ocw * och]);
+        let (fcw, fch) = (cf.width, cf.height);
+        assert_eq!((fcw, fch), (s * ocw, s * och));
+        let (mut fu, mut fv) = (vec![0u8; fcw * fch], vec![0u8; fcw * fch]);
+        let pair = |i: usize| (&frames[i][n..], &frames[i][n + nc..]);
+        let (mut ccov, mut fccov) = (Vec::new(), Vec::new());
+        ss_c.average_plane_pair_into(pair, scw, sch, &rots, &mut u, &mut v, &mut ccov, 128);
+        fine_c.average_plane_pair_into(pair, scw, sch, &rots, &mut fu, &mut fv, &mut fccov, 128);
+        let wu = box_by_hand(&fu, &fccov, s, 1, (ocw, och));
+        let wv = box_by_hand(&fv, &fccov, s, 1, (ocw, och));
+        assert_eq!((&u, &ccov), (&wu.0, &wu.1), "U s {s}");
+        assert_eq!(v, wv.0, "V s {s}");
+        // A planar saccade slot.
+        let (mut vals, mut covd) = (vec![0u16; 101 * 57], vec![0u8; 101 * 57]);
+        ss.warp_plane_into(&frames[0], 203, 117, &rots[1], &mut vals, &mut covd);
+        let (mut fvals, mut fcovd) = (vec![0u16; s * s * 101 * 57], vec![0u8; s * s * 101 * 57]);
+        fine.warp_plane_into(&frames[0], 203, 117, &rots[1], &mut fvals, &mut fcovd);
+        for p in 0..101 * 57 {
+            let (pu, pv) = (p % 101, p / 101);
+            let idx: Vec<usize> = (0..s * s)
+                .map(|k| (s * pv + k / s) * s * 101 + s * pu + k % s)
+                .collect();
+            let all = idx.iter().all(|&i| fcovd[i] == 1);
+            let sum: u32 = idx.iter().map(|&i| fvals[i] as u32).sum();
+            let n = (s * s) as u32;
+            let want = if all { ((sum + n / 2) / n) as u16 } else { 0 };
+            assert_eq!(
+                (vals[p], covd[p]),
+                (want, all as u8),
+                "plane slot pixel {p}"
+            );
+        }
+    }
+}
+
+/// Every kernel gives the same supersampled bytes (the box average is
+/// integer and shared).
+#[test]
+fn supersampled_kernels_match_scalar() {
+    let cam = CameraModel::pinhole_hfov(203, 117, 80.0).unwrap();
+    let view = CameraModel::pinhole(101, 57, cam.fx / 2.0, cam.fy / 2.0, 50.0, 28.0);
+    let frames: Vec<Frame> = (0..3)
+        .map(|i| noise_frame(203, 117, PixelFormat::Rgba8, i))
+        .collect();
+    let rots: Vec<Matrix3<f64>> = (0..3)
+        .map(|i| *so3::exp(&Tangent::new(0.03 * i as f64, -0.12, 0.05)).matrix())
+        .collect();
+    let run = |kernel: kernels::Kernel| {
+        let mut w = Warper::supersampled(&cam, &view, 2);
+        assert!(w.set_kernel(kernel));
+        let mut img = vec![0u8; 101 * 57 * 4];
+        let mut cov = Vec::new();
+        w.average_into(|i| frames[i].as_ref(), &rots, &mut img, 4, &mut cov);
+        (img, cov)
+    };
+    let reference = run(kernels::Kernel::Scalar);
+    for kernel in kernels::Kernel::available() {
+        assert_eq!(run(kernel), reference, "{kernel:?}");
+    }
+}
+
+/// Minifying a 1-px checkerboard by 2: one bilinear sample per output pixel
+/// lands between source pixels at a phase that drifts across the output
+/// (moire: bands from grey to full contrast), while the supersampled output
+/// averages each output pixel's 2x2 source pixels: uniform grey.
+#[test]
+fn supersampling_removes_the_aliasing_of_minification() {
+    let cam = CameraModel::pinhole_hfov(320, 180, 80.0).unwrap();
+    let params = |antialias| RenderParams {
+        output_width: Some(160),
+        margin: 0.0,
+        antialias,
+        ..Default::default()
+    };
+    let out = params(Antialias::Auto).output_camera(&cam).unwrap();
+    assert_eq!((out.width, out.height), (160, 90));
+    // A small turn so the sampling phase is not the grid's own.
+    let m = *so3::exp(&Tangent::new(0.004, -0.003, 0.01)).matrix();
+    let spread = |antialias| {
+        let s = params(antialias).supersample(&cam, &out);
+        let mut w = Warper::supersampled(&cam, &out, s);
+        let f = checkerboard(320, 180, PixelFormat::Rgb8);
+        let mut img = vec![0u8; 160 * 90 * 3];
+        let mut cov = Vec::new();
+        w.average_into(|_| f.as_ref(), &[m], &mut img, 3, &mut cov);
+        let vals: Vec<f64> = img
+            .chunks_exact(3)
+            .zip(&cov)
+            .filter(|(_, &c)| c == 1)
+            .map(|(px, _)| px[0] as f64)
+            .collect();
+        assert!(vals.len() > 160 * 80);
+        let mean = vals.iter().sum::<f64>() / vals.len() as f64;
+        let sd =
+            (vals.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / vals.len() as f64).sqrt();
+        (mean, sd)
+    };
+    let (mean_aa, sd_aa) = spread(Antialias::Auto);
+    let (_, sd_off) = spread(Antialias::Off);
+    assert!((mean_aa - 127.5).abs() < 3.0, "grey: mean {mean_aa}");
+    assert!(sd_aa < 12.0, "antialiased: sd {sd_aa}");
+    assert!(sd_off > 40.0, "aliased: sd {sd_off}");
+    // Planar too: the luma of a 4:2:0 frame.
+    let f = checkerboard(320, 180, PixelFormat::Yuv420p);
+    // (Video range: 16..=235, so the aliased spread is a little less.)
+    for (antialias, bound) in [(Antialias::Auto, 12.0), (Antialias::Off, -30.0)] {
+        let s = params(antialias).supersample(&cam, &out);
+        let mut w = Warper::supersampled(&cam, &out, s);
+        let mut y = vec![0u8; 160 * 90];
+        let mut cov = Vec::new();
+        w.average_plane_into(|_| &f.data, 320, 180, &[m], &mut y, &mut cov, 16);
+        let vals: Vec<f64> = y
+            .iter()
+            .zip(&cov)
+            .filter(|(_, &c)| c == 1)
+            .map(|(&v, _)| v as f64)
+            .collect();
+        let mean = vals.iter().sum::<f64>() / vals.len() as f64;
+        let sd =
+            (vals.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / vals.len() as f64).sqrt();
+        if bound > 0.0 {
+            assert!(sd < bound, "{antialias}: sd {sd}");
+        } else {
+            assert!(sd > -bound, "{antialias}: sd {sd}");
+        }
+    }
 }

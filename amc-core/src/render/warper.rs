@@ -7,6 +7,16 @@
 //! plane's (the chroma planes of 4:2:0 frames by one built for the half-size
 //! cameras, [`chroma_camera`]): one geometry, three planes.
 //!
+//! Supersampling (anti-aliasing of minified outputs, [`super::Antialias`]):
+//! a warper built with `S > 1` ([`Warper::supersampled`]) renders every output
+//! through the same kernels into a grid `S` times finer per axis, the output
+//! camera rescaled pixel-centre correct (`f' = S f`, `c' = S c + (S - 1) / 2`:
+//! fine pixel `S i + k` looks along the ray of output position
+//! `i + (k - (S - 1) / 2) / S`, so the `S x S` samples of a pixel are spread
+//! evenly over it around its centre), then averages each `S x S` block in
+//! integers ([`box_down`], [`box_down_slot`]): the same bytes whatever the
+//! kernel. With `S = 1` nothing of this runs and the output is the plain one.
+//!
 //! Output rows are independent. With the `parallel` feature, a frame's rows
 //! are rendered in bands on the current rayon pool (each band with row buffers
 //! of its own); the bytes are the same whatever the number of threads.
@@ -15,6 +25,7 @@ use super::accumulator::WarpedFrame;
 use super::kernels::{
     average, merge_row_gray_scalar, merge_row_scalar, Geometry, Kernel, RowCoords, FRAME_PADDING,
 };
+use super::params::MAX_SUPERSAMPLE;
 use super::robust::{weighted_average, Deghost};
 use crate::camera::CameraModel;
 use crate::image::FrameRef;
@@ -100,11 +111,34 @@ impl RowScratch {
     }
 }
 
+/// The supersampled renders of a warper with `S > 1`, before their `S x S`
+/// blocks are averaged into the caller's buffers (kept: a warmed-up render
+/// allocates nothing).
+#[derive(Clone, Debug, Default)]
+struct Fine {
+    /// Image (interleaved or one plane) and its second plane (U and V pairs).
+    image: Vec<u8>,
+    image_b: Vec<u8>,
+    /// Covering frames per fine pixel.
+    coverage: Vec<u8>,
+    /// A saccade slot's samples and coverage (interleaved or one plane).
+    slot: WarpedFrame,
+}
+
 /// Samples source frames along rotated output rays.
 #[derive(Clone, Debug)]
 pub struct Warper {
     src: CameraModel,
+    /// The camera rendered through: the output's, or its `S`-times finer grid
+    /// when supersampling (every row method below works on this grid).
     out: CameraModel,
+    /// The caller's output size (`out`'s divided by `supersample`).
+    view_w: usize,
+    view_h: usize,
+    /// Samples per axis of each output pixel, `S` (1: none).
+    supersample: usize,
+    /// The fine renders of `S > 1`.
+    fine: Fine,
     /// Output rays at the grid nodes.
     grid_rays: Vec<Vector3<f64>>,
     grid_w: usize,
@@ -158,8 +192,24 @@ impl Pass<'_, '_> {
 }
 
 impl Warper {
-    /// A warper from frames of `src` into `out` (a pinhole).
+    /// A warper from frames of `src` into `out` (a pinhole), one sample per
+    /// output pixel.
     pub fn new(src: &CameraModel, out: &CameraModel) -> Self {
+        Self::supersampled(src, out, 1)
+    }
+
+    /// A warper from frames of `src` into `out` (a pinhole) that averages
+    /// `supersample x supersample` samples per output pixel (clamped to
+    /// `1..=MAX_SUPERSAMPLE`; see the module's docs and
+    /// [`super::RenderParams::supersample`]). `S^2` times the sampling work.
+    pub fn supersampled(src: &CameraModel, view: &CameraModel, supersample: usize) -> Self {
+        let s = supersample.clamp(1, MAX_SUPERSAMPLE);
+        // `S = 1` keeps the camera as it is (rescaling by 1 could round).
+        let out = if s == 1 {
+            view.clone()
+        } else {
+            view.rescaled(s * view.width, s * view.height)
+        };
         // Grid nodes for distorted sources and rolling shutters (a pinhole
         // source needs them only once a frame has a readout motion).
         let grid_step = if src.is_pinhole() {
@@ -178,7 +228,11 @@ impl Warper {
         }
         Self {
             src: src.clone(),
-            out: out.clone(),
+            out,
+            view_w: view.width,
+            view_h: view.height,
+            supersample: s,
+            fine: Fine::default(),
             grid_rays,
             grid_w,
             grid_h,
@@ -226,6 +280,17 @@ impl Warper {
 
     /// Output size.
     pub fn output_size(&self) -> (usize, usize) {
+        (self.view_w, self.view_h)
+    }
+
+    /// Samples per axis of each output pixel (1: no supersampling).
+    pub fn supersample(&self) -> usize {
+        self.supersample
+    }
+
+    /// Size of the grid sampled: the output's times [`Warper::supersample`]
+    /// (what [`Warper::warp`] indexes).
+    pub fn render_size(&self) -> (usize, usize) {
         (self.out.width, self.out.height)
     }
 
@@ -586,7 +651,49 @@ impl Warper {
     /// frame are computed into small row buffers, then each pixel samples all
     /// frames and is written once. `coverage` receives the per-pixel count of
     /// covering frames. Returns the share of pixels covered by every frame.
+    /// Supersampled: each pixel is its block's [`box_down`], its coverage the
+    /// block's least.
     pub fn average_into<'a, F: Fn(usize) -> FrameRef<'a>>(
+        &mut self,
+        frame_at: F,
+        rotations: &[Matrix3<f64>],
+        out: &mut [u8],
+        channels: usize,
+        coverage: &mut Vec<u8>,
+    ) -> f64 {
+        if self.supersample == 1 {
+            return self.render_average_into(frame_at, rotations, out, channels, coverage);
+        }
+        let (ow, oh) = (self.view_w, self.view_h);
+        let mut fine = std::mem::take(&mut self.fine);
+        fine.image
+            .resize(self.out.width * self.out.height * channels, 0);
+        self.render_average_into(
+            frame_at,
+            rotations,
+            &mut fine.image,
+            channels,
+            &mut fine.coverage,
+        );
+        coverage.clear();
+        coverage.resize(ow * oh, 0);
+        let full = rotations.len() as u8;
+        let complete = box_down(
+            &fine.image,
+            &fine.coverage,
+            self.supersample,
+            channels,
+            (ow, oh),
+            out,
+            coverage,
+            full,
+        );
+        self.fine = fine;
+        complete as f64 / (ow * oh).max(1) as f64
+    }
+
+    /// [`Warper::average_into`] on the render grid.
+    fn render_average_into<'a, F: Fn(usize) -> FrameRef<'a>>(
         &mut self,
         frame_at: F,
         rotations: &[Matrix3<f64>],
@@ -642,8 +749,54 @@ impl Warper {
     /// `rotations[i]`. Writes the rounded average into `out` (this warper's
     /// output size) and the covering frames per pixel into `coverage` (resized);
     /// pixels no frame covers get `fill`. Returns how many pixels every frame covers.
+    /// Supersampled: as [`Warper::average_into`].
     #[allow(clippy::too_many_arguments)]
     pub fn average_plane_into<'a, F: Fn(usize) -> &'a [u8]>(
+        &mut self,
+        plane_at: F,
+        width: usize,
+        height: usize,
+        rotations: &[Matrix3<f64>],
+        out: &mut [u8],
+        coverage: &mut Vec<u8>,
+        fill: u8,
+    ) -> usize {
+        if self.supersample == 1 {
+            return self.render_plane_into(plane_at, width, height, rotations, out, coverage, fill);
+        }
+        let (ow, oh) = (self.view_w, self.view_h);
+        let mut fine = std::mem::take(&mut self.fine);
+        fine.image.resize(self.out.width * self.out.height, 0);
+        self.render_plane_into(
+            plane_at,
+            width,
+            height,
+            rotations,
+            &mut fine.image,
+            &mut fine.coverage,
+            fill,
+        );
+        coverage.clear();
+        coverage.resize(ow * oh, 0);
+        let full = rotations.len() as u8;
+        let s = self.supersample;
+        let complete = box_down(
+            &fine.image,
+            &fine.coverage,
+            s,
+            1,
+            (ow, oh),
+            out,
+            coverage,
+            full,
+        );
+        self.fine = fine;
+        complete
+    }
+
+    /// [`Warper::average_plane_into`] on the render grid.
+    #[allow(clippy::too_many_arguments)]
+    fn render_plane_into<'a, F: Fn(usize) -> &'a [u8]>(
         &mut self,
         plane_at: F,
         width: usize,
@@ -694,9 +847,70 @@ impl Warper {
     /// planes along a row at once, finding each pixel's taps once (see
     /// [`Kernel::accumulate_row_gray_pair`]); ghost-free averaging and
     /// unpadded planes take the planes one after the other. Returns how many
-    /// pixels every frame covers.
+    /// pixels every frame covers. Supersampled: as [`Warper::average_into`].
     #[allow(clippy::too_many_arguments)]
     pub fn average_plane_pair_into<'a, F: Fn(usize) -> (&'a [u8], &'a [u8])>(
+        &mut self,
+        planes_at: F,
+        width: usize,
+        height: usize,
+        rotations: &[Matrix3<f64>],
+        out_a: &mut [u8],
+        out_b: &mut [u8],
+        coverage: &mut Vec<u8>,
+        fill: u8,
+    ) -> usize {
+        if self.supersample == 1 {
+            return self.render_plane_pair_into(
+                planes_at, width, height, rotations, out_a, out_b, coverage, fill,
+            );
+        }
+        let (ow, oh) = (self.view_w, self.view_h);
+        let mut fine = std::mem::take(&mut self.fine);
+        let n = self.out.width * self.out.height;
+        fine.image.resize(n, 0);
+        fine.image_b.resize(n, 0);
+        self.render_plane_pair_into(
+            planes_at,
+            width,
+            height,
+            rotations,
+            &mut fine.image,
+            &mut fine.image_b,
+            &mut fine.coverage,
+            fill,
+        );
+        coverage.clear();
+        coverage.resize(ow * oh, 0);
+        let full = rotations.len() as u8;
+        let s = self.supersample;
+        let complete = box_down(
+            &fine.image,
+            &fine.coverage,
+            s,
+            1,
+            (ow, oh),
+            out_a,
+            coverage,
+            full,
+        );
+        box_down(
+            &fine.image_b,
+            &fine.coverage,
+            s,
+            1,
+            (ow, oh),
+            out_b,
+            coverage,
+            full,
+        );
+        self.fine = fine;
+        complete
+    }
+
+    /// [`Warper::average_plane_pair_into`] on the render grid.
+    #[allow(clippy::too_many_arguments)]
+    fn render_plane_pair_into<'a, F: Fn(usize) -> (&'a [u8], &'a [u8])>(
         &mut self,
         planes_at: F,
         width: usize,
@@ -726,8 +940,8 @@ impl Warper {
         if !fused {
             let [a, b] = datas;
             let complete =
-                self.average_plane_into(|i| a[i], width, height, rotations, out_a, coverage, fill);
-            self.average_plane_into(|i| b[i], width, height, rotations, out_b, coverage, fill);
+                self.render_plane_into(|i| a[i], width, height, rotations, out_a, coverage, fill);
+            self.render_plane_into(|i| b[i], width, height, rotations, out_b, coverage, fill);
             return complete;
         }
         coverage.clear();
@@ -769,9 +983,10 @@ impl Warper {
     }
 
     /// Warps `frame` by `m` (output ray -> source ray) and calls
-    /// `f(pixel_index, [r, g, b])` with 8.8 fixed-point samples for every output
-    /// pixel whose ray lands inside the source frame. Scalar: the reference the
-    /// vectorized paths are tested against.
+    /// `f(pixel_index, [r, g, b])` with 8.8 fixed-point samples for every
+    /// pixel of the render grid ([`Warper::render_size`]: the output's, or the
+    /// supersampled one) whose ray lands inside the source frame. Scalar: the
+    /// reference the vectorized paths are tested against.
     pub fn warp<F: FnMut(usize, [u32; 3])>(
         &mut self,
         frame: &FrameRef<'_>,
@@ -799,8 +1014,40 @@ impl Warper {
 
     /// Warps one interleaved frame into a saccade slot: 8.8 fixed-point samples
     /// (3 per pixel) and a coverage flag per pixel (0 where the frame does not
-    /// cover it), the slot resized to this warper's output.
+    /// cover it), the slot resized to this warper's output. Supersampled: each
+    /// pixel is its block's [`box_down_slot`] (covered only where every sample is).
     pub fn warp_into_slot(
+        &mut self,
+        frame: &FrameRef<'_>,
+        m: &Matrix3<f64>,
+        slot: &mut WarpedFrame,
+        index: u64,
+    ) {
+        if self.supersample == 1 {
+            return self.render_slot(frame, m, slot, index);
+        }
+        let (ow, oh) = (self.view_w, self.view_h);
+        let mut fine = std::mem::take(&mut self.fine);
+        self.render_slot(frame, m, &mut fine.slot, index);
+        slot.index = index;
+        slot.value.clear();
+        slot.value.resize(3 * ow * oh, 0);
+        slot.covered.clear();
+        slot.covered.resize(ow * oh, 0);
+        box_down_slot(
+            &fine.slot.value,
+            &fine.slot.covered,
+            self.supersample,
+            3,
+            (ow, oh),
+            &mut slot.value,
+            &mut slot.covered,
+        );
+        self.fine = fine;
+    }
+
+    /// [`Warper::warp_into_slot`] on the render grid.
+    fn render_slot(
         &mut self,
         frame: &FrameRef<'_>,
         m: &Matrix3<f64>,
@@ -848,8 +1095,48 @@ impl Warper {
     /// Warps one plane (`width x height`, followed by padding as for
     /// [`Warper::average_plane_into`]) into `values` (8.8 fixed-point samples)
     /// and `covered` (1 where the plane covers the output pixel), both this
-    /// warper's output size; uncovered pixels get 0.
+    /// warper's output size; uncovered pixels get 0. Supersampled: as
+    /// [`Warper::warp_into_slot`].
     pub fn warp_plane_into(
+        &mut self,
+        plane: &[u8],
+        width: usize,
+        height: usize,
+        m: &Matrix3<f64>,
+        values: &mut [u16],
+        covered: &mut [u8],
+    ) {
+        if self.supersample == 1 {
+            return self.render_plane_slot(plane, width, height, m, values, covered);
+        }
+        let view = (self.view_w, self.view_h);
+        let mut fine = std::mem::take(&mut self.fine);
+        let n = self.out.width * self.out.height;
+        fine.slot.value.resize(n, 0);
+        fine.slot.covered.resize(n, 0);
+        self.render_plane_slot(
+            plane,
+            width,
+            height,
+            m,
+            &mut fine.slot.value[..n],
+            &mut fine.slot.covered[..n],
+        );
+        let s = self.supersample;
+        box_down_slot(
+            &fine.slot.value[..n],
+            &fine.slot.covered[..n],
+            s,
+            1,
+            view,
+            values,
+            covered,
+        );
+        self.fine = fine;
+    }
+
+    /// [`Warper::warp_plane_into`] on the render grid.
+    fn render_plane_slot(
         &mut self,
         plane: &[u8],
         width: usize,
@@ -1063,6 +1350,151 @@ fn finish_merged_gray_row(
     n.iter().filter(|&&k| k == full as u32).count()
 }
 
+/// Averages each `s x s` block of a supersampled render (`src`: `s ow x s oh`
+/// pixels of `channels` bytes, `src_cov` its covering frames per pixel) into
+/// one pixel of `out` (`ow x oh`) and `cov`; returns the pixels covered by
+/// `full` frames.
+///
+/// A pixel's coverage is its block's least (it counts as covered by a frame
+/// only where every sample is); its value the rounded mean (`(sum + n / 2) /
+/// n`, half up as the kernels' averages) of the samples that some frame
+/// covers, so a pixel on the edge of the covered area is not darkened by
+/// the fill of its uncovered samples; with none covered, of all samples
+/// (each the fill). Integers only: the same bytes whatever the kernel.
+#[allow(clippy::too_many_arguments)]
+fn box_down(
+    src: &[u8],
+    src_cov: &[u8],
+    s: usize,
+    channels: usize,
+    (ow, oh): (usize, usize),
+    out: &mut [u8],
+    cov: &mut [u8],
+    full: u8,
+) -> usize {
+    let rw = s * ow;
+    let all = (s * s) as u32;
+    let row = |v: usize, out_row: &mut [u8], cov_row: &mut [u8]| {
+        let mut complete = 0;
+        for (u, (px, c_out)) in out_row
+            .chunks_exact_mut(channels)
+            .zip(cov_row.iter_mut())
+            .enumerate()
+        {
+            let (mut least, mut n) = (u8::MAX, 0u32);
+            let (mut sum_cov, mut sum_all) = ([0u32; 4], [0u32; 4]);
+            for l in 0..s {
+                let first = (s * v + l) * rw + s * u;
+                for i in first..first + s {
+                    let c = src_cov[i];
+                    least = least.min(c);
+                    let covered = (c > 0) as u32;
+                    n += covered;
+                    for ch in 0..channels {
+                        let x = src[i * channels + ch] as u32;
+                        sum_all[ch] += x;
+                        sum_cov[ch] += x * covered;
+                    }
+                }
+            }
+            let (sum, n) = if n > 0 { (sum_cov, n) } else { (sum_all, all) };
+            for (o, &t) in px.iter_mut().zip(&sum) {
+                *o = ((t + n / 2) / n) as u8;
+            }
+            *c_out = least;
+            complete += (least == full) as usize;
+        }
+        complete
+    };
+    by_rows(
+        &mut out[..ow * oh * channels],
+        &mut cov[..ow * oh],
+        ow,
+        channels,
+        row,
+    )
+}
+
+/// Averages each `s x s` block of a supersampled saccade slot (`values`:
+/// 8.8 fixed-point samples, `channels` per pixel; `covered`: 0 or 1 per
+/// pixel; `s ow x s oh` pixels) into one pixel of `out_values` / `out_covered`
+/// (`ow x oh`): covered only where every sample is (the slot is added to the
+/// running sum as a whole frame, and a partly covered pixel would mix in the
+/// uncovered samples' zeros), with the rounded mean of its samples; 0 elsewhere.
+fn box_down_slot(
+    values: &[u16],
+    covered: &[u8],
+    s: usize,
+    channels: usize,
+    (ow, oh): (usize, usize),
+    out_values: &mut [u16],
+    out_covered: &mut [u8],
+) {
+    let rw = s * ow;
+    let n = (s * s) as u32;
+    let row = |v: usize, out_row: &mut [u16], cov_row: &mut [u8]| {
+        for (u, (px, c_out)) in out_row
+            .chunks_exact_mut(channels)
+            .zip(cov_row.iter_mut())
+            .enumerate()
+        {
+            let mut all = true;
+            let mut sum = [0u32; 3];
+            for l in 0..s {
+                let first = (s * v + l) * rw + s * u;
+                for i in first..first + s {
+                    all &= covered[i] != 0;
+                    for (ch, acc) in sum.iter_mut().enumerate().take(channels) {
+                        *acc += values[i * channels + ch] as u32;
+                    }
+                }
+            }
+            for (o, &t) in px.iter_mut().zip(&sum) {
+                *o = if all { ((t + n / 2) / n) as u16 } else { 0 };
+            }
+            *c_out = all as u8;
+        }
+        0
+    };
+    let (values, covered) = (
+        &mut out_values[..ow * oh * channels],
+        &mut out_covered[..ow * oh],
+    );
+    by_rows(values, covered, ow, channels, row);
+}
+
+/// Calls `row(v, out_row, coverage_row)` for the rows of an `ow`-wide image
+/// of `channels` values per pixel and its coverage, and sums what it returns:
+/// on the rayon pool with the `parallel` feature and more than one thread.
+fn by_rows<T: Send>(
+    out: &mut [T],
+    coverage: &mut [u8],
+    ow: usize,
+    channels: usize,
+    row: impl Fn(usize, &mut [T], &mut [u8]) -> usize + Sync,
+) -> usize {
+    if ow == 0 || channels == 0 {
+        return 0;
+    }
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        if rayon::current_num_threads() > 1 {
+            return out
+                .par_chunks_mut(ow * channels)
+                .zip(coverage.par_chunks_mut(ow))
+                .enumerate()
+                .map(|(v, (o, c))| row(v, o, c))
+                .sum();
+        }
+    }
+    out.chunks_mut(ow * channels)
+        .zip(coverage.chunks_mut(ow))
+        .enumerate()
+        .map(|(v, (o, c))| row(v, o, c))
+        .sum()
+}
+
 /// Bilinear interpolation of a node grid (`grid_w x grid_h`, spacing
 /// `step`) into the coordinates of output row `v`.
 fn interpolate_grid_row(
@@ -1140,7 +1572,7 @@ impl WarpedFrame {
         m: &Matrix3<f64>,
         index: u64,
     ) {
-        let (w, h) = warper.output_size();
+        let (w, h) = warper.render_size();
         self.index = index;
         self.value.clear();
         self.value.resize(3 * w * h, 0);
@@ -1153,5 +1585,22 @@ impl WarpedFrame {
             value[3 * i + 2] = rgb[2] as u16;
             covered[i] = 1;
         });
+        let s = warper.supersample();
+        if s > 1 {
+            let view = warper.output_size();
+            let (mut value, mut covered) =
+                (vec![0u16; 3 * view.0 * view.1], vec![0u8; view.0 * view.1]);
+            box_down_slot(
+                &self.value,
+                &self.covered,
+                s,
+                3,
+                view,
+                &mut value,
+                &mut covered,
+            );
+            self.value = value;
+            self.covered = covered;
+        }
     }
 }
