@@ -675,19 +675,8 @@ impl Warper {
             channels,
             &mut fine.coverage,
         );
-        coverage.clear();
-        coverage.resize(ow * oh, 0);
         let full = rotations.len() as u8;
-        let complete = box_down(
-            &fine.image,
-            &fine.coverage,
-            self.supersample,
-            channels,
-            (ow, oh),
-            out,
-            coverage,
-            full,
-        );
+        let complete = self.finish_fine(&fine.image, &fine.coverage, channels, full, out, coverage);
         self.fine = fine;
         complete as f64 / (ow * oh).max(1) as f64
     }
@@ -764,7 +753,6 @@ impl Warper {
         if self.supersample == 1 {
             return self.render_plane_into(plane_at, width, height, rotations, out, coverage, fill);
         }
-        let (ow, oh) = (self.view_w, self.view_h);
         let mut fine = std::mem::take(&mut self.fine);
         fine.image.resize(self.out.width * self.out.height, 0);
         self.render_plane_into(
@@ -776,20 +764,8 @@ impl Warper {
             &mut fine.coverage,
             fill,
         );
-        coverage.clear();
-        coverage.resize(ow * oh, 0);
         let full = rotations.len() as u8;
-        let s = self.supersample;
-        let complete = box_down(
-            &fine.image,
-            &fine.coverage,
-            s,
-            1,
-            (ow, oh),
-            out,
-            coverage,
-            full,
-        );
+        let complete = self.finish_fine(&fine.image, &fine.coverage, 1, full, out, coverage);
         self.fine = fine;
         complete
     }
@@ -865,7 +841,6 @@ impl Warper {
                 planes_at, width, height, rotations, out_a, out_b, coverage, fill,
             );
         }
-        let (ow, oh) = (self.view_w, self.view_h);
         let mut fine = std::mem::take(&mut self.fine);
         let n = self.out.width * self.out.height;
         fine.image.resize(n, 0);
@@ -880,32 +855,39 @@ impl Warper {
             &mut fine.coverage,
             fill,
         );
-        coverage.clear();
-        coverage.resize(ow * oh, 0);
         let full = rotations.len() as u8;
-        let s = self.supersample;
-        let complete = box_down(
-            &fine.image,
-            &fine.coverage,
-            s,
-            1,
-            (ow, oh),
-            out_a,
-            coverage,
-            full,
-        );
-        box_down(
-            &fine.image_b,
-            &fine.coverage,
-            s,
-            1,
-            (ow, oh),
-            out_b,
-            coverage,
-            full,
-        );
+        let complete = self.finish_fine(&fine.image, &fine.coverage, 1, full, out_a, coverage);
+        self.finish_fine(&fine.image_b, &fine.coverage, 1, full, out_b, coverage);
         self.fine = fine;
         complete
+    }
+
+    /// A supersampled render's last step: `image` (`channels` per pixel, with
+    /// its per-pixel `fine_coverage`, on the render grid) averaged block by
+    /// block into `out` and `coverage` (resized) at the output size; returns
+    /// how many output pixels all `full` frames cover ([`box_down`]).
+    fn finish_fine(
+        &self,
+        image: &[u8],
+        fine_coverage: &[u8],
+        channels: usize,
+        full: u8,
+        out: &mut [u8],
+        coverage: &mut Vec<u8>,
+    ) -> usize {
+        let (ow, oh) = (self.view_w, self.view_h);
+        coverage.clear();
+        coverage.resize(ow * oh, 0);
+        box_down(
+            image,
+            fine_coverage,
+            self.supersample,
+            channels,
+            (ow, oh),
+            out,
+            coverage,
+            full,
+        )
     }
 
     /// [`Warper::average_plane_pair_into`] on the render grid.
