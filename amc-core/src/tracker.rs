@@ -1383,7 +1383,7 @@ impl Tracker {
         let (mut pu, mut pv, mut pe, mut ps) =
             ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
         let (mut rx, mut ry, mut rz) = ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
-        let mut dv = [0f32; CHUNK];
+        let (mut dv, mut gain) = ([0f32; CHUNK], [0f32; CHUNK]);
         let (mut rho, mut ok, mut wts) = ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
         // Per point of a chunk: IRLS-weighted residual and SD outer products.
         let mut we = [[0f32; CHUNK]; 3];
@@ -1428,16 +1428,7 @@ impl Tracker {
             // the readout's ends, a bias that doubled the per-frame error (7.2x the
             // global shutter's against 3.2-3.6x with four steps or with the
             // extrapolation, which costs no projection).
-            #[inline(always)]
-            fn land(k: &Intrinsics, path: &[[f32; 3]; 4], s: f32, r: [f32; 3]) -> (f32, f32) {
-                let [phi, psi, chi, xi] = path;
-                let b: [f32; 3] = std::array::from_fn(|i| {
-                    -((phi[i] + (psi[i] + (chi[i] + xi[i] * s) * s) * s) * s)
-                });
-                let z = rotate_small(&b, &r);
-                k.project(z[0], z[1], z[2])
-            }
-            let land = |s: f32, q: usize| land(&k, &path, s, [rx[q], ry[q], rz[q]]);
+            let land = |s: f32, q: usize| land_at(&k, &path, s, [rx[q], ry[q], rz[q]]);
             match warm_start.as_deref_mut() {
                 Some(l) if warm => {
                     // One step from the last landing, extrapolated with its gain.
@@ -1467,16 +1458,15 @@ impl Tracker {
                         } else {
                             0.0
                         };
-                        let gain = ratio / (1.0 - ratio);
-                        pu[q] = u + gain * eu;
-                        pv[q] = v + gain * ev;
+                        gain[q] = ratio / (1.0 - ratio);
+                        pu[q] = u + gain[q] * eu;
+                        pv[q] = v + gain[q] * ev;
                         ps[q] = row_time(pu[q], pv[q]);
-                        dv[q] = gain;
                     }
                     if let Some(l) = cold {
                         l.u[lo..hi].copy_from_slice(&pu[..len]);
                         l.v[lo..hi].copy_from_slice(&pv[..len]);
-                        l.gain[lo..hi].copy_from_slice(&dv[..len]);
+                        l.gain[lo..hi].copy_from_slice(&gain[..len]);
                     }
                 }
             }
@@ -1621,6 +1611,19 @@ fn rectify_template(tpl: &mut LevelTemplate, rows: &RowTime, level: usize, intra
         tpl.ys[i] = ray[1];
         tpl.zs.push(ray[2]);
     }
+}
+
+/// Where ray `r` (in the frame's mid-readout camera) lands at readout fraction
+/// `s` of the readout path `path` (`[phi, psi, chi, xi]`): `pi(K exp(-a(s)) r)`,
+/// `a(s) = s phi + s^2 psi + s^3 chi + s^4 xi`, the rotation to third order
+/// ([`rotate_small`]). Inlined into the loops over points, which vectorize.
+#[inline(always)]
+fn land_at(k: &Intrinsics, path: &[[f32; 3]; 4], s: f32, r: [f32; 3]) -> (f32, f32) {
+    let [phi, psi, chi, xi] = path;
+    let b: [f32; 3] =
+        std::array::from_fn(|i| -((phi[i] + (psi[i] + (chi[i] + xi[i] * s) * s) * s) * s));
+    let z = rotate_small(&b, &r);
+    k.project(z[0], z[1], z[2])
 }
 
 /// `exp(b) z` for a small rotation vector `b`, to third order:
