@@ -91,17 +91,24 @@ fn render_rolling(
 
 /// The AVX2 kernel must be bit-exact with the scalar sampler, with a global
 /// and a rolling shutter.
+/// The kernel tests' cameras: an 80 deg pinhole `width` x 117 (odd sizes, so
+/// that rows end in scalar tails), and the same behind a fisheye lens.
+fn pinhole_and_fisheye(width: usize) -> (CameraModel, CameraModel) {
+    let pinhole = CameraModel::pinhole_hfov(width, 117, 80.0).unwrap();
+    let mut fisheye = pinhole.clone();
+    fisheye.distortion = crate::camera::Distortion::Fisheye {
+        k1: 0.05,
+        k2: -0.01,
+        k3: 0.0,
+        k4: 0.0,
+    };
+    (pinhole, fisheye)
+}
+
 #[test]
 fn vectorized_matches_scalar() {
     for format in [PixelFormat::Rgb8, PixelFormat::Rgba8] {
-        let pinhole = CameraModel::pinhole_hfov(203, 117, 80.0).unwrap();
-        let mut fisheye = CameraModel::pinhole_hfov(203, 117, 80.0).unwrap();
-        fisheye.distortion = crate::camera::Distortion::Fisheye {
-            k1: 0.05,
-            k2: -0.01,
-            k3: 0.0,
-            k4: 0.0,
-        };
+        let (pinhole, fisheye) = pinhole_and_fisheye(203);
         for (cam, rolling) in [
             (&pinhole, false),
             (&fisheye, false),
@@ -146,14 +153,7 @@ fn ghost_free_vectorized_matches_scalar() {
     // Noise frames differ by up to 255 levels: 60 gives weights from 0 to 16.
     let deghost = Deghost::new(60.0);
     // 211 px: the output (158 px) leaves a scalar tail of 6 pixels per row.
-    let pinhole = CameraModel::pinhole_hfov(211, 117, 80.0).unwrap();
-    let mut fisheye = pinhole.clone();
-    fisheye.distortion = crate::camera::Distortion::Fisheye {
-        k1: 0.05,
-        k2: -0.01,
-        k3: 0.0,
-        k4: 0.0,
-    };
+    let (pinhole, fisheye) = pinhole_and_fisheye(211);
     for format in [PixelFormat::Rgb8, PixelFormat::Rgba8] {
         for (cam, rolling) in [(&pinhole, false), (&fisheye, false), (&pinhole, true)] {
             let a = render_rolling(cam, false, format, rolling, deghost);
@@ -325,14 +325,7 @@ fn render_planar_deghost(
 /// distorted sources and odd sizes (chroma planes of `ceil` halves).
 #[test]
 fn planar_vectorized_matches_scalar() {
-    let pinhole = CameraModel::pinhole_hfov(203, 117, 80.0).unwrap();
-    let mut fisheye = pinhole.clone();
-    fisheye.distortion = crate::camera::Distortion::Fisheye {
-        k1: 0.05,
-        k2: -0.01,
-        k3: 0.0,
-        k4: 0.0,
-    };
+    let (pinhole, fisheye) = pinhole_and_fisheye(203);
     for cam in [pinhole.clone(), fisheye.clone()] {
         // Small turns: most lanes take the kernel's gather-free window path.
         for spin in [0.01, 0.05] {
@@ -601,14 +594,7 @@ fn box_by_hand(
 /// shutter; and the saccade slots likewise, covered only where every sample is.
 #[test]
 fn supersampled_equals_fine_render_box_averaged() {
-    let pinhole = CameraModel::pinhole_hfov(203, 117, 80.0).unwrap();
-    let mut fisheye = pinhole.clone();
-    fisheye.distortion = crate::camera::Distortion::Fisheye {
-        k1: 0.05,
-        k2: -0.01,
-        k3: 0.0,
-        k4: 0.0,
-    };
+    let (pinhole, fisheye) = pinhole_and_fisheye(203);
     let rots: Vec<Matrix3<f64>> = (0..3)
         .map(|i| *so3::exp(&Tangent::new(0.03 * i as f64, -0.12, 0.05)).matrix())
         .collect();
