@@ -1247,7 +1247,6 @@ impl Tracker {
         if w < 2 || h < 2 {
             return Eval::default();
         }
-        let (k_fx, k_fy, k_skew, k_cx, k_cy) = (k.fx, k.fy, k.skew, k.cx, k.cy);
         let c = self.params.huber_delta as f32;
         let mut ev = Eval::default();
         let (mut pu, mut pv, mut pe) = ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
@@ -1270,14 +1269,13 @@ impl Tracker {
             let (xs, ys) = (&tpl.xs[lo..hi], &tpl.ys[lo..hi]);
             // Pass 1 (branch-free, vectorizes): project the rotated rays.
             // Rays behind the camera get an out-of-image coordinate.
-            for k in 0..len {
-                let (x, y) = (xs[k], ys[k]);
-                let zc = m[6] * x + m[7] * y + m[8];
-                let iz = if zc > 1e-6 { 1.0 / zc } else { -1e9 };
-                let xn = (m[0] * x + m[1] * y + m[2]) * iz;
-                let yn = (m[3] * x + m[4] * y + m[5]) * iz;
-                pu[k] = k_fx * xn + k_skew * yn + k_cx;
-                pv[k] = k_fy * yn + k_cy;
+            for q in 0..len {
+                let (x, y) = (xs[q], ys[q]);
+                (pu[q], pv[q]) = k.project(
+                    m[0] * x + m[1] * y + m[2],
+                    m[3] * x + m[4] * y + m[5],
+                    m[6] * x + m[7] * y + m[8],
+                );
             }
             // Pass 2 (gathers): bilinear residuals, NaN where invalid.
             residuals(img, &pu[..len], &pv[..len], &tpl.tv[lo..hi], &mut pe[..len]);
