@@ -49,6 +49,12 @@ pub fn dot(a: &[f32], b: &[f32]) -> f32 {
     lane_sum(a, b, b, |x, y, _| (x * y, true)).0
 }
 
+/// `sum a[i]`.
+#[inline(always)]
+pub fn sum(a: &[f32]) -> f32 {
+    lane_sum(a, a, a, |x, _, _| (x, true)).0
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -61,6 +67,7 @@ mod tests {
             let b: Vec<f32> = (0..n).map(|i| (i % 3) as f32).collect();
             let want: f32 = (0..n).map(|i| (i * (i % 3)) as f32).sum();
             assert_eq!(dot(&a, &b), want, "n = {n}");
+            assert_eq!(sum(&b), (0..n).map(|i| (i % 3) as f32).sum::<f32>());
             let odd = lane_sum(&a, &a, &a, |x, _, _| (x, x as usize % 2 == 1));
             assert_eq!(
                 odd,

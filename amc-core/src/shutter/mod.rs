@@ -17,7 +17,7 @@
 //! `tau^3 / 6` times the jerk, `tau^4 / 24` times the snap). At 12-20 Hz
 //! shake a readout can span 0.4 of a shake period: a constant velocity per
 //! frame leaves a bend that biases the mid-readout pose, so the tracker
-//! estimates the terms the motion needs (see `tracker.rs`), from the
+//! estimates the terms the motion needs (see `tracker/`), from the
 //! intensities, per frame ([`IntraFrame`]). Best fits to 300 deg/s shake at
 //! 12-20 Hz through a 20 ms readout leave, RMS over the rows: 0.40 deg
 //! (linear), 0.049 (quadratic), 0.0087 (cubic), 0.0008 (quartic).

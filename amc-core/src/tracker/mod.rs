@@ -81,6 +81,9 @@
 //!   motion the rate predicts, so what the estimate absorbs (looming) cannot
 //!   add up template after template.
 
+mod irls;
+mod residuals;
+
 use crate::camera::CameraModel;
 use crate::error::{check_range, AmcError};
 use crate::image::GrayImage;
@@ -89,7 +92,9 @@ use crate::pyramid::Pyramid;
 use crate::shutter::RowTime;
 use crate::shutter::{IntraFrame, INTRA_TERMS};
 use crate::so3::{self, Rot, Tangent};
+use irls::{irls_terms, outer_products, IrlsTerms};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+use residuals::residuals;
 use serde::{Deserialize, Serialize};
 
 /// Parameters of the rotation tracker.
@@ -1226,6 +1231,41 @@ impl Tracker {
         pose: &Pose,
         warm_start: Option<&mut WarmStart>,
     ) -> Eval {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2.
+            return unsafe { self.evaluate_avx2(level, img, pose, warm_start) };
+        }
+        self.evaluate_body(level, img, pose, warm_start)
+    }
+
+    /// [`Self::evaluate_body`] compiled for AVX2: the same code, whose
+    /// per-point loops the compiler vectorizes eight points wide instead of
+    /// four. The sums are the same bits: [`lanes`] fixes their order.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn evaluate_avx2(
+        &self,
+        level: usize,
+        img: &GrayImage,
+        pose: &Pose,
+        warm_start: Option<&mut WarmStart>,
+    ) -> Eval {
+        self.evaluate_body(level, img, pose, warm_start)
+    }
+
+    /// [`Self::evaluate`] for whichever instruction set it is compiled.
+    #[inline(always)]
+    fn evaluate_body(
+        &self,
+        level: usize,
+        img: &GrayImage,
+        pose: &Pose,
+        warm_start: Option<&mut WarmStart>,
+    ) -> Eval {
         match &self.rolling {
             None => self.evaluate_global(level, img, &pose.r),
             Some(rows) => {
@@ -1237,6 +1277,7 @@ impl Tracker {
 
     /// One pass over a level's template pixels at rotation `r = R_{k,j}`:
     /// robust loss, and the IRLS-weighted Gauss-Newton system.
+    #[inline(always)]
     fn evaluate_global(&self, level: usize, img: &GrayImage, r: &Rot) -> Eval {
         let tpl = &self.template[level];
         let Some(k) = tpl.k else {
@@ -1250,6 +1291,8 @@ impl Tracker {
         let c = self.params.huber_delta as f32;
         let mut ev = Eval::default();
         let (mut pu, mut pv, mut pe) = ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
+        let mut terms = IrlsTerms::default();
+        let mut outer = [[0f32; CHUNK]; 6];
         let m = [
             m[(0, 0)],
             m[(0, 1)],
@@ -1265,7 +1308,8 @@ impl Tracker {
         let mut lo = 0;
         while lo < n_pts {
             let hi = (lo + CHUNK).min(n_pts);
-            let len = hi - lo;
+            // (`min`: tells the compiler `len <= CHUNK`, see the rolling pass.)
+            let len = (hi - lo).min(CHUNK);
             let (xs, ys) = (&tpl.xs[lo..hi], &tpl.ys[lo..hi]);
             // Pass 1 (branch-free, vectorizes): project the rotated rays.
             // Rays behind the camera get an out-of-image coordinate.
@@ -1279,37 +1323,16 @@ impl Tracker {
             }
             // Pass 2 (gathers): bilinear residuals, NaN where invalid.
             residuals(img, &pu[..len], &pv[..len], &tpl.tv[lo..hi], &mut pe[..len]);
-            // Pass 3 (branch-free, vectorizes): Huber loss and IRLS sums.
+            // Pass 3: Huber loss and IRLS terms per point, summed in lanes.
             let sd = tpl.sd.each_ref().map(|a| &a[lo..hi]);
-            let (mut loss, mut sq, mut n) = (0f32, 0f32, 0f32);
-            let mut g = [0f32; 3];
-            let mut hh = [0f32; 6];
-            for k in 0..len {
-                let (valid, e, rho, wt) = huber(pe[k], c);
-                loss += rho;
-                sq += e * e;
-                n += if valid { 1.0 } else { 0.0 };
-                let [s0, s1, s2] = sd.map(|a| a[k]);
-                let we = wt * e;
-                g[0] += s0 * we;
-                g[1] += s1 * we;
-                g[2] += s2 * we;
-                let (w0, w1, w2) = (wt * s0, wt * s1, wt * s2);
-                hh[0] += w0 * s0;
-                hh[1] += w0 * s1;
-                hh[2] += w0 * s2;
-                hh[3] += w1 * s1;
-                hh[4] += w1 * s2;
-                hh[5] += w2 * s2;
+            irls_terms(&mut pe[..len], sd, c, &mut terms);
+            outer_products(sd, &terms.wt, len, &mut outer);
+            terms.add_to(&mut ev, &pe[..len]);
+            for (a, o) in outer.iter().enumerate() {
+                ev.h[a] += lanes::sum(&o[..len]) as f64;
             }
-            ev.loss += loss as f64;
-            ev.sq += sq as f64;
-            ev.n += n as u32;
-            for a in 0..3 {
-                ev.g[a] += g[a] as f64;
-            }
-            for a in 0..6 {
-                ev.h[a] += hh[a] as f64;
+            for (a, v) in terms.we.iter().enumerate() {
+                ev.g[a] += lanes::sum(&v[..len]) as f64;
             }
             lo = hi;
         }
@@ -1327,6 +1350,7 @@ impl Tracker {
     /// third order, `z + b x z + (b x (b x z)) / 2 + (b x (b x (b x z))) / 6`
     /// with `b = -a`: its error `|a|^4 / 24` is 3e-7 rad for a 6 deg turn
     /// across the readout (300 deg/s over 20 ms).
+    #[inline(always)]
     fn evaluate_rolling(
         &self,
         level: usize,
@@ -1351,14 +1375,15 @@ impl Tracker {
 
     /// [`Tracker::evaluate_rolling`] with the readout fraction `row_time(u, v)`
     /// of level pixel `(u, v)`. The intra-frame sums are accumulated for the
-    /// first `terms` terms of the readout path (those the level estimates;
+    /// first `n_terms` terms of the readout path (those the level estimates;
     /// none: 0).
+    #[inline(always)]
     fn evaluate_rolling_with<T: Fn(f32, f32) -> f32>(
         &self,
         level: usize,
         img: &GrayImage,
         pose: &Pose,
-        terms: usize,
+        n_terms: usize,
         mut warm_start: Option<&mut WarmStart>,
         row_time: T,
     ) -> Eval {
@@ -1382,9 +1407,7 @@ impl Tracker {
             ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
         let (mut rx, mut ry, mut rz) = ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
         let (mut dv, mut gain) = ([0f32; CHUNK], [0f32; CHUNK]);
-        let (mut rho, mut ok, mut wts) = ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
-        // Per point of a chunk: IRLS-weighted residual and SD outer products.
-        let mut we = [[0f32; CHUNK]; 3];
+        let mut terms = IrlsTerms::default();
         let mut outer = [[0f32; CHUNK]; 6];
         let n_pts = tpl.xs.len();
         // Warm: start from the level's first evaluation (see [`WarmStart`]).
@@ -1470,45 +1493,25 @@ impl Tracker {
             }
             // Pass 2 (gathers): bilinear residuals, NaN where invalid.
             residuals(img, &pu[..len], &pv[..len], &tpl.tv[lo..hi], &mut pe[..len]);
-            // Pass 3: Huber loss and IRLS sums, then (estimating the readout
-            // path) their moments in the rows' readout fractions.
-            // Per point first, the sums after (in lanes): with the running
-            // sums in it, this loop ran scalar and was a third of the pass.
-            let [sd0, sd1, sd2] = tpl.sd.each_ref().map(|a| &a[lo..hi]);
+            // Pass 3: Huber loss and IRLS terms per point (a point whose row
+            // time is not finite is invalid), then (estimating the readout
+            // path) their moments in the rows' readout fractions, in lanes.
             for q in 0..len {
-                let valid_s = ps[q].is_finite();
-                let (valid, e, r, wt) = huber(if valid_s { pe[q] } else { f32::NAN }, c);
-                ps[q] = if valid { ps[q] } else { 0.0 };
-                pe[q] = e;
-                rho[q] = r;
-                ok[q] = if valid { 1.0 } else { 0.0 };
-                let (s0, s1, s2) = (sd0[q], sd1[q], sd2[q]);
-                let wte = wt * e;
-                we[0][q] = s0 * wte;
-                we[1][q] = s1 * wte;
-                we[2][q] = s2 * wte;
-                wts[q] = wt;
+                pe[q] = if ps[q].is_finite() { pe[q] } else { f32::NAN };
+            }
+            let sd = tpl.sd.each_ref().map(|a| &a[lo..hi]);
+            irls_terms(&mut pe[..len], sd, c, &mut terms);
+            for q in 0..len {
+                ps[q] = if terms.ok[q] > 0.0 { ps[q] } else { 0.0 };
             }
             if !warm {
-                for q in 0..len {
-                    let (s0, s1, s2) = (sd0[q], sd1[q], sd2[q]);
-                    let (w0, w1, w2) = (wts[q] * s0, wts[q] * s1, wts[q] * s2);
-                    outer[0][q] = w0 * s0;
-                    outer[1][q] = w0 * s1;
-                    outer[2][q] = w0 * s2;
-                    outer[3][q] = w1 * s1;
-                    outer[4][q] = w1 * s2;
-                    outer[5][q] = w2 * s2;
-                }
+                outer_products(sd, &terms.wt, len, &mut outer);
             }
-            // `rho` and `e` are 0 where invalid, `ok` is 0 or 1.
-            ev.loss += lanes::dot(&rho[..len], &ok[..len]) as f64;
-            ev.sq += lanes::dot(&pe[..len], &pe[..len]) as f64;
-            ev.n += lanes::dot(&ok[..len], &ok[..len]) as u32;
+            terms.add_to(&mut ev, &pe[..len]);
             // A warm evaluation sums the gradient's moments only (up to
-            // `s^terms`); the matrix's (up to `s^(2 terms)`) are the level's
+            // `s^n_terms`); the matrix's (up to `s^(2 n_terms)`) are the level's
             // first evaluation's (see [`WarmStart`]).
-            let moments = if warm { terms } else { 2 * terms };
+            let moments = if warm { n_terms } else { 2 * n_terms };
             // pw = s^p per point, p = 0..=moments (vectorized over points).
             let mut pw = [1f32; CHUNK];
             for p in 0..=moments {
@@ -1526,9 +1529,9 @@ impl Tracker {
                         hk[a] += dot(o);
                     }
                 }
-                if p <= terms {
+                if p <= n_terms {
                     let gk = if p == 0 { &mut ev.g } else { &mut ev.gs[p - 1] };
-                    for (a, v) in we.iter().enumerate() {
+                    for (a, v) in terms.we.iter().enumerate() {
                         gk[a] += dot(v);
                     }
                 }
@@ -1639,57 +1642,6 @@ fn rotate_small(b: &[f32; 3], z: &[f32; 3]) -> [f32; 3] {
     let b2 = cross(b, &b1);
     let b3 = cross(b, &b2);
     std::array::from_fn(|i| z[i] + b1[i] + 0.5 * b2[i] + b3[i] * (1.0 / 6.0))
-}
-
-/// Bilinear residuals `I(u, v) - T` of points at `(pu, pv)` (NaN outside the
-/// image or on invalid pixels) into `pe`.
-#[inline]
-fn residuals(img: &GrayImage, pu: &[f32], pv: &[f32], tv: &[f32], pe: &mut [f32]) {
-    let w = img.width;
-    let (umax, vmax) = ((w - 1) as f32, (img.height - 1) as f32);
-    let data = &img.data[..];
-    for k in 0..pe.len() {
-        let (u, v) = (pu[k], pv[k]);
-        pe[k] = if u >= 0.0 && v >= 0.0 && u < umax && v < vmax {
-            let (x0, y0) = (u as usize, v as usize);
-            let (ax, ay) = (u - x0 as f32, v - y0 as f32);
-            let idx = y0 * w + x0;
-            match (data.get(idx..idx + 2), data.get(idx + w..idx + w + 2)) {
-                (Some(t), Some(b)) => {
-                    let top = t[0] + (t[1] - t[0]) * ax;
-                    let bot = b[0] + (b[1] - b[0]) * ax;
-                    top + (bot - top) * ay - tv[k]
-                }
-                _ => f32::NAN,
-            }
-        } else {
-            f32::NAN
-        };
-    }
-}
-
-/// Huber loss of residual `e` (NaN: invalid) with threshold `c`: whether it
-/// is valid, the residual (0 when not), the loss and the IRLS weight.
-///
-/// Branch-free, so that the loops calling it vectorize: with `m = min(|e|, c)`
-/// the loss is `m (|e| - m / 2)` (`e^2 / 2` for an inlier, `c (|e| - c / 2)`
-/// beyond) and the weight `c / max(|e|, c)` (exactly 1 for an inlier); both
-/// round exactly as the two-branch forms do.
-#[inline(always)]
-fn huber(e: f32, c: f32) -> (bool, f32, f32, f32) {
-    let valid = e.is_finite();
-    let e = if valid { e } else { 0.0 };
-    let ae = e.abs();
-    // Plain compares, not `f32::min`/`max`: `ae` is never NaN, and their NaN
-    // handling kept the loops scalar.
-    let m = if ae < c { ae } else { c };
-    let rho = m * (ae - 0.5 * m);
-    let wt = if valid {
-        c / if ae > c { ae } else { c }
-    } else {
-        0.0
-    };
-    (valid, e, rho, wt)
 }
 
 /// True when level pixel `(u, v)` lies on a camera-fixed location (votes are
