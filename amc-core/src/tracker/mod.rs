@@ -496,7 +496,8 @@ pub struct Tracker {
     last: Option<(f64, Rot)>,
     rate: Tangent,
     frames_since_reset: usize,
-    grad: Vec<(f32, f32)>,
+    /// Scratch of [`build_level_template`]: its per-pixel scores.
+    score: Vec<f32>,
     /// Per finest-level pixel: moving average of "camera-fixed" votes in [-1, 1].
     static_votes: Vec<f32>,
     /// Moving average of the RMS residual of well-tracked frames.
@@ -683,7 +684,7 @@ impl Tracker {
             last: None,
             rate: Tangent::zeros(),
             frames_since_reset: 0,
-            grad: Vec::new(),
+            score: Vec::new(),
             static_votes: vec![0.0; camera.width * camera.height],
             typical_residual: None,
             intra: IntraFrame::ZERO,
@@ -1577,7 +1578,7 @@ impl Tracker {
                 img,
                 k,
                 self.params.max_points,
-                &mut self.grad,
+                &mut self.score,
                 votes.map(|(v, w)| (v, w, level)),
                 &mut self.template[level],
             );
@@ -1660,11 +1661,17 @@ fn is_static(votes: Option<(&[f32], usize, usize)>, u: usize, v: usize) -> bool 
 }
 
 /// Fills `tpl` from `img`: per block, the pixel of largest gradient.
+///
+/// Two passes: a score per pixel (the squared central-difference gradient,
+/// or -1 where the pixel cannot be chosen), in straight loops down the rows
+/// that vectorize, then the first pixel of highest score in each block. (One
+/// loop with the four tests chained per pixel ran scalar, and branched on
+/// each: it cost as much as all the frame's Gauss-Newton evaluations.)
 fn build_level_template(
     img: &GrayImage,
     k: Intrinsics,
     max_points: usize,
-    grad: &mut Vec<(f32, f32)>,
+    score: &mut Vec<f32>,
     static_votes: Option<(&[f32], usize, usize)>,
     tpl: &mut LevelTemplate,
 ) {
@@ -1679,49 +1686,70 @@ fn build_level_template(
         a.clear();
     }
     let (w, h) = (img.width, img.height);
-    if w < 3 || h < 3 {
+    if w < 3 || h < 3 || img.data.len() < w * h {
         return;
     }
-    // Central-difference gradients (a per-pixel derivative); NaN near invalid pixels.
-    grad.clear();
-    grad.resize(w * h, (f32::NAN, f32::NAN));
+    let data = &img.data[..w * h];
+    // Central-difference gradients (a per-pixel derivative).
+    let gradient = |i: usize| {
+        (
+            0.5 * (data[i + 1] - data[i - 1]),
+            0.5 * (data[i + w] - data[i - w]),
+        )
+    };
+    // Candidates: gradient above the quantisation step, on a valid pixel
+    // (NaN compares false: a pixel next to an invalid one is never chosen),
+    // and not camera-fixed; the border's scores are never read.
+    let min_g2 = MIN_GRADIENT * MIN_GRADIENT;
+    score.clear();
+    score.resize(w * h, -1.0);
     for v in 1..h - 1 {
+        let (up, row, down) = (
+            &data[(v - 1) * w..v * w],
+            &data[v * w..(v + 1) * w],
+            &data[(v + 1) * w..(v + 2) * w],
+        );
+        let out = &mut score[v * w..(v + 1) * w];
         for u in 1..w - 1 {
-            let i = v * w + u;
-            let gx = 0.5 * (img.data[i + 1] - img.data[i - 1]);
-            let gy = 0.5 * (img.data[i + w] - img.data[i - w]);
-            grad[i] = (gx, gy);
+            let (gx, gy) = (0.5 * (row[u + 1] - row[u - 1]), 0.5 * (down[u] - up[u]));
+            let g2 = gx * gx + gy * gy;
+            out[u] = if g2 > min_g2 && row[u].is_finite() {
+                g2
+            } else {
+                -1.0
+            };
+        }
+        if static_votes.is_some() {
+            for (u, s) in out.iter_mut().enumerate() {
+                if *s > 0.0 && is_static(static_votes, u, v) {
+                    *s = -1.0;
+                }
+            }
         }
     }
     let interior = (w - 2) * (h - 2);
     let block = ((interior as f64 / max_points as f64).sqrt().ceil() as usize).max(1);
-    let min_g2 = MIN_GRADIENT * MIN_GRADIENT;
     let mut v0 = 1;
     while v0 < h - 1 {
         let mut u0 = 1;
         while u0 < w - 1 {
-            let mut best: Option<(usize, f32)> = None;
+            // The first pixel of the block (row by row) with the highest score.
+            let (mut best, mut best_score) = (usize::MAX, -1.0f32);
+            let u1 = (u0 + block).min(w - 1);
             for v in v0..(v0 + block).min(h - 1) {
-                for u in u0..(u0 + block).min(w - 1) {
-                    let i = v * w + u;
-                    let (gx, gy) = grad[i];
-                    let g2 = gx * gx + gy * gy;
-                    // NaN compares false: invalid pixels are never selected.
-                    if g2 > min_g2
-                        && img.data[i].is_finite()
-                        && best.is_none_or(|b| g2 > b.1)
-                        && !is_static(static_votes, u, v)
-                    {
-                        best = Some((i, g2));
+                for (i, &s) in score[v * w + u0..v * w + u1].iter().enumerate() {
+                    if s > best_score {
+                        (best, best_score) = (v * w + u0 + i, s);
                     }
                 }
             }
-            if let Some((i, _)) = best {
+            if best != usize::MAX {
+                let i = best;
                 let (u, v) = ((i % w) as f32, (i / w) as f32);
                 let (x, y) = k.ray(u, v);
                 let jx = [-x * y, 1.0 + x * x, -y];
                 let jy = [-(1.0 + y * y), x * y, x];
-                let (gx, gy) = grad[i];
+                let (gx, gy) = gradient(i);
                 let mut sd = [0f32; 3];
                 for a in 0..3 {
                     let du = k.fx * jx[a] + k.skew * jy[a];
@@ -1730,7 +1758,7 @@ fn build_level_template(
                 }
                 tpl.xs.push(x);
                 tpl.ys.push(y);
-                tpl.tv.push(img.data[i]);
+                tpl.tv.push(data[i]);
                 for (a, v) in tpl.sd.iter_mut().zip(sd) {
                     a.push(v);
                 }
