@@ -1,13 +1,15 @@
 //! Pass 3 of an evaluation, per point: the Huber loss and the IRLS terms of
-//! the Gauss-Newton system ([`super::Eval`]).
+//! the Gauss-Newton system (the tracker's `Eval`).
 //!
 //! Per point first, into arrays of a chunk's length, and the sums over the
 //! chunk afterwards, in lanes ([`crate::lanes`]): with running `f32` sums in
 //! it, the loop ran scalar (one serial chain of additions per sum) and was a
 //! third of the pass.
 
-use super::{Eval, CHUNK};
 use crate::lanes;
+
+/// Points per chunk of the evaluation loop (fits L1 with room to spare).
+pub(super) const CHUNK: usize = 64;
 
 /// A chunk's per-point terms (up to [`CHUNK`] points): the Huber loss,
 /// validity and IRLS weight of each residual, and the weighted residual times
@@ -35,13 +37,15 @@ impl Default for IrlsTerms {
 }
 
 impl IrlsTerms {
-    /// Adds the chunk's loss, squared residual and valid count (`pe`: the
-    /// residuals as [`irls_terms`] left them, 0 where invalid) to `ev`.
-    pub fn add_to(&self, ev: &mut Eval, pe: &[f32]) {
+    /// The chunk's robust loss, squared residual and valid count (`pe`: the
+    /// residuals as [`irls_terms`] left them, 0 where invalid).
+    pub fn sums(&self, pe: &[f32]) -> (f64, f64, u32) {
         let len = pe.len();
-        ev.loss += lanes::sum(&self.rho[..len]) as f64;
-        ev.sq += lanes::dot(pe, pe) as f64;
-        ev.n += lanes::sum(&self.ok[..len]) as u32;
+        (
+            lanes::sum(&self.rho[..len]) as f64,
+            lanes::dot(pe, pe) as f64,
+            lanes::sum(&self.ok[..len]) as u32,
+        )
     }
 }
 
@@ -65,7 +69,7 @@ pub(super) fn irls_terms(pe: &mut [f32], sd: [&[f32]; 3], c: f32, t: &mut IrlsTe
 }
 
 /// The IRLS-weighted outer products `wt sd sd^T` of a chunk's first `len`
-/// points, upper triangle in the order of [`Eval::h`].
+/// points, upper triangle in the order of the tracker's `Eval::h`.
 #[inline(always)]
 pub(super) fn outer_products(
     sd: [&[f32]; 3],

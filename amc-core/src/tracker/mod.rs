@@ -92,7 +92,7 @@ use crate::pyramid::Pyramid;
 use crate::shutter::RowTime;
 use crate::shutter::{IntraFrame, INTRA_TERMS};
 use crate::so3::{self, Rot, Tangent};
-use irls::{irls_terms, outer_products, IrlsTerms};
+use irls::{irls_terms, outer_products, IrlsTerms, CHUNK};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use residuals::residuals;
 use serde::{Deserialize, Serialize};
@@ -193,8 +193,6 @@ impl TrackerParams {
 const MIN_GRADIENT: f32 = 0.5 / 255.0;
 /// Line-search halvings before a level gives up (2^-8 of a step is negligible).
 const MAX_BACKTRACK: usize = 8;
-/// Points per chunk of the evaluation loop (fits L1 with room to spare).
-const CHUNK: usize = 64;
 /// A frame is suspect when its RMS residual exceeds this multiple of the typical one.
 const SUSPECT_RATIO: f32 = 2.5;
 /// ...and this absolute floor (intensity units): noise-free clips have tiny residuals.
@@ -367,6 +365,14 @@ impl Step {
 }
 
 impl Eval {
+    /// Adds a chunk's robust loss, squared residual and valid count
+    /// ([`IrlsTerms::sums`]).
+    fn add_chunk_sums(&mut self, (loss, sq, n): (f64, f64, u32)) {
+        self.loss += loss;
+        self.sq += sq;
+        self.n += n;
+    }
+
     fn mean_loss(&self) -> f64 {
         if self.n == 0 {
             f64::INFINITY
@@ -1328,7 +1334,7 @@ impl Tracker {
             let sd = tpl.sd.each_ref().map(|a| &a[lo..hi]);
             irls_terms(&mut pe[..len], sd, c, &mut terms);
             outer_products(sd, &terms.wt, len, &mut outer);
-            terms.add_to(&mut ev, &pe[..len]);
+            ev.add_chunk_sums(terms.sums(&pe[..len]));
             for (a, o) in outer.iter().enumerate() {
                 ev.h[a] += lanes::sum(&o[..len]) as f64;
             }
@@ -1508,7 +1514,7 @@ impl Tracker {
             if !warm {
                 outer_products(sd, &terms.wt, len, &mut outer);
             }
-            terms.add_to(&mut ev, &pe[..len]);
+            ev.add_chunk_sums(terms.sums(&pe[..len]));
             // A warm evaluation sums the gradient's moments only (up to
             // `s^n_terms`); the matrix's (up to `s^(2 n_terms)`) are the level's
             // first evaluation's (see [`WarmStart`]).
