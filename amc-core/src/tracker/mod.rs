@@ -1696,13 +1696,10 @@ fn build_level_template(
         return;
     }
     let data = &img.data[..w * h];
-    // Central-difference gradients (a per-pixel derivative).
-    let gradient = |i: usize| {
-        (
-            0.5 * (data[i + 1] - data[i - 1]),
-            0.5 * (data[i + w] - data[i - w]),
-        )
-    };
+    // Central-difference gradient (a per-pixel derivative) from a pixel's
+    // left, right, upper and lower neighbours: one formula for the scores and
+    // the chosen pixels' steepest-descent images.
+    let gradient = |l: f32, r: f32, up: f32, down: f32| (0.5 * (r - l), 0.5 * (down - up));
     // Candidates: gradient above the quantisation step, on a valid pixel
     // (NaN compares false: a pixel next to an invalid one is never chosen),
     // and not camera-fixed; the border's scores are never read.
@@ -1717,7 +1714,7 @@ fn build_level_template(
         );
         let out = &mut score[v * w..(v + 1) * w];
         for u in 1..w - 1 {
-            let (gx, gy) = (0.5 * (row[u + 1] - row[u - 1]), 0.5 * (down[u] - up[u]));
+            let (gx, gy) = gradient(row[u - 1], row[u + 1], up[u], down[u]);
             let g2 = gx * gx + gy * gy;
             out[u] = if g2 > min_g2 && row[u].is_finite() {
                 g2
@@ -1755,7 +1752,7 @@ fn build_level_template(
                 let (x, y) = k.ray(u, v);
                 let jx = [-x * y, 1.0 + x * x, -y];
                 let jy = [-(1.0 + y * y), x * y, x];
-                let (gx, gy) = gradient(i);
+                let (gx, gy) = gradient(data[i - 1], data[i + 1], data[i - w], data[i + w]);
                 let mut sd = [0f32; 3];
                 for a in 0..3 {
                     let du = k.fx * jx[a] + k.skew * jy[a];
