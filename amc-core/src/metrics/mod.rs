@@ -165,7 +165,7 @@ pub struct MetricsAccumulator {
 /// One frame's sums, each with its count of terms: normal flow
 /// (`|n|^2` in pixels^2), change (in `L^2`, see [`luma`]) and sharpness (in
 /// bytes, see [`sharpness::SCALE`]).
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct FrameSums {
     flow: (f64, u64),
     change: (u64, u64),
@@ -272,10 +272,34 @@ impl MetricsAccumulator {
     /// The frame's sums, by the widest integer lanes this CPU has.
     fn measure(&mut self, frame: &FrameRef<'_>, coverage: &[u8], against_prev: bool) -> FrameSums {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2.
-            return unsafe { self.measure_avx2(frame, coverage, against_prev) };
+        {
+            if std::arch::is_x86_feature_detected!("avx512bw") {
+                // SAFETY: the CPU has AVX-512 F and BW (BW implies F).
+                return unsafe { self.measure_avx512(frame, coverage, against_prev) };
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2.
+                return unsafe { self.measure_avx2(frame, coverage, against_prev) };
+            }
         }
+        self.measure_body(frame, coverage, against_prev)
+    }
+
+    /// [`Self::measure_body`] compiled for AVX-512 (F and BW: 16-bit lanes
+    /// thirty-two pixels wide). The sums are integers and the few float
+    /// operations are not reordered (no fused multiply-add: Rust never
+    /// contracts), so the result is the same bits on every path.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512 F and BW.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512bw")]
+    unsafe fn measure_avx512(
+        &mut self,
+        frame: &FrameRef<'_>,
+        coverage: &[u8],
+        against_prev: bool,
+    ) -> FrameSums {
         self.measure_body(frame, coverage, against_prev)
     }
 
@@ -489,6 +513,50 @@ mod tests {
                     "{what}: sharpness"
                 );
                 assert_eq!(acc.summary().frames, 2);
+            }
+        }
+    }
+
+    #[test]
+    fn every_instruction_set_gives_the_same_sums() {
+        // The vector paths are the scalar body compiled for wider lanes:
+        // integer sums and unreordered float operations, so equal bits.
+        for (w, h) in [(37usize, 21usize), (1100, 5), (203, 64)] {
+            for format in [PixelFormat::Yuv420p, PixelFormat::Rgb8, PixelFormat::Rgba8] {
+                let frame = |shift: usize| {
+                    let mut f = Frame::new(w, h, format);
+                    for (i, b) in f.data.iter_mut().enumerate() {
+                        let i = i + shift;
+                        *b = ((i * 37 + (i * i) % 241) % 256) as u8;
+                    }
+                    f
+                };
+                let coverage: Vec<u8> = (0..w * h).map(|i| u8::from(i % 17 != 3)).collect();
+                let (a, b) = (frame(0), frame(5));
+                let mut acc = MetricsAccumulator::new();
+                acc.push(&a.as_ref(), &coverage, 1.0, None);
+                acc.cur.reset(&b.as_ref());
+                let frame = b.as_ref();
+                let want = acc.clone().measure_body(&frame, &coverage, true);
+                assert!(want.flow.1 > 0 && want.change.1 > 0 && want.sharpness.1 > 0);
+                let mut got = vec![("dispatch", acc.clone().measure(&frame, &coverage, true))];
+                #[cfg(target_arch = "x86_64")]
+                {
+                    if std::arch::is_x86_feature_detected!("avx2") {
+                        // SAFETY: the CPU has AVX2.
+                        let s = unsafe { acc.clone().measure_avx2(&frame, &coverage, true) };
+                        got.push(("avx2", s));
+                    }
+                    if std::arch::is_x86_feature_detected!("avx512bw") {
+                        // SAFETY: the CPU has AVX-512 F and BW.
+                        let s = unsafe { acc.clone().measure_avx512(&frame, &coverage, true) };
+                        got.push(("avx512", s));
+                    }
+                }
+                for (path, sums) in got {
+                    assert_eq!(sums, want, "{w}x{h} {format:?}: {path}");
+                    assert_eq!(sums.flow.0.to_bits(), want.flow.0.to_bits());
+                }
             }
         }
     }

@@ -19,13 +19,15 @@
 //! forever without drift.
 //!
 //! `params.rs` sizes the output view, `warper.rs` maps output rows to source
-//! coordinates and samples them, `accumulator.rs` holds the integer sums and the
+//! coordinates and samples them, `grid.rs` fills a row's coordinates from the
+//! node grid of a gridded map, `accumulator.rs` holds the integer sums and the
 //! saccade slots, `robust.rs` the ghost-free average (each frame weighted by
 //! its agreement with the newest), and `kernels/` the row kernels (scalar
 //! reference, AVX2, `simd128`) behind one dispatcher. The warper uses the kernels and the accumulator (it
 //! fills the saccade slots); neither uses the warper.
 
 mod accumulator;
+mod grid;
 pub mod kernels;
 mod params;
 pub mod robust;

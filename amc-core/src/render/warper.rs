@@ -22,6 +22,7 @@
 //! of its own); the bytes are the same whatever the number of threads.
 
 use super::accumulator::WarpedFrame;
+use super::grid;
 use super::kernels::{
     average, merge_row_gray_scalar, merge_row_scalar, Geometry, Kernel, RowCoords, FRAME_PADDING,
 };
@@ -39,12 +40,8 @@ pub const GRID_STEP: usize = 8;
 /// bilinear interpolation over 16 px cells stays within 0.005 px of it (a
 /// 90 deg lens turned by 5 deg); a quarter of the nodes of [`GRID_STEP`].
 pub const ROLLING_GRID_STEP: usize = 16;
-/// The larger of the two grid steps (the interpolation's offset table).
-const MAX_GRID_STEP: usize = if GRID_STEP > ROLLING_GRID_STEP {
-    GRID_STEP
-} else {
-    ROLLING_GRID_STEP
-};
+// Both steps are cells the grid fill is compiled for.
+const _: () = assert!(GRID_STEP <= grid::MAX_STEP && ROLLING_GRID_STEP <= grid::MAX_STEP);
 
 /// The camera of a 4:2:0 chroma plane of frames seen through `cam`: half the
 /// focal length, and chroma sample `u` at luma position `2 u + 0.5` (centred
@@ -325,15 +322,25 @@ impl Warper {
         map.gridded = !self.src.is_pinhole() || !rows.is_global();
         if map.gridded {
             map.grid.clear();
-            // Each node starts from its left neighbour's row: one or two
-            // fixed-point steps instead of three or four.
-            let mut guess = None;
+            // Each node starts from the row its two left neighbours' rows
+            // extrapolate to (the landing row changes almost linearly along a
+            // grid row), or the one left neighbour's: then the first step
+            // usually confirms the guess (two projections a node instead of
+            // four from the neighbour's row alone).
+            let (mut prev, mut last) = (None, None);
             for (i, ray) in self.grid_rays.iter().enumerate() {
                 if i % self.grid_w == 0 {
-                    guess = None;
+                    (prev, last) = (None, None);
                 }
+                let guess = match (prev, last) {
+                    (Some(a), Some(b)) => Some(2.0 * b - a),
+                    (_, b) => b,
+                };
                 let p = rows.project(&self.src, &(m * ray), guess);
-                guess = p.map(|p| p.y).filter(|y| y.is_finite());
+                (prev, last) = (last, p.map(|p| p.y).filter(|y| y.is_finite()));
+                if last.is_none() {
+                    prev = None;
+                }
                 map.grid
                     .push(p.map_or([f32::NAN; 2], |p| [p.x as f32, p.y as f32]));
             }
@@ -414,7 +421,7 @@ impl Warper {
                 *yo = (y0 + dy * uf) * iz;
             }
         } else {
-            interpolate_grid_row(
+            grid::interpolate_row(
                 &map.grid,
                 self.grid_w,
                 self.grid_h,
@@ -1475,71 +1482,6 @@ fn by_rows<T: Send>(
         .enumerate()
         .map(|(v, (o, c))| row(v, o, c))
         .sum()
-}
-
-/// Bilinear interpolation of a node grid (`grid_w x grid_h`, spacing
-/// `step`) into the coordinates of output row `v`.
-fn interpolate_grid_row(
-    grid: &[[f32; 2]],
-    grid_w: usize,
-    grid_h: usize,
-    step: usize,
-    v: usize,
-    xs: &mut [f32],
-    ys: &mut [f32],
-) {
-    let gy = (v / step).min(grid_h.saturating_sub(2));
-    let fy = (v - gy * step) as f32 / step as f32;
-    let r0 = &grid[gy * grid_w..(gy + 1) * grid_w];
-    let r1 = &grid[(gy + 1) * grid_w..(gy + 2) * grid_w];
-    let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
-    // This row's value at node column `g`: interpolated between the two node
-    // rows once per node, so each pixel costs one interpolation per
-    // coordinate (it was three, a ninth of a rolling-shutter render).
-    let node = |g: usize| {
-        let (a, b) = (r0[g], r1[g]);
-        [lerp(a[0], b[0], fy), lerp(a[1], b[1], fy)]
-    };
-    // Each pixel's offset in its cell, `i / step` (exact: `step` is a power
-    // of two), from a table: converting the index per pixel is a scalar
-    // `usize -> f32` that keeps the loop from vectorizing.
-    debug_assert!(step.is_power_of_two() && step <= MAX_GRID_STEP);
-    let inv_step = 1.0 / step as f32;
-    let fxs: [f32; MAX_GRID_STEP] = std::array::from_fn(|i| i as f32 * inv_step);
-    let n = xs.len().min(ys.len());
-    if grid_w < 2 {
-        return;
-    }
-    let mut left = node(0);
-    // Cell by cell, so the per-pixel loop is straight-line (it vectorizes);
-    // the last cell extrapolates to the row's end, as the nodes end there.
-    for gx in 0..grid_w - 1 {
-        let start = gx * step;
-        if start >= n {
-            break;
-        }
-        let end = if gx + 2 == grid_w {
-            n
-        } else {
-            (start + step).min(n)
-        };
-        let right = node(gx + 1);
-        let (dx, dy) = (right[0] - left[0], right[1] - left[1]);
-        // One block for every cell but the last, which extrapolates past its
-        // node in blocks `k` (offsets `k + i / step`, exact as well).
-        let blocks = xs[start..end]
-            .chunks_mut(step)
-            .zip(ys[start..end].chunks_mut(step));
-        for (k, (xo, yo)) in blocks.enumerate() {
-            let base = k as f32;
-            for ((xo, yo), &f) in xo.iter_mut().zip(yo.iter_mut()).zip(&fxs) {
-                let fx = base + f;
-                *xo = left[0] + dx * fx;
-                *yo = left[1] + dy * fx;
-            }
-        }
-        left = right;
-    }
 }
 
 // The scalar slot fill sits here rather than in `accumulator.rs` so that the
