@@ -457,6 +457,29 @@ mod tests {
         out
     }
 
+    /// A frame of smooth ramps (gradients either side of the normal-flow
+    /// threshold) with texture and the extreme bytes (the largest Sobel
+    /// responses); `shift` moves the pattern.
+    fn patterned(w: usize, h: usize, format: PixelFormat, shift: usize) -> Frame {
+        let mut f = Frame::new(w, h, format);
+        for (i, b) in f.data.iter_mut().enumerate() {
+            let i = i + shift;
+            *b = match i % 11 {
+                0..=2 => 255 * ((i / 3) % 2) as u8,
+                3..=6 => (i * 31 + (i * i) % 251) as u8,
+                _ => (i / 5 % 200) as u8 + 20,
+            };
+        }
+        f
+    }
+
+    /// A coverage with holes (one pixel in 13; `shift` moves them).
+    fn holes(w: usize, h: usize, shift: usize) -> Vec<u8> {
+        (0..w * h)
+            .map(|i| u8::from((i + shift) % 13 != 5) * 3)
+            .collect()
+    }
+
     #[test]
     fn sums_are_the_definitions() {
         // Smooth ramps (gradients either side of the normal-flow threshold)
@@ -464,25 +487,8 @@ mod tests {
         // odd sizes, holes in the coverage; planar and packed.
         for (w, h) in [(3usize, 3usize), (37, 21), (1100, 5)] {
             for format in [PixelFormat::Yuv420p, PixelFormat::Rgb8, PixelFormat::Rgba8] {
-                let frame = |shift: usize| {
-                    let mut f = Frame::new(w, h, format);
-                    for (i, b) in f.data.iter_mut().enumerate() {
-                        let i = i + shift;
-                        *b = match i % 11 {
-                            0..=2 => 255 * ((i / 3) % 2) as u8,
-                            3..=6 => (i * 31 + (i * i) % 251) as u8,
-                            _ => (i / 5 % 200) as u8 + 20,
-                        };
-                    }
-                    f
-                };
-                let coverage = |shift: usize| -> Vec<u8> {
-                    (0..w * h)
-                        .map(|i| u8::from((i + shift) % 13 != 5) * 3)
-                        .collect()
-                };
-                let (a, b) = (frame(0), frame(7));
-                let (ca, cb) = (coverage(0), coverage(4));
+                let (a, b) = (patterned(w, h, format, 0), patterned(w, h, format, 7));
+                let (ca, cb) = (holes(w, h, 0), holes(w, h, 4));
                 let mut acc = MetricsAccumulator::new();
                 acc.push(&a.as_ref(), &ca, 1.0, None);
                 let m = acc.push(&b.as_ref(), &cb, 1.0, None);
@@ -523,16 +529,8 @@ mod tests {
         // integer sums and unreordered float operations, so equal bits.
         for (w, h) in [(37usize, 21usize), (1100, 5), (203, 64)] {
             for format in [PixelFormat::Yuv420p, PixelFormat::Rgb8, PixelFormat::Rgba8] {
-                let frame = |shift: usize| {
-                    let mut f = Frame::new(w, h, format);
-                    for (i, b) in f.data.iter_mut().enumerate() {
-                        let i = i + shift;
-                        *b = ((i * 37 + (i * i) % 241) % 256) as u8;
-                    }
-                    f
-                };
-                let coverage: Vec<u8> = (0..w * h).map(|i| u8::from(i % 17 != 3)).collect();
-                let (a, b) = (frame(0), frame(5));
+                let coverage = holes(w, h, 2);
+                let (a, b) = (patterned(w, h, format, 0), patterned(w, h, format, 5));
                 let mut acc = MetricsAccumulator::new();
                 acc.push(&a.as_ref(), &coverage, 1.0, None);
                 acc.cur.reset(&b.as_ref());

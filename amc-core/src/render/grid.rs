@@ -43,6 +43,8 @@ pub fn interpolate_row(
     let r0 = &grid[gy * grid_w..(gy + 1) * grid_w];
     let r1 = &grid[(gy + 1) * grid_w..(gy + 2) * grid_w];
     let row = NodeRows { r0, r1, fy };
+    // The cell length fixed at compile time (the warper's steps) lets the
+    // per-pixel loop become straight-line vector code.
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2 (checked just above).
@@ -50,15 +52,15 @@ pub fn interpolate_row(
             match step {
                 16 => fill_avx2::<16>(&row, xs, ys),
                 8 => fill_avx2::<8>(&row, xs, ys),
-                _ => fill_cells(&row, step, xs, ys),
+                _ => fill(&row, step, xs, ys),
             }
         }
         return;
     }
     match step {
-        16 => fill_fixed::<16>(&row, xs, ys),
-        8 => fill_fixed::<8>(&row, xs, ys),
-        _ => fill_cells(&row, step, xs, ys),
+        16 => fill(&row, 16, xs, ys),
+        8 => fill(&row, 8, xs, ys),
+        _ => fill(&row, step, xs, ys),
     }
 }
 
@@ -81,15 +83,6 @@ impl NodeRows<'_> {
     }
 }
 
-/// Each pixel's offset in its cell, `i / step` (exact: `step` is a power of
-/// two), as a table: converting the index per pixel is a scalar
-/// `usize -> f32` that keeps a loop from vectorizing.
-#[inline(always)]
-fn offsets<const N: usize>() -> [f32; N] {
-    let inv_step = 1.0 / N as f32;
-    std::array::from_fn(|i| i as f32 * inv_step)
-}
-
 /// One cell's pixels (`k` cells past `left`: the last cell extrapolates in
 /// whole cells past its node): `left + d (k + i / step)` per coordinate.
 #[inline(always)]
@@ -108,60 +101,14 @@ fn fill_block(
     }
 }
 
-/// The row cell by cell for a step fixed at compile time: full cells are
-/// `[f32; N]` blocks, so the per-pixel loop is straight-line vector code.
+/// The row cell by cell; each cell's whole blocks of `step` pixels, then
+/// the rest. Inlined where `step` is a constant, whole blocks have a known
+/// length, so the per-pixel loop needs no bounds checks or tail.
 #[inline(always)]
-fn fill_fixed<const N: usize>(row: &NodeRows<'_>, xs: &mut [f32], ys: &mut [f32]) {
-    let offsets = offsets::<N>();
-    let n = xs.len().min(ys.len());
-    let grid_w = row.r0.len();
-    let mut left = row.node(0);
-    for gx in 0..grid_w - 1 {
-        let start = gx * N;
-        if start >= n {
-            break;
-        }
-        let end = if gx + 2 == grid_w {
-            n
-        } else {
-            (start + N).min(n)
-        };
-        let right = row.node(gx + 1);
-        let d = [right[0] - left[0], right[1] - left[1]];
-        let (xc, yc) = (&mut xs[start..end], &mut ys[start..end]);
-        let mut k = 0.0f32;
-        let mut xb = xc.chunks_exact_mut(N);
-        let mut yb = yc.chunks_exact_mut(N);
-        for (xo, yo) in (&mut xb).zip(&mut yb) {
-            let xo: &mut [f32; N] = xo.try_into().expect("a chunk of N");
-            let yo: &mut [f32; N] = yo.try_into().expect("a chunk of N");
-            fill_block(left, d, k, &offsets, xo, yo);
-            k += 1.0;
-        }
-        fill_block(
-            left,
-            d,
-            k,
-            &offsets,
-            xb.into_remainder(),
-            yb.into_remainder(),
-        );
-        left = right;
-    }
-}
-
-/// [`fill_fixed`] compiled for AVX2.
-///
-/// # Safety
-/// The CPU must support AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn fill_avx2<const N: usize>(row: &NodeRows<'_>, xs: &mut [f32], ys: &mut [f32]) {
-    fill_fixed::<N>(row, xs, ys)
-}
-
-/// The row for any step (the cell length known only at run time).
-fn fill_cells(row: &NodeRows<'_>, step: usize, xs: &mut [f32], ys: &mut [f32]) {
+fn fill(row: &NodeRows<'_>, step: usize, xs: &mut [f32], ys: &mut [f32]) {
+    // Each pixel's offset in its cell, `i / step` (exact: `step` is a power
+    // of two), from a table: converting the index per pixel is a scalar
+    // `usize -> f32` that keeps the loop from vectorizing.
     let inv_step = 1.0 / step as f32;
     let all: [f32; MAX_STEP] = std::array::from_fn(|i| i as f32 * inv_step);
     let offsets = &all[..step.min(MAX_STEP)];
@@ -180,14 +127,33 @@ fn fill_cells(row: &NodeRows<'_>, step: usize, xs: &mut [f32], ys: &mut [f32]) {
         };
         let right = row.node(gx + 1);
         let d = [right[0] - left[0], right[1] - left[1]];
-        let blocks = xs[start..end]
-            .chunks_mut(step)
-            .zip(ys[start..end].chunks_mut(step));
-        for (k, (xo, yo)) in blocks.enumerate() {
-            fill_block(left, d, k as f32, offsets, xo, yo);
+        let mut xb = xs[start..end].chunks_exact_mut(step);
+        let mut yb = ys[start..end].chunks_exact_mut(step);
+        let mut k = 0.0f32;
+        for (xo, yo) in (&mut xb).zip(&mut yb) {
+            fill_block(left, d, k, offsets, xo, yo);
+            k += 1.0;
         }
+        fill_block(
+            left,
+            d,
+            k,
+            offsets,
+            xb.into_remainder(),
+            yb.into_remainder(),
+        );
         left = right;
     }
+}
+
+/// [`fill`] with a step fixed at compile time, compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn fill_avx2<const N: usize>(row: &NodeRows<'_>, xs: &mut [f32], ys: &mut [f32]) {
+    fill(row, N, xs, ys)
 }
 
 #[cfg(test)]
@@ -243,16 +209,16 @@ mod tests {
                         fy: (v - (v / step).min(gh - 2) * step) as f32 / step as f32,
                     };
                     let (mut xc, mut yc) = (vec![0.0; len], vec![0.0; len]);
-                    fill_cells(&row, step, &mut xc, &mut yc);
+                    fill(&row, step, &mut xc, &mut yc);
                     for u in 0..len {
-                        for (got, what) in [(xs[u], "dispatch"), (xc[u], "cells")] {
+                        for (got, what) in [(xs[u], "dispatch"), (xc[u], "generic")] {
                             assert_eq!(
                                 got.to_bits(),
                                 want[u][0].to_bits(),
                                 "{what} x: step {step} v {v} u {u}"
                             );
                         }
-                        for (got, what) in [(ys[u], "dispatch"), (yc[u], "cells")] {
+                        for (got, what) in [(ys[u], "dispatch"), (yc[u], "generic")] {
                             assert_eq!(
                                 got.to_bits(),
                                 want[u][1].to_bits(),
