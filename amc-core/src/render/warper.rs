@@ -1528,3 +1528,68 @@ impl WarpedFrame {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shutter::{project_rolling, IntraFrame};
+    use crate::so3::{self, Tangent};
+
+    /// Every grid node of a rolling-shutter map is the fixed point of the
+    /// projection through the readout (within its tolerance), whichever row
+    /// it started from: the left neighbours' extrapolation, or none at a
+    /// row's start and next to nodes out of view.
+    #[test]
+    fn grid_nodes_are_the_rolling_fixed_point() {
+        let cams = [
+            CameraModel::pinhole_hfov(320, 180, 90.0).unwrap(),
+            CameraModel::fisheye_hfov(320, 180, 150.0, [0.05, -0.01, 0.002, -0.0005]).unwrap(),
+        ];
+        let intra = IntraFrame {
+            phi: Tangent::new(0.08, -0.12, 0.05),
+            psi: Tangent::new(-0.02, 0.03, 0.01),
+            chi: Tangent::new(0.01, -0.005, 0.004),
+            xi: Tangent::new(-0.004, 0.002, 0.003),
+        };
+        for src in &cams {
+            let out = CameraModel::pinhole_hfov(240, 136, 70.0).unwrap();
+            let warper = Warper::new(src, &out);
+            let mut rows = RollingProjector::default();
+            rows.set(&intra, src.height);
+            // A turn that takes part of the view out of the frame.
+            let m: Matrix3<f64> = *so3::exp(&Tangent::new(0.1, 0.5, 0.2)).matrix();
+            let mut map = RowMap::default();
+            warper.prepare_map(&mut map, &m, &rows);
+            assert!(map.gridded);
+            let (mut inside, mut outside) = (0, 0);
+            for (ray, node) in warper.grid_rays.iter().zip(&map.grid) {
+                // (Past the sensor's first and last rows the table holds the
+                // end rows' rotations, where the exact path extrapolates: only
+                // nodes that land on the sensor are sampled.)
+                let on_sensor = |p: &Vector2<f64>| {
+                    (0.0..=(src.width - 1) as f64).contains(&p.x)
+                        && (0.0..=(src.height - 1) as f64).contains(&p.y)
+                };
+                match project_rolling(src, &m, &intra, ray) {
+                    Some(p) if !on_sensor(&p) => outside += 1,
+                    Some(p) => {
+                        let d = ((node[0] as f64 - p.x).powi(2) + (node[1] as f64 - p.y).powi(2))
+                            .sqrt();
+                        assert!(d < 1e-3, "node {node:?} vs fixed point {p}");
+                        inside += 1;
+                    }
+                    None => {
+                        assert!(node[0].is_nan(), "{node:?}");
+                        outside += 1;
+                    }
+                }
+            }
+            // (The 150 deg fisheye sees every node; the pinhole loses some.)
+            let lost = if src.is_pinhole() { 10 } else { 0 };
+            assert!(
+                inside > 100 && outside >= lost,
+                "{inside} nodes on the sensor, {outside} not"
+            );
+        }
+    }
+}
