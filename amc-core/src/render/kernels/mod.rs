@@ -374,7 +374,7 @@ impl Kernel {
 
     /// Finishes the first `n` pixels of a single-channel output row from
     /// [`Kernel::accumulate_row_gray`]'s sums when this kernel has a finishing
-    /// pass (AVX2, AVX-512): `out[u] = round(sum / (256 n))` exactly as the scalar
+    /// pass (AVX2, AVX-512, `simd128`): `out[u] = round(sum / (256 n))` exactly as the scalar
     /// path rounds, `fill` where no frame covers the pixel, `coverage[u]` the
     /// covering frames. Returns how many pixels `full` frames cover, or `None`
     /// (nothing written) for kernels that leave the row to the caller.
@@ -401,6 +401,10 @@ impl Kernel {
             )),
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx512 => Some(avx512::finish_row_gray(
+                sum, count, out, coverage, n, full, fill,
+            )),
+            #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+            Kernel::Simd128 => Some(simd128::finish_row_gray(
                 sum, count, out, coverage, n, full, fill,
             )),
             #[allow(unreachable_patterns)]
