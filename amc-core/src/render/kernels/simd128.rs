@@ -113,16 +113,18 @@ unsafe fn sample_rgb4(
     let (r, gg, b);
     if rgba {
         // A pixel and its right neighbour are one 8-byte load:
-        // bytes r0 g0 b0 a0 r1 g1 b1 a1.
-        let load2 = |i: usize| (base.add(i) as *const u64).read_unaligned();
+        // bytes r0 g0 b0 a0 r1 g1 b1 a1, straight into a 64-bit lane
+        // (`v128.load64_zero` / `load64_lane`: no general registers).
+        let at = |i: usize| base.add(i) as *const u64;
+        let pair = |i: usize, j: usize| v128_load64_lane::<1>(v128_load64_zero(at(i)), at(j));
         let i0 = i32x4_extract_lane::<0>(i00) as usize;
         let i1 = i32x4_extract_lane::<1>(i00) as usize;
         let i2 = i32x4_extract_lane::<2>(i00) as usize;
         let i3 = i32x4_extract_lane::<3>(i00) as usize;
-        let top01 = u64x2(load2(i0), load2(i1));
-        let top23 = u64x2(load2(i2), load2(i3));
-        let bot01 = u64x2(load2(i0 + s), load2(i1 + s));
-        let bot23 = u64x2(load2(i2 + s), load2(i3 + s));
+        let top01 = pair(i0, i1);
+        let top23 = pair(i2, i3);
+        let bot01 = pair(i0 + s, i1 + s);
+        let bot23 = pair(i2 + s, i3 + s);
         // Per 64-bit half (one lane's two pixels), 16-bit words
         // (r0 g0) (b0 a0) (r1 g1) (b1 a1): masking the low or high
         // bytes and swapping the middle words gives the 32-bit pairs
@@ -147,21 +149,26 @@ unsafe fn sample_rgb4(
         gg = vertical(tg, bg);
         b = vertical(tb, bb);
     } else {
-        let load = |i: usize| (base.add(i) as *const u32).read_unaligned();
+        // Each tap's 4 bytes (its RGB and one more) straight into its lane.
+        let (mut p00, mut p01, mut p10, mut p11) = (
+            i32x4_splat(0),
+            i32x4_splat(0),
+            i32x4_splat(0),
+            i32x4_splat(0),
+        );
         macro_rules! taps {
             ($l:literal) => {{
-                let i = i32x4_extract_lane::<$l>(i00) as usize;
-                (load(i), load(i + c), load(i + s), load(i + s + c))
+                let p = base.add(i32x4_extract_lane::<$l>(i00) as usize);
+                p00 = v128_load32_lane::<$l>(p00, p as *const u32);
+                p01 = v128_load32_lane::<$l>(p01, p.add(c) as *const u32);
+                p10 = v128_load32_lane::<$l>(p10, p.add(s) as *const u32);
+                p11 = v128_load32_lane::<$l>(p11, p.add(s + c) as *const u32);
             }};
         }
-        let (a00, a01, a10, a11) = taps!(0);
-        let (b00, b01, b10, b11) = taps!(1);
-        let (c00, c01, c10, c11) = taps!(2);
-        let (d00, d01, d10, d11) = taps!(3);
-        let p00 = u32x4(a00, b00, c00, d00);
-        let p01 = u32x4(a01, b01, c01, d01);
-        let p10 = u32x4(a10, b10, c10, d10);
-        let p11 = u32x4(a11, b11, c11, d11);
+        taps!(0);
+        taps!(1);
+        taps!(2);
+        taps!(3);
         macro_rules! channel {
             ($shift:expr, $up:expr) => {{
                 let top = v128_or(
@@ -536,21 +543,25 @@ impl PlaneTaps4 {
     #[inline(always)]
     unsafe fn sample(&self, data: &[u8]) -> v128 {
         let (base, s) = (data.as_ptr(), self.stride);
-        let load = |i: usize| (base.add(i) as *const u16).read_unaligned() as u32;
+        // Each lane's pair of taps goes from memory straight into the low
+        // 16 bits of its 32-bit lane (`v128.load16_lane`: no trip through a
+        // general register and `replace_lane`).
+        let (mut top, mut bot) = (i32x4_splat(0), i32x4_splat(0));
         macro_rules! taps {
-            ($l:literal) => {{
-                let i = i32x4_extract_lane::<$l>(self.index) as usize;
-                (load(i), load(i + s))
+            ($l:literal, $h:literal) => {{
+                let p = base.add(i32x4_extract_lane::<$l>(self.index) as usize) as *const u16;
+                top = v128_load16_lane::<$h>(top, p);
+                bot = v128_load16_lane::<$h>(bot, (p as *const u8).add(s) as *const u16);
             }};
         }
-        let (a0, a1) = taps!(0);
-        let (b0, b1) = taps!(1);
-        let (c0, c1) = taps!(2);
-        let (d0, d1) = taps!(3);
+        taps!(0, 0);
+        taps!(1, 2);
+        taps!(2, 4);
+        taps!(3, 6);
         let (byte, hi_byte) = (i32x4_splat(0xFF), i32x4_splat(0xFF_0000));
         let spread = |p: v128| v128_or(v128_and(p, byte), v128_and(i32x4_shl(p, 8), hi_byte));
-        let top = i32x4_dot_i16x8(spread(u32x4(a0, b0, c0, d0)), self.wx);
-        let bot = i32x4_dot_i16x8(spread(u32x4(a1, b1, c1, d1)), self.wx);
+        let top = i32x4_dot_i16x8(spread(top), self.wx);
+        let bot = i32x4_dot_i16x8(spread(bot), self.wx);
         u32x4_shr(
             i32x4_add(
                 i32x4_add(i32x4_mul(top, self.by), i32x4_mul(bot, self.ay)),
