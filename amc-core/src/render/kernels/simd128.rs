@@ -7,8 +7,9 @@ use core::arch::wasm32::*;
 
 /// The WebAssembly `simd128` twin of the AVX2 kernel (`avx2.rs`): four output
 /// pixels at a time, one frame after the other. WebAssembly has no gathers, so each lane's taps are read
-/// with scalar loads (an RGBA pixel and its right neighbour in one 8-byte load;
-/// lanes outside the frame read offset 0 and are masked off). Float-to-int
+/// one lane at a time, straight into the lane (an RGBA pixel and its right
+/// neighbour in one 8-byte `load64_lane`; lanes outside the frame read offset
+/// 0 and are masked off). Float-to-int
 /// conversions of the (non-negative, integral) coordinates use the `2^23`
 /// trick instead of the slow saturating conversion; the interpolation is the
 /// same 8.8 fixed-point integer arithmetic (`i32x4.dot_i16x8_s` plays
