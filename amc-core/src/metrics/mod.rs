@@ -537,6 +537,7 @@ mod tests {
                 let frame = b.as_ref();
                 let want = acc.clone().measure_body(&frame, &coverage, true);
                 assert!(want.flow.1 > 0 && want.change.1 > 0 && want.sharpness.1 > 0);
+                #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))] // (pushed to on x86-64)
                 let mut got = vec![("dispatch", acc.clone().measure(&frame, &coverage, true))];
                 #[cfg(target_arch = "x86_64")]
                 {
