@@ -2,7 +2,7 @@
 // Speed of amc-wasm in headless Chromium vs native, on the same frames.
 //
 //   node web/bench.mjs [--clip ../shared/data/karma/karma.mp4] [--n 600] [--n720 150] [--reps 3]
-//                      [--formats RGBA,I420]
+//                      [--formats RGBA,I420] [--workers 1,2]
 //
 // Decodes the clip with ffmpeg to raw RGBA and raw I420 (`-pix_fmt yuv420p`) at
 // 320x180 and 1280x720, serves web/dist and the frames from a throwaway local
@@ -12,6 +12,9 @@
 // The browser also times the page's WebCodecs path without decoder/encoder
 // (`vf_fps`: I420 VideoFrames copyTo'd into the module, as is or converted to
 // RGBA, stabilized, each output wrapped in a VideoFrame) and splits its time.
+// --workers: the browser runs with one worker and with the page's render
+// share (web/src/render-share.js: each output drawn by one of N workers, every
+// worker fed every frame); the native example is one thread in every row.
 // Each is run --reps times, alternating, and the best run is kept (the machine
 // is shared and noisy; the best run is the least disturbed one).
 // Needs web/dist (web/build.sh), ffmpeg, /usr/bin/chromium (or $CHROMIUM).
@@ -30,6 +33,8 @@ const clip = resolve(arg('clip', join(root, '../shared/data/karma/karma.mp4')));
 const reps = Number(arg('reps', 3));
 const formats = arg('formats', 'RGBA,I420').split(',').map((f) => f.trim().toUpperCase());
 for (const f of formats) if (f !== 'RGBA' && f !== 'I420') throw new Error(`--formats: ${f} (allowed: RGBA, I420)`);
+const workerCounts = arg('workers', '1,2').split(',').map(Number);
+for (const n of workerCounts) if (!(Number.isInteger(n) && n >= 1 && n <= 16)) throw new Error(`--workers: ${n} (allowed: 1 to 16)`);
 const sizes = [
   { w: 320, h: 180, n: Number(arg('n', 600)), src: 120 },
   { w: 1280, h: 720, n: Number(arg('n720', 150)), src: 40 },
@@ -64,12 +69,12 @@ try {
     for (const [fmt, pix] of [['RGBA', 'rgba'], ['I420', 'yuv420p']]) {
       execFileSync('ffmpeg', ['-v', 'error', '-y', '-i', clip, '-frames:v', String(s.src), '-vf', `scale=${s.w}:${s.h}`, '-pix_fmt', pix, '-f', 'rawvideo', join(tmp, raw[fmt])]);
     }
-    for (const fmt of formats) {
+    for (const fmt of formats) for (const workers of workerCounts) {
       const name = raw[fmt];
       let web = null, native = null;
       for (let r = 0; r < reps; r++) {
         const page = await browser.newPage();
-        await page.goto(`${base}/bench.html?frames=/frames/${name}&w=${s.w}&h=${s.h}&n=${s.n}&fov=70&fmt=${fmt}&vf=/frames/${raw.I420}`);
+        await page.goto(`${base}/bench.html?frames=/frames/${name}&w=${s.w}&h=${s.h}&n=${s.n}&fov=70&fmt=${fmt}&vf=/frames/${raw.I420}&workers=${workers}`);
         await page.waitForFunction(() => ['done', 'error'].includes(document.body.dataset.state), null, { timeout: 600000 });
         const wr = await page.evaluate(() => window.benchResult);
         await page.close();
@@ -82,7 +87,7 @@ try {
       }
       const ms = web.vf_ms_per_frame;
       rows.push({
-        size: `${s.w}x${s.h}`, format: fmt, frames: s.n, browser_fps: +web.fps.toFixed(1), native_fps: +native.fps.toFixed(1),
+        size: `${s.w}x${s.h}`, format: fmt, workers, frames: s.n, browser_fps: +web.fps.toFixed(1), native_fps: +native.fps.toFixed(1),
         ratio: +(native.fps / web.fps).toFixed(2), browser_vf_fps: +web.vf_fps.toFixed(1),
         vf_ms: `copyTo ${ms.copyTo.toFixed(2)} + stab ${ms.stabilize.toFixed(2)} + frame ${ms.output_frame.toFixed(2)}`, simd: web.simd,
       });

@@ -187,6 +187,9 @@ struct Rendering {
     need_rots: Vec<nalgebra::Matrix3<f64>>,
     /// Whether pixels are rendered (off: views and zoom needs only).
     render: bool,
+    /// Which outputs this stabilizer renders: output `j` when `j % share.0 ==
+    /// share.1` ([`Stabilizer::set_render_share`]); `(1, 0)`: every one.
+    share: (u64, u64),
     /// Lock mode's view: the first frame's orientation.
     locked_view: Option<Rot>,
     /// The zoom of mode none (the camera's own view, the same on every frame).
@@ -194,6 +197,9 @@ struct Rendering {
     /// Highest need of a smoothed view so far.
     max_need: f64,
 }
+
+/// Most stabilizers that can share the outputs ([`Stabilizer::set_render_share`]).
+pub const MAX_RENDER_SHARE: u32 = 16;
 
 /// Most saccade slots merged at once (the range of `n_avg`).
 const MAX_SLOTS: usize = 64;
@@ -322,6 +328,7 @@ impl Stabilizer {
                 window_rots: Vec::new(),
                 need_rots: Vec::new(),
                 render: true,
+                share: (1, 0),
                 locked_view: None,
                 camera_zoom,
                 max_need: 1.0,
@@ -369,6 +376,41 @@ impl Stabilizer {
     /// On by default.
     pub fn set_rendering(&mut self, on: bool) {
         self.rendering.render = on;
+    }
+
+    /// Renders only outputs `j` with `j % count == index`: the others are
+    /// tracked, filtered and framed as with [`Stabilizer::set_rendering`] off
+    /// (their telemetry has `valid_fraction` 0 and `uncovered` 0, and the
+    /// output's pixels are left as they were). `count` stabilizers fed the same
+    /// frames, with `index` `0..count`, then render every output once between
+    /// them, each byte for byte as one stabilizer would (the tracker, the view
+    /// filter and the framing see every frame in each): how the browser, which
+    /// has one core per worker and no shared memory, puts more cores to work.
+    /// The default is `(1, 0)`.
+    ///
+    /// Saccade mode builds each output on the previous one's warped frames,
+    /// so it takes only `count` 1. Errors: `count` 0 or above [`MAX_RENDER_SHARE`],
+    /// `index >= count`, or `count > 1` in saccade mode.
+    pub fn set_render_share(&mut self, count: u32, index: u32) -> Result<(), AmcError> {
+        if count == 0 || count > MAX_RENDER_SHARE {
+            return Err(AmcError::invalid("render share count", count, "1 to 16"));
+        }
+        if index >= count {
+            return Err(AmcError::invalid(
+                "render share index",
+                index,
+                "0 to the share count - 1",
+            ));
+        }
+        if count > 1 && self.params.view.mode == Mode::Saccade {
+            return Err(AmcError::invalid(
+                "render share count",
+                count,
+                "1 in saccade mode (each output builds on the previous one's frames)",
+            ));
+        }
+        self.rendering.share = (count.into(), index.into());
+        Ok(())
     }
 
     /// `zoom = static`: holds the zoom at `zoom` (clamped to the budget) for
@@ -572,6 +614,7 @@ impl Rendering {
     ) -> Telemetry {
         let j = self.next_out;
         self.next_out += 1;
+        let render = self.render && j % self.share.0 == self.share.1;
         let pos = ring.iter().position(|b| b.index == j).unwrap_or(0);
         let cur = &ring[pos];
         let (t, r_est, info) = (cur.t, cur.r_est, cur.info);
@@ -651,8 +694,9 @@ impl Rendering {
         let channels = format.channels();
         let (ow, oh) = (self.out_cam.width, self.out_cam.height);
         let mut valid_fraction = 0.0;
-        if !self.render {
-            // First pass of `zoom = static`: views and needs only.
+        if !render {
+            // First pass of `zoom = static`, or another stabilizer's share:
+            // views and needs only.
         } else if mode == Mode::Saccade {
             if saccade {
                 self.last_saccade = Some(j);
@@ -728,7 +772,7 @@ impl Rendering {
             };
         }
         let r_view = if saccade { r_est } else { r_view };
-        let uncovered = if self.render {
+        let uncovered = if render {
             let n = (ow * oh).min(self.acc.count.len());
             self.acc.count[..n].iter().filter(|&&c| c == 0).count() as u64
         } else {

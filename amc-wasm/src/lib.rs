@@ -23,7 +23,12 @@ use amc_core::camera::CameraModel;
 use amc_core::metrics::{FrameMetrics, MetricsAccumulator};
 use amc_core::{FrameRef, PixelFormat, Telemetry};
 use args::{nv12_to_i420, InputFormat, LensArg};
+use std::collections::VecDeque;
 use wasm_bindgen::prelude::*;
+
+/// Most outputs reported and not measured that a stabilizer remembers the
+/// telemetry of ([`Stabilizer::measure_output_of`] measures the oldest).
+const MAX_UNMEASURED: usize = 64;
 
 pub mod args;
 
@@ -77,8 +82,9 @@ struct Metrics {
     output: MetricsAccumulator,
     input: MetricsAccumulator,
     full: Vec<u8>,
-    /// Telemetry of the latest output (angular speeds for the clip summary).
-    last: Option<Telemetry>,
+    /// Telemetry of the outputs reported and not yet measured, oldest first
+    /// (angular speeds for the clip summary); at most [`MAX_UNMEASURED`].
+    unmeasured: VecDeque<Telemetry>,
 }
 
 #[wasm_bindgen]
@@ -192,6 +198,19 @@ impl Stabilizer {
         self.inner.set_rendering(on);
     }
 
+    /// Renders only outputs `j` with `j % count == index`; the others are
+    /// tracked, filtered and framed but not drawn (their telemetry has
+    /// `valid_fraction` 0, and [`Stabilizer::output`] still holds the last
+    /// drawn one). `count` workers, each with a stabilizer fed every frame and
+    /// a share `index` of `0..count`, draw every output once between them,
+    /// byte for byte as one would: the page's way to more than one core.
+    /// Errors: `count` 0 or above 16, `index >= count`, `count > 1` in
+    /// saccade mode.
+    #[wasm_bindgen(js_name = setRenderShare)]
+    pub fn set_render_share(&mut self, count: u32, index: u32) -> Result<(), JsError> {
+        self.inner.set_render_share(count, index).map_err(err)
+    }
+
     /// The highest zoom any output needed so far to show no border (at least
     /// 1): after a first pass without rendering, the zoom to pass to
     /// [`Stabilizer::set_static_zoom`].
@@ -217,7 +236,7 @@ impl Stabilizer {
             output: MetricsAccumulator::new(),
             input: MetricsAccumulator::new(),
             full: vec![1; self.width * self.height],
-            last: None,
+            unmeasured: VecDeque::new(),
         });
     }
 
@@ -254,16 +273,54 @@ impl Stabilizer {
             .metrics
             .as_mut()
             .ok_or_else(|| JsError::new("metrics are off: call setMetrics(true) first"))?;
+        // The newest output is the one in the output buffer; older unmeasured
+        // ones are gone from it.
         let tel = m
-            .last
-            .take()
+            .unmeasured
+            .pop_back()
             .ok_or_else(|| JsError::new("no new output frame to measure"))?;
+        m.unmeasured.clear();
         let fm = m.output.push(
             &self.inner.output(),
             self.inner.output_coverage(),
             tel.valid_fraction,
             Some(&tel),
         );
+        to_js(&metrics_json(&fm))
+    }
+
+    /// Image metrics of the oldest output reported and not yet measured, from
+    /// a copy of its pixels and coverage (as [`Stabilizer::output`] and
+    /// [`Stabilizer::coverage`] gave them, here or in another worker's
+    /// stabilizer drawing its share, [`Stabilizer::set_render_share`]) and the
+    /// `valid_fraction` of the telemetry of the stabilizer that drew it: the
+    /// outputs measured in order while they are drawn elsewhere or later.
+    #[wasm_bindgen(js_name = measureOutputOf)]
+    pub fn measure_output_of(
+        &mut self,
+        pixels: &[u8],
+        coverage: &[u8],
+        valid_fraction: f64,
+    ) -> Result<JsValue, JsError> {
+        let (ow, oh) = self.inner.output_size();
+        let format = self.format.core();
+        let m = self
+            .metrics
+            .as_mut()
+            .ok_or_else(|| JsError::new("metrics are off: call setMetrics(true) first"))?;
+        if coverage.len() != ow * oh {
+            return Err(JsError::new(&format!(
+                "coverage: {} bytes, expected {} (outputWidth * outputHeight)",
+                coverage.len(),
+                ow * oh
+            )));
+        }
+        let frame = FrameRef::new(ow, oh, format, pixels).map_err(err)?;
+        let tel = m
+            .unmeasured
+            .pop_front()
+            .ok_or_else(|| JsError::new("no output frame left to measure"))?;
+        let fm = m.output.push(&frame, coverage, valid_fraction, Some(&tel));
         to_js(&metrics_json(&fm))
     }
 
@@ -359,7 +416,10 @@ impl Stabilizer {
         v["speed_est_dps"] = norm_dps(tel.rate_est).into();
         v["speed_view_dps"] = norm_dps(tel.rate_view).into();
         if let Some(m) = &mut self.metrics {
-            m.last = Some(tel.clone());
+            if m.unmeasured.len() == MAX_UNMEASURED {
+                m.unmeasured.pop_front();
+            }
+            m.unmeasured.push_back(tel.clone());
         }
         to_js(&v)
     }

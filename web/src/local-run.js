@@ -24,6 +24,10 @@ export async function runLocal(file) {
   const t0 = performance.now();
   let start = null, readoutWarning = null;
   const current = () => state.run === run && state.worker === worker;
+  // The stabilizer's own speed: with helpers, that of this worker's, which tracks every frame and draws 1 output in N.
+  const stabilizerSpeed = (fps) => start && start.workers > 1
+    ? `this worker's stabilizer ${fps.toFixed(0)} frames/s, drawing 1 output in ${start.workers}`
+    : `stabilizer alone ${fps.toFixed(0)} frames/s`;
   worker.onerror = (e) => { if (current()) showError(`worker failed: ${e.message || e}`); };
   worker.onmessage = (ev) => {
     if (!current()) return;
@@ -31,8 +35,9 @@ export async function runLocal(file) {
     if (m.type === 'start') {
       start = m;
       document.body.dataset.pixelFormat = m.pixelFormat;
+      document.body.dataset.workers = String(m.workers);
       $('status-text').textContent = `${m.width}x${m.height} ${m.codec} → ${m.outWidth}x${m.outHeight} ${m.outCodec}` +
-        ` (${m.pixelFormat}${m.simd ? ', WASM SIMD' : ''})` + (m.audioNote ? ` · ${m.audioNote}` : '') +
+        ` (${m.pixelFormat}${m.simd ? ', WASM SIMD' : ''}${m.workers > 1 ? `, ${m.workers} workers` : ''})` + (m.audioNote ? ` · ${m.audioNote}` : '') +
         (m.readoutNote ? ` · ${m.readoutNote}` : '');
       // The readout the stabilizer runs with (the setting, the lens file's, or auto's estimate).
       document.body.dataset.readoutMs = String(m.params.shutter ? m.params.shutter.readout_ms : 0);
@@ -54,12 +59,12 @@ export async function runLocal(file) {
     } else if (m.type === 'progress') {
       if (m.total) { $('progress').max = m.total; $('progress').value = m.done; }
       $('status-text').textContent = `Frame ${m.done}${m.total ? ' / ' + m.total : ''} · ${m.fps.toFixed(0)} frames/s ` +
-        `(stabilizer alone ${m.stabFps.toFixed(0)} frames/s; plot metrics ${m.metricsFps.toFixed(0)} frames/s)`;
+        `(${stabilizerSpeed(m.stabFps)}; plot metrics ${m.metricsFps.toFixed(0)} frames/s)`;
     } else if (m.type === 'done') {
       const secs = (performance.now() - t0) / 1000;
       $('progress').max = m.frames; $('progress').value = m.frames;
       $('status-text').textContent = `Done: ${m.frames} frames in ${secs.toFixed(1)} s · ${m.fps.toFixed(0)} frames/s end to end ` +
-        `(decode + stabilize + measure + encode); stabilizer alone ${m.stabFps.toFixed(0)} frames/s, plot metrics ${m.metricsFps.toFixed(0)} frames/s.` +
+        `(decode + stabilize + measure + encode); ${stabilizerSpeed(m.stabFps)}, plot metrics ${m.metricsFps.toFixed(0)} frames/s.` +
         (readoutWarning ? ` Warning: ${readoutWarning.replace(/^warning: /, '')}` : '');
       document.body.dataset.frames = m.frames;
       document.body.dataset.fps = m.fps.toFixed(1);

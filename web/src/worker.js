@@ -3,6 +3,7 @@
 // copying the original's audio packets where the container allows.
 import init, { Stabilizer, ReadoutEstimator, simdEnabled } from './pkg/amc_wasm.js';
 import { pixelPath, copyOptions, colorSpaceInit } from './pixels.js';
+import { RenderShare, helperCount } from './render-share.js';
 import {
   Input, ALL_FORMATS, BlobSource, VideoSampleSink, EncodedPacketSink, VideoSample,
   Output, Mp4OutputFormat, WebMOutputFormat, BufferTarget, VideoSampleSource,
@@ -135,7 +136,7 @@ async function processClip({ file, params, lens, format, readout }) {
   const path = pixelPath(first.value);
   const outColorSpace = path === 'RGBA' ? undefined : colorSpaceInit(first.value);
   const copyOpts = copyOptions(path, width, height);
-  let stab, readoutResult = null;
+  let stab, readoutResult = null, staticZoomUsed = null;
   try {
     if (readout === 'auto') {
       // readout_ms auto: a first pass (the clip's first frames, tracked with
@@ -151,6 +152,7 @@ async function processClip({ file, params, lens, format, readout }) {
       // rendering) finds the largest zoom any frame needs.
       const zoom = await staticZoom(video, width, height, JSON.stringify(params), lens, path, copyOpts, total);
       stab.setStaticZoom(zoom);
+      staticZoomUsed = zoom;
       post('zoom-pass', { done: total || 0, total, zoom });
     }
   } catch (e) {
@@ -160,6 +162,28 @@ async function processClip({ file, params, lens, format, readout }) {
   }
   stab.setMetrics(true);
   const ow = stab.outputWidth, oh = stab.outputHeight, outFormat = stab.outputFormat;
+  // The other cores draw their share of the outputs (render-share.js).
+  let share;
+  try {
+    const mode = JSON.parse(stab.paramsJson()).view.mode;
+    const spec = { width, height, paramsJson: JSON.stringify(params), lens, format: path, staticZoom: staticZoomUsed };
+    share = await RenderShare.open(stab, spec, helperCount(mode));
+  } catch (e) {
+    first.value.close();
+    stab.free();
+    throw e;
+  }
+  try {
+    await stabilizeClip({ file, format, video, stats, first, samples, path, outColorSpace, copyOpts, codec, stab, share, ow, oh, outFormat, readoutResult, input });
+  } finally {
+    share.close();
+    stab.free();
+  }
+}
+
+/** The main pass: every frame decoded, stabilized (its output drawn here or by a helper), encoded and muxed. */
+async function stabilizeClip({ file, format, video, stats, first, samples, path, outColorSpace, copyOpts, codec, stab, share, ow, oh, outFormat, readoutResult, input }) {
+  const total = stats ? stats.packetCount : null;
 
   const container = format === 'webm' ? new WebMOutputFormat() : new Mp4OutputFormat({ fastStart: 'in-memory' });
   const outCodec = await pickVideoCodec(format, ow, oh);
@@ -183,7 +207,8 @@ async function processClip({ file, params, lens, format, readout }) {
   }
   await output.start();
 
-  post('start', { width, height, outWidth: ow, outHeight: oh, total, codec, outCodec, simd: simdEnabled(),
+  const width = first.value.visibleRect.width, height = first.value.visibleRect.height;
+  post('start', { width, height, outWidth: ow, outHeight: oh, total, codec, outCodec, simd: simdEnabled(), workers: share.count,
     pixelFormat: path, decodedFormat: first.value.format,
     params: JSON.parse(stab.paramsJson()), audioNote, readoutNote: readoutResult && readoutResult.note });
 
@@ -191,10 +216,14 @@ async function processClip({ file, params, lens, format, readout }) {
   const inputMetrics = []; // of frames whose output the lookahead still holds back
   let stabMs = 0, metricsMs = 0, n = 0, out = 0, lastPost = 0, firstT = null, lastT = -Infinity;
   const telemetry = [];
-  const emit = async (tel) => {
+  // An output, drawn here or by a helper, in order: measured, then encoded.
+  const emit = async ({ tel, output, coverage }) => {
+    const m0 = performance.now();
+    tel.metrics = stab.measureOutputOf(output, coverage, tel.valid_fraction);
+    tel.input_metrics = inputMetrics.shift();
+    metricsMs += performance.now() - m0;
     telemetry.push(tel);
-    // VideoFrame copies the pixels out of WASM memory (the view dies on the next call).
-    const frame = new VideoFrame(stab.output(), {
+    const frame = new VideoFrame(output, {
       format: outFormat, codedWidth: ow, codedHeight: oh,
       timestamp: Math.round((tel.t - firstT) * 1e6),
       ...(outColorSpace ? { colorSpace: outColorSpace } : {}),
@@ -230,33 +259,21 @@ async function processClip({ file, params, lens, format, readout }) {
     const m0 = performance.now();
     inputMetrics.push(stab.measureInput());
     const s0 = performance.now();
-    const tel = stab.pushInput(t);
+    share.push(t);
     stabMs += performance.now() - s0;
+    metricsMs += s0 - m0;
     n++;
-    if (tel) {
-      const m1 = performance.now();
-      tel.metrics = stab.measureOutput();
-      tel.input_metrics = inputMetrics.shift();
-      metricsMs += s0 - m0 + performance.now() - m1;
-      await emit(tel);
-    } else {
-      metricsMs += s0 - m0;
-    }
+    for await (const drawn of share.drawn()) await emit(drawn);
     const now = performance.now();
     if (now - lastPost > 100) {
       lastPost = now;
       post('progress', { done: n, total, fps: n / ((now - t0) / 1000), stabFps: n / (stabMs / 1000), metricsFps: n / (metricsMs / 1000) });
     }
   }
-  for (;;) {
-    const s0 = performance.now();
-    const tel = stab.finish();
-    stabMs += performance.now() - s0;
-    if (!tel) break;
-    tel.metrics = stab.measureOutput();
-    tel.input_metrics = inputMetrics.shift();
-    await emit(tel);
-  }
+  const s0 = performance.now();
+  share.finish();
+  stabMs += performance.now() - s0;
+  for await (const drawn of share.drawn(true)) await emit(drawn);
   if (audio) {
     const sink = new EncodedPacketSink(audio.track);
     const decoderConfig = await audio.track.getDecoderConfig();
@@ -270,7 +287,6 @@ async function processClip({ file, params, lens, format, readout }) {
   const elapsed = (performance.now() - t0) / 1000;
   const buffer = output.target.buffer;
   const summary = stab.summary();
-  stab.free();
   post('done', {
     buffer, mime: format === 'webm' ? 'video/webm' : 'video/mp4', frames: n, outFrames: out,
     fps: n / elapsed, stabFps: n / (stabMs / 1000), metricsFps: n / (metricsMs / 1000), telemetry, summary, outCodec,

@@ -6,7 +6,7 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { execFileSync } from 'node:child_process';
 import { mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
-import { tmpdir } from 'node:os';
+import { cpus, tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { startServer, launch, shot, ffprobeFrames, rmsFrameChange, streamTypes, dataDir, artifacts, root } from './helpers.mjs';
 
@@ -102,6 +102,8 @@ test('drop cup.mp4: every frame stabilized in the browser; the MP4 download has 
   assert.equal(await state(page), 'done', await page.textContent('#error'));
   // Chromium's software H.264 decoder gives I420: the frames went through the module as planes.
   assert.equal(await page.evaluate(() => document.body.dataset.pixelFormat), 'I420');
+  // Every core at work: the outputs shared out among one worker per core (at most 4).
+  assert.equal(await page.evaluate(() => document.body.dataset.workers), String(Math.min(cpus().length, 4)));
   // Speeds the page measured (end to end: decode + stabilize + metrics + encode; the stabilizer alone).
   writeFileSync(join(artifacts, 'clip-speed.json'), JSON.stringify(await page.evaluate(() => ({
     pixelFormat: document.body.dataset.pixelFormat, fps: Number(document.body.dataset.fps), stabFps: Number(document.body.dataset.stabFps),

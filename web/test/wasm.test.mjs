@@ -487,3 +487,44 @@ test('ReadoutEstimator: frames in, an estimate out (not confident on a sliding t
   throwsMsg(() => new ReadoutEstimator(0, H, '{}', 70), /invalid width/);
   throwsMsg(() => new ReadoutEstimator(W, H, '{}', 70, 'YUYV'), /invalid format/);
 });
+
+test('render share: two stabilizers fed every frame draw each output once, byte for byte the single one\'s; measureOutputOf measures them in order', () => {
+  for (const format of ['RGBA', 'I420']) {
+    const make = () => new Stabilizer(W, H, '{"view":{"lookahead":3}}', 70, format);
+    const one = make(), shares = [make(), make()];
+    one.setMetrics(true);
+    shares[0].setMetrics(true); // the page's worker: it measures every output, wherever drawn
+    shares.forEach((s, i) => s.setRenderShare(2, i));
+    const oneOut = [], drawn = [], measured = [];
+    const take = (tel, s, list) => { if (tel) list.push({ tel, output: s.output().slice(), coverage: s.coverage().slice() }); };
+    const step = (push) => {
+      take(push(one), one, oneOut);
+      if (oneOut.length > measured.length) measured.push(one.measureOutput());
+      shares.forEach((s, i) => { const tel = push(s); if (tel && tel.frame % 2 === i) take(tel, s, drawn); });
+    };
+    for (let i = 0; i < 12; i++) {
+      const f = format === 'RGBA' ? frame(W, H, 1.5 * i, -i) : toI420(frame(W, H, 1.5 * i, -i), W, H);
+      step((s) => { s.inputBuffer().set(f); return s.pushInput(i / 30); });
+    }
+    for (let k = 0; k < 4; k++) step((s) => s.finish());
+    assert.equal(oneOut.length, 12);
+    assert.deepEqual(drawn.map((d) => d.tel.frame), [...Array(12).keys()]);
+    for (const [j, d] of drawn.entries()) {
+      assert.deepEqual(d.output, oneOut[j].output, `${format} output ${j}`);
+      assert.deepEqual(d.coverage, oneOut[j].coverage, `${format} coverage ${j}`);
+      assert.equal(d.tel.valid_fraction, oneOut[j].tel.valid_fraction);
+      // Measured in order from the copies: the metrics of measuring each output as it came.
+      assert.deepEqual(shares[0].measureOutputOf(d.output, d.coverage, d.tel.valid_fraction), measured[j], `${format} metrics ${j}`);
+    }
+    throwsMsg(() => shares[0].measureOutputOf(drawn[0].output, drawn[0].coverage, 1), /no output frame left/);
+    throwsMsg(() => shares[0].measureOutputOf(drawn[0].output, drawn[0].coverage.subarray(1), 1), /coverage: .* expected/);
+    assert.deepEqual(shares[0].summary().output, one.summary().output);
+    one.free(); shares.forEach((s) => s.free());
+  }
+  const s = new Stabilizer(W, H, '{}', 70);
+  throwsMsg(() => s.setRenderShare(0, 0), /1 to 16/);
+  throwsMsg(() => s.setRenderShare(2, 2), /count - 1/);
+  const saccade = new Stabilizer(W, H, '{"view":{"mode":"saccade"}}', 70);
+  throwsMsg(() => saccade.setRenderShare(2, 0), /saccade/);
+  s.free(); saccade.free();
+});
