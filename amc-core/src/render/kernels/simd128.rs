@@ -547,22 +547,24 @@ impl PlaneTaps4 {
         // Each lane's pair of taps goes from memory straight into the low
         // 16 bits of its 32-bit lane (`v128.load16_lane`: no trip through a
         // general register and `replace_lane`).
+        // Lane `l`'s pair goes to the 16-bit lane `l` (the low 8 bytes hold
+        // the four pairs in order), so that one zero extension of the low
+        // bytes spreads each pair's (left, right) taps over the 16-bit halves
+        // of the 32-bit lane `l`.
         let (mut top, mut bot) = (i32x4_splat(0), i32x4_splat(0));
         macro_rules! taps {
-            ($l:literal, $h:literal) => {{
+            ($l:literal) => {{
                 let p = base.add(i32x4_extract_lane::<$l>(self.index) as usize) as *const u16;
-                top = v128_load16_lane::<$h>(top, p);
-                bot = v128_load16_lane::<$h>(bot, (p as *const u8).add(s) as *const u16);
+                top = v128_load16_lane::<$l>(top, p);
+                bot = v128_load16_lane::<$l>(bot, (p as *const u8).add(s) as *const u16);
             }};
         }
-        taps!(0, 0);
-        taps!(1, 2);
-        taps!(2, 4);
-        taps!(3, 6);
-        let (byte, hi_byte) = (i32x4_splat(0xFF), i32x4_splat(0xFF_0000));
-        let spread = |p: v128| v128_or(v128_and(p, byte), v128_and(i32x4_shl(p, 8), hi_byte));
-        let top = i32x4_dot_i16x8(spread(top), self.wx);
-        let bot = i32x4_dot_i16x8(spread(bot), self.wx);
+        taps!(0);
+        taps!(1);
+        taps!(2);
+        taps!(3);
+        let top = i32x4_dot_i16x8(u16x8_extend_low_u8x16(top), self.wx);
+        let bot = i32x4_dot_i16x8(u16x8_extend_low_u8x16(bot), self.wx);
         u32x4_shr(
             i32x4_add(
                 i32x4_add(i32x4_mul(top, self.by), i32x4_mul(bot, self.ay)),
@@ -634,11 +636,13 @@ unsafe fn taps4(g: &KernelGeometry, (sx, sy): (v128, v128)) -> Option<Taps4> {
     if !v128_any_true(valid) {
         return None;
     }
-    // Invalid lanes get coordinate 0 (offset 0, always readable); valid ones
-    // are clamped onto the frame (edge tolerance).
+    // Every lane is clamped onto the frame: valid ones by at most the edge
+    // tolerance; NaN lanes go to 0 (`pmax(0, NaN)` is its first operand).
+    // Invalid lanes thus read taps inside the frame, and their weights are
+    // masked by the callers (`wx`), so they sample 0.
     let zero = f32x4_splat(0.0);
-    let sxv = f32x4_pmin(f32x4_pmax(v128_and(sx, valid), zero), f32x4_splat(g.max_x));
-    let syv = f32x4_pmin(f32x4_pmax(v128_and(sy, valid), zero), f32x4_splat(g.max_y));
+    let sxv = f32x4_pmin(f32x4_pmax(zero, sx), f32x4_splat(g.max_x));
+    let syv = f32x4_pmin(f32x4_pmax(zero, sy), f32x4_splat(g.max_y));
     // x0 = min(trunc(sx), max_x0) as in the scalar `(sx as usize).min(max_x0)`.
     let x0f = f32x4_pmin(f32x4_trunc(sxv), f32x4_splat(g.max_x0 as f32));
     let y0f = f32x4_pmin(f32x4_trunc(syv), f32x4_splat(g.max_y0 as f32));
