@@ -1,7 +1,7 @@
 //! Pass 2 of an evaluation: bilinear residuals `I(u, v) - T` of a chunk of
-//! points, the one pass that gathers from the image. The scalar reference
-//! and an AVX2 kernel (hardware gathers) with the same arithmetic, bit-exact
-//! with it; [`residuals`] picks one.
+//! points, the one pass that gathers from the image. The scalar reference,
+//! an AVX2 kernel (hardware gathers) and a WebAssembly `simd128` one (lane
+//! loads) with the same arithmetic, bit-exact with it; [`residuals`] picks one.
 
 use crate::image::GrayImage;
 
@@ -14,6 +14,10 @@ pub(super) fn residuals(img: &GrayImage, pu: &[f32], pv: &[f32], tv: &[f32], pe:
         // SAFETY: the CPU has AVX2.
         return unsafe { residuals_avx2(img, pu, pv, tv, pe) };
     }
+    #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+    // SAFETY: compiled only where the module is built with simd128.
+    return unsafe { residuals_simd128(img, pu, pv, tv, pe) };
+    #[allow(unreachable_code)]
     residuals_scalar(img, pu, pv, tv, pe);
 }
 
@@ -120,6 +124,94 @@ pub(super) unsafe fn residuals_avx2(
         _mm256_storeu_ps(pe.as_mut_ptr().add(i), _mm256_blendv_ps(nan, e, inside));
     }
     residuals_scalar(img, &pu[n8..n], &pv[n8..n], &tv[n8..n], &mut pe[n8..n]);
+}
+
+/// [`residuals_scalar`] four points at a time in WebAssembly SIMD, which has
+/// no gathers: each point's two pairs of taps (a tap and its right
+/// neighbour, 8 bytes) are loaded straight into a 64-bit lane, and the pairs
+/// of two points are split into left and right taps by a shuffle. The same
+/// bounds test, truncation and operations in the same order (WebAssembly has
+/// no fused multiply-add), so the same bits; points outside read the taps at
+/// index 0 and their result is replaced by NaN.
+///
+/// # Safety
+/// None beyond the module being built with `simd128` (the taps read are
+/// those of inside points, checked against the image as the AVX2 kernel does).
+#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+pub(super) unsafe fn residuals_simd128(
+    img: &GrayImage,
+    pu: &[f32],
+    pv: &[f32],
+    tv: &[f32],
+    pe: &mut [f32],
+) {
+    use std::arch::wasm32::*;
+    let (w, h) = (img.width, img.height);
+    let n = pe.len().min(pu.len()).min(pv.len()).min(tv.len());
+    // Offsets are 32-bit lanes, and every tap of an inside point is below `w h`.
+    if w < 2 || h < 2 || img.data.len() < w * h || w * h > i32::MAX as usize {
+        return residuals_scalar(img, &pu[..n], &pv[..n], &tv[..n], &mut pe[..n]);
+    }
+    // Below 2^23 the offsets are exact in f32 and come out of the float
+    // trick (`t + 2^23` has the bits `0x4B00_0000 + t`); else integer lanes.
+    let small = w * h < 1 << 23;
+    let to_int = |t: v128| {
+        i32x4_sub(
+            f32x4_add(t, f32x4_splat(8_388_608.0)),
+            i32x4_splat(0x4B00_0000),
+        )
+    };
+    let n4 = n / 4 * 4;
+    let base = img.data.as_ptr();
+    let (umax, vmax) = (f32x4_splat((w - 1) as f32), f32x4_splat((h - 1) as f32));
+    let (zero, width_f, width) = (
+        f32x4_splat(0.0),
+        f32x4_splat(w as f32),
+        i32x4_splat(w as i32),
+    );
+    let nan = f32x4_splat(f32::NAN);
+    for i in (0..n4).step_by(4) {
+        // SAFETY: `i + 4 <= n` and every slice holds `n`.
+        let u = v128_load(pu.as_ptr().add(i) as *const v128);
+        let v = v128_load(pv.as_ptr().add(i) as *const v128);
+        let t = v128_load(tv.as_ptr().add(i) as *const v128);
+        let inside = v128_and(
+            v128_and(f32x4_ge(u, zero), f32x4_ge(v, zero)),
+            v128_and(f32x4_lt(u, umax), f32x4_lt(v, vmax)),
+        );
+        // Inside, truncation is the scalar `as usize`; outside, 0.
+        let (u, v) = (v128_and(u, inside), v128_and(v, inside));
+        let (xf, yf) = (f32x4_trunc(u), f32x4_trunc(v));
+        let (ax, ay) = (f32x4_sub(u, xf), f32x4_sub(v, yf));
+        let idx = if small {
+            to_int(f32x4_add(f32x4_mul(yf, width_f), xf))
+        } else {
+            i32x4_add(i32x4_mul(to_int(yf), width), to_int(xf))
+        };
+        // SAFETY: `idx + w + 1 <= (H - 1) W + W - 1 < W H <= data.len()`.
+        let at = |k: u32, row: usize| base.add(k as usize + row) as *const u64;
+        let pairs = |row: usize| {
+            let (i0, i1) = (i32x4_extract_lane::<0>(idx), i32x4_extract_lane::<1>(idx));
+            let (i2, i3) = (i32x4_extract_lane::<2>(idx), i32x4_extract_lane::<3>(idx));
+            let p01 =
+                v128_load64_lane::<1>(v128_load64_zero(at(i0 as u32, row)), at(i1 as u32, row));
+            let p23 =
+                v128_load64_lane::<1>(v128_load64_zero(at(i2 as u32, row)), at(i3 as u32, row));
+            (
+                i32x4_shuffle::<0, 2, 4, 6>(p01, p23),
+                i32x4_shuffle::<1, 3, 5, 7>(p01, p23),
+            )
+        };
+        let ((t0, t1), (b0, b1)) = (pairs(0), pairs(w));
+        let top = f32x4_add(t0, f32x4_mul(f32x4_sub(t1, t0), ax));
+        let bot = f32x4_add(b0, f32x4_mul(f32x4_sub(b1, b0), ax));
+        let e = f32x4_sub(f32x4_add(top, f32x4_mul(f32x4_sub(bot, top), ay)), t);
+        v128_store(
+            pe.as_mut_ptr().add(i) as *mut v128,
+            v128_bitselect(e, nan, inside),
+        );
+    }
+    residuals_scalar(img, &pu[n4..n], &pv[n4..n], &tv[n4..n], &mut pe[n4..n]);
 }
 
 #[cfg(test)]
