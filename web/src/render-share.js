@@ -26,7 +26,6 @@ export class RenderShare {
    */
   static async open(stab, spec, helpers) {
     const count = helpers + 1;
-    stab.setRenderShare(count, 0);
     const share = new RenderShare(stab, count);
     try {
       await Promise.all(Array.from({ length: helpers }, (_, k) => share.#start(spec, k + 1)));
@@ -34,6 +33,7 @@ export class RenderShare {
       share.close();
       throw e;
     }
+    stab.setRenderShare(count, 0);
     return share;
   }
 

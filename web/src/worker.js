@@ -167,7 +167,14 @@ async function processClip({ file, params, lens, format, readout }) {
   try {
     const mode = JSON.parse(stab.paramsJson()).view.mode;
     const spec = { width, height, paramsJson: JSON.stringify(params), lens, format: path, staticZoom: staticZoomUsed };
-    share = await RenderShare.open(stab, spec, helperCount(mode));
+    const helpers = helperCount(mode);
+    share = await RenderShare.open(stab, spec, helpers).catch((e) => {
+      // Helpers that cannot start (a browser without module workers in
+      // workers, say) leave this worker to draw every output.
+      if (!helpers) throw e;
+      console.warn(`render helpers did not start (${e.message}); stabilizing in one worker`);
+      return RenderShare.open(stab, spec, 0);
+    });
   } catch (e) {
     first.value.close();
     stab.free();

@@ -250,6 +250,20 @@ test('WebM download (VP9) with the same frame count', async () => {
   assert.equal(out.frames, ffprobeFrames(cup).frames);
   assert.deepEqual([out.width, out.height], [480, 360], 'an empty margin is the default 0.125');
   assert.ok('Saccades' in (await summaryTable(page)), 'saccade mode reports its saccades');
+  // Saccade mode builds each output on the previous one's: one worker draws them all.
+  assert.equal(await page.evaluate(() => document.body.dataset.workers), '1');
+  await page.close();
+});
+
+test('render helpers that cannot start: the clip is stabilized in one worker', async () => {
+  const { page } = await newPage();
+  await page.context().route('**/share-worker.js', (r) => r.abort());
+  await page.setInputFiles('[data-testid=file-input]', cup);
+  await waitState(page, ['done', 'error']);
+  assert.equal(await state(page), 'done', await page.textContent('#error'));
+  assert.equal(await page.evaluate(() => document.body.dataset.workers), '1');
+  assert.equal(Number(await page.evaluate(() => document.body.dataset.frames)), ffprobeFrames(cup).frames);
+  await page.context().unroute('**/share-worker.js');
   await page.close();
 });
 
