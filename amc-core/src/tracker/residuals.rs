@@ -55,6 +55,20 @@ pub(super) fn residuals_scalar(
     }
 }
 
+/// Whether the vector kernels' 32-bit lane offsets reach every tap of an
+/// inside point (all below `w h`); an image that fails goes the scalar way.
+#[cfg_attr(
+    not(any(
+        target_arch = "x86_64",
+        all(target_arch = "wasm32", target_feature = "simd128")
+    )),
+    allow(dead_code)
+)]
+fn lane_offsets_fit(img: &GrayImage) -> bool {
+    let (w, h) = (img.width, img.height);
+    w >= 2 && h >= 2 && img.data.len() >= w * h && w * h <= i32::MAX as usize
+}
+
 /// [`residuals_scalar`] eight points at a time with hardware gathers: the
 /// same bounds test (ordered compares, so NaN fails), truncation, taps and
 /// operations in the same order (no fused multiply-add), so the same bits.
@@ -74,9 +88,7 @@ pub(super) unsafe fn residuals_avx2(
     use std::arch::x86_64::*;
     let (w, h) = (img.width, img.height);
     let n = pe.len().min(pu.len()).min(pv.len()).min(tv.len());
-    // The gathers index with 32-bit offsets, and every tap of an inside point
-    // is below `w h`; an image that breaks either goes the scalar way.
-    if w < 2 || h < 2 || img.data.len() < w * h || w * h > i32::MAX as usize {
+    if !lane_offsets_fit(img) {
         return residuals_scalar(img, &pu[..n], &pv[..n], &tv[..n], &mut pe[..n]);
     }
     let n8 = n / 8 * 8;
@@ -148,8 +160,7 @@ pub(super) unsafe fn residuals_simd128(
     use std::arch::wasm32::*;
     let (w, h) = (img.width, img.height);
     let n = pe.len().min(pu.len()).min(pv.len()).min(tv.len());
-    // Offsets are 32-bit lanes, and every tap of an inside point is below `w h`.
-    if w < 2 || h < 2 || img.data.len() < w * h || w * h > i32::MAX as usize {
+    if !lane_offsets_fit(img) {
         return residuals_scalar(img, &pu[..n], &pv[..n], &tv[..n], &mut pe[..n]);
     }
     // Below 2^23 the offsets are exact in f32 and come out of the float
