@@ -5,8 +5,9 @@
 // (share-worker.js), are each fed every frame, and stabilizer `i` draws
 // outputs `j` with `j % count == i` (Stabilizer.setRenderShare). Tracking,
 // the view filter and the framing need every frame and run in each; they are
-// a small part of the work next to drawing (3% at 1280x720, 12-30% at
-// 320x180), and each output comes out byte for byte as one stabilizer draws it.
+// a small part of the work next to drawing (3% of one worker's time at
+// 1280x720, 28% at 320x180), and each output comes out byte for byte as one
+// stabilizer draws it.
 
 /** Helpers (besides this thread) the page starts: one per core beyond the first, at most 3. */
 export function helperCount(mode) {

@@ -544,13 +544,11 @@ impl PlaneTaps4 {
     #[inline(always)]
     unsafe fn sample(&self, data: &[u8]) -> v128 {
         let (base, s) = (data.as_ptr(), self.stride);
-        // Each lane's pair of taps goes from memory straight into the low
-        // 16 bits of its 32-bit lane (`v128.load16_lane`: no trip through a
-        // general register and `replace_lane`).
-        // Lane `l`'s pair goes to the 16-bit lane `l` (the low 8 bytes hold
-        // the four pairs in order), so that one zero extension of the low
-        // bytes spreads each pair's (left, right) taps over the 16-bit halves
-        // of the 32-bit lane `l`.
+        // Lane `l`'s pair of taps goes from memory straight into the 16-bit
+        // lane `l` (`v128.load16_lane`: no trip through a general register),
+        // so the low 8 bytes hold the four pairs in order and one zero
+        // extension spreads each pair's (left, right) taps over the 16-bit
+        // halves of the 32-bit lane `l`.
         let (mut top, mut bot) = (i32x4_splat(0), i32x4_splat(0));
         macro_rules! taps {
             ($l:literal) => {{
