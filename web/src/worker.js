@@ -165,8 +165,10 @@ async function processClip({ file, params, lens, format, readout }) {
   // The other cores draw their share of the outputs (render-share.js).
   let share;
   try {
-    const mode = JSON.parse(stab.paramsJson()).view.mode;
-    const spec = { width, height, paramsJson: JSON.stringify(params), lens, format: path, staticZoom: staticZoomUsed };
+    // The helpers' stabilizers are made from this one's parameters, as it holds them.
+    const paramsJson = stab.paramsJson();
+    const mode = JSON.parse(paramsJson).view.mode;
+    const spec = { width, height, paramsJson, lens, format: path, staticZoom: staticZoomUsed };
     const helpers = helperCount(mode);
     share = await RenderShare.open(stab, spec, helpers).catch((e) => {
       // Helpers that cannot start (a browser without module workers in
@@ -181,7 +183,7 @@ async function processClip({ file, params, lens, format, readout }) {
     throw e;
   }
   try {
-    await stabilizeClip({ file, format, video, stats, first, samples, path, outColorSpace, copyOpts, codec, stab, share, ow, oh, outFormat, readoutResult, input });
+    await stabilizeClip({ format, video, stats, total, width, height, first, samples, path, outColorSpace, copyOpts, codec, stab, share, ow, oh, outFormat, readoutResult, input });
   } finally {
     share.close();
     stab.free();
@@ -189,9 +191,7 @@ async function processClip({ file, params, lens, format, readout }) {
 }
 
 /** The main pass: every frame decoded, stabilized (its output drawn here or by a helper), encoded and muxed. */
-async function stabilizeClip({ file, format, video, stats, first, samples, path, outColorSpace, copyOpts, codec, stab, share, ow, oh, outFormat, readoutResult, input }) {
-  const total = stats ? stats.packetCount : null;
-
+async function stabilizeClip({ format, video, stats, total, width, height, first, samples, path, outColorSpace, copyOpts, codec, stab, share, ow, oh, outFormat, readoutResult, input }) {
   const container = format === 'webm' ? new WebMOutputFormat() : new Mp4OutputFormat({ fastStart: 'in-memory' });
   const outCodec = await pickVideoCodec(format, ow, oh);
   const output = new Output({ format: container, target: new BufferTarget() });
@@ -214,7 +214,6 @@ async function stabilizeClip({ file, format, video, stats, first, samples, path,
   }
   await output.start();
 
-  const width = first.value.visibleRect.width, height = first.value.visibleRect.height;
   post('start', { width, height, outWidth: ow, outHeight: oh, total, codec, outCodec, simd: simdEnabled(), workers: share.count,
     pixelFormat: path, decodedFormat: first.value.format,
     params: JSON.parse(stab.paramsJson()), audioNote, readoutNote: readoutResult && readoutResult.note });
