@@ -227,14 +227,19 @@ async fn record(state: &Arc<WorkerState>, claim: &Claim, ending: Ending) -> &'st
                     "done"
                 }
                 other => {
-                    if let Err(e) = other {
-                        tracing::warn!(job = %id, error = %e, "cannot record a finished job; another worker will run it again");
-                    } else {
-                        tracing::info!(job = %id, "job finished here but was cancelled or taken over; result discarded");
-                    }
                     let _ = store.delete(&output_key).await;
                     let _ = store.delete(&telemetry_key).await;
-                    "lost"
+                    if let Err(e) = other {
+                        tracing::warn!(job = %id, error = %e, "cannot record a finished job; another worker will run it again");
+                        "lost"
+                    } else {
+                        // Cancelled (or taken over) as the run ended: let go of
+                        // the claim as a stopped run does, so that `DELETE`
+                        // answers now rather than after its longest wait.
+                        let _ = queue.release(claim, &state.name).await;
+                        tracing::info!(job = %id, "job finished here but was cancelled or taken over; result discarded");
+                        "cancelled"
+                    }
                 }
             }
         }
@@ -249,8 +254,9 @@ async fn record(state: &Arc<WorkerState>, claim: &Claim, ending: Ending) -> &'st
                     "failed"
                 }
                 Ok(false) => {
+                    // As above: the row was no longer ours.
                     let _ = queue.release(claim, &state.name).await;
-                    "lost"
+                    "cancelled"
                 }
                 Err(e) => {
                     tracing::warn!(job = %id, error = %e, "cannot record a failed job");
