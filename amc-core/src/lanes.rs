@@ -49,6 +49,50 @@ pub fn dot(a: &[f32], b: &[f32]) -> f32 {
     lane_sum(a, b, b, |x, y, _| (x * y, true)).0
 }
 
+/// Adds `a[i] b[i]` (over the shorter of the two) into the lane
+/// accumulators `acc`, lane `i % LANES` (a tail past the last whole group
+/// into lane 0), without adding the lanes up: a sum spread over many short
+/// slices adds its lanes once at the end ([`lanes_total`]). Reducing the
+/// lanes after every slice of 64 was a serial chain of seven additions per
+/// sum, and the tracker's rolling-shutter moments take 12 to 63 sums per
+/// slice.
+#[inline(always)]
+pub fn dot_into(a: &[f32], b: &[f32], acc: &mut [f32; LANES]) {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let n8 = n / LANES * LANES;
+    for (xa, xb) in a[..n8].chunks_exact(LANES).zip(b[..n8].chunks_exact(LANES)) {
+        for l in 0..LANES {
+            acc[l] += xa[l] * xb[l];
+        }
+    }
+    for i in n8..n {
+        acc[0] += a[i] * b[i];
+    }
+}
+
+/// Adds `a[i]` into the lane accumulators `acc` as [`dot_into`] adds
+/// products.
+#[inline(always)]
+pub fn sum_into(a: &[f32], acc: &mut [f32; LANES]) {
+    let n8 = a.len() / LANES * LANES;
+    for xa in a[..n8].chunks_exact(LANES) {
+        for l in 0..LANES {
+            acc[l] += xa[l];
+        }
+    }
+    for x in &a[n8..] {
+        acc[0] += x;
+    }
+}
+
+/// The lanes of [`dot_into`]'s and [`sum_into`]'s accumulators added up,
+/// in `f64`.
+#[inline(always)]
+pub fn lanes_total(acc: &[f32; LANES]) -> f64 {
+    acc.iter().map(|&x| x as f64).sum()
+}
+
 /// `sum a[i]`.
 #[inline(always)]
 pub fn sum(a: &[f32]) -> f32 {
@@ -67,6 +111,14 @@ mod tests {
             let b: Vec<f32> = (0..n).map(|i| (i % 3) as f32).collect();
             let want: f32 = (0..n).map(|i| (i * (i % 3)) as f32).sum();
             assert_eq!(dot(&a, &b), want, "n = {n}");
+            let mut acc = [0f32; LANES];
+            dot_into(&a[..n / 2], &b[..n / 2], &mut acc);
+            dot_into(&a[n / 2..], &b[n / 2..], &mut acc);
+            assert_eq!(lanes_total(&acc), want as f64, "n = {n}");
+            let mut acc = [0f32; LANES];
+            sum_into(&b[..n / 3], &mut acc);
+            sum_into(&b[n / 3..], &mut acc);
+            assert_eq!(lanes_total(&acc), sum(&b) as f64, "n = {n}");
             assert_eq!(sum(&b), (0..n).map(|i| (i % 3) as f32).sum::<f32>());
             let odd = lane_sum(&a, &a, &a, |x, _, _| (x, x as usize % 2 == 1));
             assert_eq!(

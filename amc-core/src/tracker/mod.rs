@@ -65,12 +65,15 @@
 //!   readout fraction of the landing row (a fixed point: two steps from the
 //!   mid-readout projection and an extrapolation; a level's later evaluations
 //!   take one step from the last landing, and keep its first Gauss-Newton
-//!   matrix, [`WarmStart`]);
+//!   matrix until a step moves the points far, [`WarmStart`]); through a
+//!   distorted lens the landing row's readout fraction is sampled from a
+//!   table per level ([`RowTime::level_table`]);
 //! * the Gauss-Newton step has up to 15 parameters ([`Eval::pose_step`]): the
 //!   rotation's inverse-compositional step and additive steps of the terms,
 //!   whose Jacobians are the rotation's times `s^k` (turned into the current
-//!   camera), on the finest [`INTRA_LEVELS`] levels (all terms on the finest,
-//!   `phi` on the next, [`Tracker::level_terms`]);
+//!   camera), on the finest [`INTRA_LEVELS`] levels at a fast pace (all terms on the finest,
+//!   all but `xi` on the next, `phi` on the coarser ones,
+//!   [`Tracker::level_terms`]);
 //! * alignment sees only differences of readout motion between a frame and
 //!   its template: the absolute value is pinned by time ([`Gauge`]);
 //! * fast motion estimates `phi, psi, chi`, and `xi` where the path bends
@@ -94,7 +97,7 @@ use crate::shutter::{IntraFrame, INTRA_TERMS};
 use crate::so3::{self, Rot, Tangent};
 use irls::{irls_terms, outer_products, IrlsTerms, CHUNK};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
-use residuals::residuals;
+use residuals::{residuals, sample_clamped};
 use serde::{Deserialize, Serialize};
 
 /// Parameters of the rotation tracker.
@@ -206,8 +209,23 @@ const MAX_RESET_DELAY: usize = 10;
 /// Convergence threshold of coarse levels relative to the finest level's.
 const COARSE_TOLERANCE_FACTOR: f64 = 20.0;
 /// Pyramid levels (finest first) on which a rolling shutter's readout motion
-/// is estimated; coarser levels keep the last frame's.
-const INTRA_LEVELS: usize = 2;
+/// is estimated at a fast pace (every level of the default pyramid, see
+/// [`Tracker::level_terms`]); coarser levels keep the last frame's.
+const INTRA_LEVELS: usize = 4;
+/// The same at a slow pace, where `phi` alone is estimated under a prior:
+/// the two finest levels. On all four, cc9 (a phone's sway through 33 ms)
+/// agreed with its gyro to 0.060 deg per frame instead of 0.057.
+const SLOW_INTRA_LEVELS: usize = 2;
+/// A rolling-shutter evaluation after a step that moved the points by more
+/// than this (pixels of the level) sums its Gauss-Newton matrix afresh
+/// instead of keeping the level's first ([`WarmStart`]): far from the optimum
+/// the landing rows and the robust weights the matrix is made of move with
+/// the pose. Measured (Gauss-Newton iterations per frame, always kept ->
+/// this): 6.6 -> 6.1 on the tracking bench's clip, 11.0 -> 10.0 and 19.3 ->
+/// 14.3 at 300 deg/s through 10 and 20 ms; refreshing after every step
+/// saved no more iterations (6.0, 9.8, 14.4) and costs the full sums each
+/// time.
+const MATRIX_REFRESH_PX: f64 = 0.3;
 /// Weight of the readout path's step in the convergence test: its terms
 /// converge more slowly than the rotation (the bend and the S-shape are weakly
 /// seen), and a move of the rows by `convergence_px / INTRA_TOLERANCE_SCALE`
@@ -512,6 +530,10 @@ pub struct Tracker {
     intra: IntraFrame,
     /// Rolling shutter: the readout fraction of each tracked pixel.
     rolling: Option<RowTime>,
+    /// Rolling shutter through a distorted lens: that readout fraction at
+    /// every pixel of each pyramid level, finest first
+    /// ([`RowTime::level_table`]); empty when it is affine.
+    row_tables: Vec<GrayImage>,
     /// Rolling shutter: the readout time, seconds.
     readout_s: f64,
     /// Rolling shutter: what the current template's readout motion is off by
@@ -552,7 +574,8 @@ pub struct Tracker {
 /// - The level's first Gauss-Newton matrix (its moments up to `s^(2 terms)`,
 ///   two thirds of the evaluation's sums with a cubic path). The iteration's
 ///   fixed point is where the gradient vanishes whatever the matrix, and
-///   within one level the weights and rows the matrix is made of barely move.
+///   near it the weights and rows the matrix is made of barely move; after a
+///   step longer than [`MATRIX_REFRESH_PX`] the matrix is summed again.
 ///
 /// Measured on the tracking bench's clip (100 deg/s, 15 ms): the same
 /// evaluations per frame and the same accuracy on the ground-truth clips.
@@ -560,6 +583,8 @@ pub struct Tracker {
 struct WarmStart {
     /// Whether the fields hold the level's first evaluation.
     valid: bool,
+    /// Whether the next evaluation sums the matrix afresh (and keeps it).
+    refresh: bool,
     /// Where each point landed at the level's last evaluation, pixels.
     u: Vec<f32>,
     v: Vec<f32>,
@@ -695,6 +720,7 @@ impl Tracker {
             typical_residual: None,
             intra: IntraFrame::ZERO,
             rolling: None,
+            row_tables: Vec::new(),
             readout_s: 0.0,
             gauge_tpl: IntraFrame::ZERO,
             gauge: Gauge::default(),
@@ -728,6 +754,16 @@ impl Tracker {
     /// readout is then estimated with its rotation ([`Tracker::intra`]).
     /// Set it before the first frame.
     pub fn set_rolling(&mut self, rows: RowTime, readout_s: f64) {
+        // Each level's size as the pyramid halves it (see `pyramid::half_into`).
+        let (mut w, mut h) = (self.width, self.height);
+        self.row_tables.clear();
+        for level in 0..self.n_levels {
+            match rows.level_table(level, w, h) {
+                Some(table) => self.row_tables.push(table),
+                None => break,
+            }
+            (w, h) = (w / 2, h / 2);
+        }
         self.rolling = Some(rows);
         self.readout_s = readout_s;
     }
@@ -886,17 +922,38 @@ impl Tracker {
         }
     }
 
+    /// The pyramid levels (finest first) that estimate the readout path:
+    /// [`INTRA_LEVELS`] at a fast pace, [`SLOW_INTRA_LEVELS`] at a slow one.
+    fn intra_levels(&self) -> usize {
+        if self.fast_motion() {
+            INTRA_LEVELS
+        } else {
+            SLOW_INTRA_LEVELS
+        }
+    }
+
     /// The terms of the readout path estimated at pyramid `level`: all of
-    /// [`Tracker::path_terms`] at the finest, `phi` alone on the next (its
-    /// half-height rows barely see the bend and the S-shape), none on the
-    /// coarser ones ([`INTRA_LEVELS`]). Measured on the ground-truth clips
-    /// against every term on both levels: 300 deg/s through 20 ms (pinhole)
-    /// 4.3x -> 3.1x the global shutter's per-frame error, the other cases
-    /// within 4%, the tracking bench's time the same.
+    /// [`Tracker::path_terms`] at the finest, all but the quartic `xi` on the
+    /// next, `phi` alone on the coarser ones (down to
+    /// [`Tracker::intra_levels`]; their rows barely see the bend and the
+    /// S-shape).
+    ///
+    /// Each level hands the next its rotation, and the rotation absorbs what
+    /// the level leaves out of the path: held at the last frame's (at 12-20
+    /// Hz shake a poor guess) on the coarse levels and with only `phi` on the
+    /// second, the finest level's first step moved the rotation by 0.2-0.3 px
+    /// and the coarse levels crawled (Huber-weighted steps of 0.2 px, ten in a
+    /// row, at 300 deg/s through 20 ms). Measured against `phi` on the two
+    /// finest levels only, with [`MATRIX_REFRESH_PX`] (tracking bench clip,
+    /// 100 deg/s through 15 ms, and the 300 deg/s pinhole ground truth):
+    /// Gauss-Newton iterations per frame 8.5 -> 5.5, 15.2 -> 9.5 (10 ms) and
+    /// 28.8 -> 12.9 (20 ms), with median per-frame errors 0.00318 -> 0.00303,
+    /// 0.00296 -> 0.00279 and 0.00370 -> 0.00350 deg.
     fn level_terms(&self, level: usize) -> usize {
         match level {
             0 => self.path_terms(),
-            l if l < INTRA_LEVELS => self.path_terms().min(1),
+            1 => self.path_terms().min(INTRA_TERMS - 1),
+            l if l < self.intra_levels() => self.path_terms().min(1),
             _ => 0,
         }
     }
@@ -1005,7 +1062,7 @@ impl Tracker {
         self.tpl_path = self.tpl_path.plus(&self.gauge_tpl, -1.0);
         self.gauge_tpl = IntraFrame::ZERO;
         for (level, tpl) in self.template.iter_mut().enumerate() {
-            rectify_template(tpl, rows, level, &self.tpl_path);
+            rectify_template(tpl, rows, self.row_tables.get(level), level, &self.tpl_path);
         }
     }
 
@@ -1019,7 +1076,7 @@ impl Tracker {
     ) -> (Pose, TrackInfo) {
         let mut info = TrackInfo::default();
         for level in (0..self.n_levels).rev() {
-            if level + 1 == INTRA_LEVELS {
+            if level + 1 == self.intra_levels().min(self.n_levels) {
                 if let Some(intra) = self.seed_intra(&pose, dt) {
                     pose.intra = intra;
                 }
@@ -1151,7 +1208,8 @@ impl Tracker {
     /// without being tried: near the optimum such steps are noise, and testing
     /// them (with halvings) would cost full passes for nothing. With a rolling
     /// shutter the readout motion is estimated on the finest
-    /// [`INTRA_LEVELS`] levels (coarser ones have too few rows to see it).
+    /// [`Tracker::intra_levels`] levels (coarser ones have too few rows to
+    /// see it).
     fn refine(
         &self,
         level: usize,
@@ -1162,7 +1220,7 @@ impl Tracker {
         let tpl = &self.template[level];
         let min_valid = ((tpl.xs.len() as f32) * MIN_VALID_SHARE).max(8.0) as u32;
         let f_level = tpl.k.map_or(1.0, |k| k.fx.max(k.fy)) as f64;
-        let intra = self.rolling.is_some() && level < INTRA_LEVELS;
+        let intra = self.rolling.is_some() && level < self.intra_levels();
         let mut prior = None;
         // Coarse levels only need to land inside the next level's basin.
         let tol = self.params.convergence_px
@@ -1206,6 +1264,7 @@ impl Tracker {
             let mut accepted = false;
             for _ in 0..MAX_BACKTRACK {
                 let cand = step.apply(&pose, s);
+                warm_start.refresh = step_px * s > MATRIX_REFRESH_PX;
                 let e = self.evaluate(level, img, &cand, Some(&mut *warm_start));
                 let obj = objective(&e, &cand);
                 if e.n >= min_valid && obj <= cur_obj {
@@ -1300,6 +1359,9 @@ impl Tracker {
         let (mut pu, mut pv, mut pe) = ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
         let mut terms = IrlsTerms::default();
         let mut outer = [[0f32; CHUNK]; 6];
+        // The matrix's and the gradient's lane accumulators, added up once
+        // after the last chunk (see [`lanes::dot_into`]).
+        let (mut h_lanes, mut g_lanes) = ([[0f32; lanes::LANES]; 6], [[0f32; lanes::LANES]; 3]);
         let m = [
             m[(0, 0)],
             m[(0, 1)],
@@ -1335,14 +1397,16 @@ impl Tracker {
             irls_terms(&mut pe[..len], sd, c, &mut terms);
             outer_products(sd, &terms.wt, len, &mut outer);
             ev.add_chunk_sums(terms.sums(&pe[..len]));
-            for (a, o) in outer.iter().enumerate() {
-                ev.h[a] += lanes::sum(&o[..len]) as f64;
+            for (o, acc) in outer.iter().zip(&mut h_lanes) {
+                lanes::sum_into(&o[..len], acc);
             }
-            for (a, v) in terms.we.iter().enumerate() {
-                ev.g[a] += lanes::sum(&v[..len]) as f64;
+            for (v, acc) in terms.we.iter().zip(&mut g_lanes) {
+                lanes::sum_into(&v[..len], acc);
             }
             lo = hi;
         }
+        ev.h = h_lanes.map(|a| lanes::lanes_total(&a));
+        ev.g = g_lanes.map(|a| lanes::lanes_total(&a));
         ev
     }
 
@@ -1367,32 +1431,27 @@ impl Tracker {
         terms: usize,
         warm_start: Option<&mut WarmStart>,
     ) -> Eval {
-        // Monomorphized per row-time model so the affine one inlines.
-        match rows {
-            RowTime::Affine { a, b } => {
-                let k = (1u32 << level) as f32;
-                let (a, b) = (a * k, a * 0.5 * (k - 1.0) + b);
-                self.evaluate_rolling_with(level, img, pose, terms, warm_start, |_, v| a * v + b)
-            }
-            table => self.evaluate_rolling_with(level, img, pose, terms, warm_start, |u, v| {
-                table.at(level, u, v)
-            }),
-        }
+        let table = self.row_tables.get(level);
+        let row_times =
+            |pu: &[f32], pv: &[f32], ps: &mut [f32]| row_times_into(rows, table, level, pu, pv, ps);
+        self.evaluate_rolling_with(level, img, pose, terms, warm_start, row_times)
     }
 
-    /// [`Tracker::evaluate_rolling`] with the readout fraction `row_time(u, v)`
-    /// of level pixel `(u, v)`. The intra-frame sums are accumulated for the
-    /// first `n_terms` terms of the readout path (those the level estimates;
-    /// none: 0).
+    /// [`Tracker::evaluate_rolling`] with `row_times(pu, pv, ps)`, which
+    /// writes the readout fraction of each level pixel `(pu, pv)` into `ps`
+    /// (a chunk at a time, so that a table is sampled by the vector gathers
+    /// and the passes around it stay vectorized). The intra-frame sums are
+    /// accumulated for the first `n_terms` terms of the readout path (those
+    /// the level estimates; none: 0).
     #[inline(always)]
-    fn evaluate_rolling_with<T: Fn(f32, f32) -> f32>(
+    fn evaluate_rolling_with<T: Fn(&[f32], &[f32], &mut [f32])>(
         &self,
         level: usize,
         img: &GrayImage,
         pose: &Pose,
         n_terms: usize,
         mut warm_start: Option<&mut WarmStart>,
-        row_time: T,
+        row_times: T,
     ) -> Eval {
         let tpl = &self.template[level];
         let Some(k) = tpl.k else {
@@ -1428,6 +1487,14 @@ impl Tracker {
             }
             None => false,
         };
+        let reuse = warm && !warm_start.as_deref().is_some_and(|l| l.refresh);
+        // A one-off evaluation (a start candidate's, the recovery grid's)
+        // is compared by its loss alone: the Gauss-Newton sums are skipped.
+        let loss_only = warm_start.is_none();
+        // The moments' lane accumulators: the matrix's `s^p` (p = 0..=2N) and
+        // the gradient's (p = 0..=N).
+        let mut h_lanes = [[[0f32; lanes::LANES]; 6]; 2 * INTRA_TERMS + 1];
+        let mut g_lanes = [[[0f32; lanes::LANES]; 3]; INTRA_TERMS + 1];
         let mut lo = 0;
         while lo < n_pts {
             let hi = (lo + CHUNK).min(n_pts);
@@ -1460,41 +1527,53 @@ impl Tracker {
             match warm_start.as_deref_mut() {
                 Some(l) if warm => {
                     // One step from the last landing, extrapolated with its gain.
-                    let (lu, lv, lg) = (&mut l.u[lo..hi], &mut l.v[lo..hi], &l.gain[lo..hi]);
+                    // (Sliced to `len`, not `lo..hi`: the compiler then sees
+                    // every index in bounds and vectorizes the loop; with the
+                    // check left in it ran a point at a time.)
+                    let (lu, lv) = (&mut l.u[lo..][..len], &mut l.v[lo..][..len]);
+                    let lg = &l.gain[lo..][..len];
+                    row_times(lu, lv, &mut ps[..len]);
                     for q in 0..len {
-                        let (u, v) = land(row_time(lu[q], lv[q]), q);
+                        let (u, v) = land(ps[q], q);
                         pu[q] = u + lg[q] * (u - lu[q]);
                         pv[q] = v + lg[q] * (v - lv[q]);
-                        ps[q] = row_time(pu[q], pv[q]);
                         (lu[q], lv[q]) = (pu[q], pv[q]);
                     }
+                    row_times(&pu[..len], &pv[..len], &mut ps[..len]);
                 }
                 cold => {
                     for q in 0..len {
                         (pu[q], pv[q]) = k.project(rx[q], ry[q], rz[q]);
                     }
+                    row_times(&pu[..len], &pv[..len], &mut ps[..len]);
                     for q in 0..len {
-                        let (u, v) = land(row_time(pu[q], pv[q]), q);
+                        let (u, v) = land(ps[q], q);
                         dv[q] = v - pv[q];
                         (pu[q], pv[q]) = (u, v);
                     }
-                    for q in 0..len {
-                        let (u, v) = land(row_time(pu[q], pv[q]), q);
-                        let (eu, ev) = (u - pu[q], v - pv[q]);
-                        let ratio = if dv[q].abs() > 1e-4 {
-                            (ev / dv[q]).clamp(-0.5, 0.5)
-                        } else {
-                            0.0
-                        };
-                        gain[q] = ratio / (1.0 - ratio);
-                        pu[q] = u + gain[q] * eu;
-                        pv[q] = v + gain[q] * ev;
-                        ps[q] = row_time(pu[q], pv[q]);
-                    }
-                    if let Some(l) = cold {
-                        l.u[lo..hi].copy_from_slice(&pu[..len]);
-                        l.v[lo..hi].copy_from_slice(&pv[..len]);
-                        l.gain[lo..hi].copy_from_slice(&gain[..len]);
+                    row_times(&pu[..len], &pv[..len], &mut ps[..len]);
+                    // A one-off evaluation (start candidates and the recovery
+                    // grid, told apart on the coarsest level) stops after one
+                    // step, which lands within a tenth of that level's pixel.
+                    if !loss_only {
+                        for q in 0..len {
+                            let (u, v) = land(ps[q], q);
+                            let (eu, ev) = (u - pu[q], v - pv[q]);
+                            let ratio = if dv[q].abs() > 1e-4 {
+                                (ev / dv[q]).clamp(-0.5, 0.5)
+                            } else {
+                                0.0
+                            };
+                            gain[q] = ratio / (1.0 - ratio);
+                            pu[q] = u + gain[q] * eu;
+                            pv[q] = v + gain[q] * ev;
+                        }
+                        row_times(&pu[..len], &pv[..len], &mut ps[..len]);
+                        if let Some(l) = cold {
+                            l.u[lo..hi].copy_from_slice(&pu[..len]);
+                            l.v[lo..hi].copy_from_slice(&pv[..len]);
+                            l.gain[lo..hi].copy_from_slice(&gain[..len]);
+                        }
                     }
                 }
             }
@@ -1511,14 +1590,18 @@ impl Tracker {
             for q in 0..len {
                 ps[q] = if terms.ok[q] > 0.0 { ps[q] } else { 0.0 };
             }
-            if !warm {
+            ev.add_chunk_sums(terms.sums(&pe[..len]));
+            if loss_only {
+                lo = hi;
+                continue;
+            }
+            if !reuse {
                 outer_products(sd, &terms.wt, len, &mut outer);
             }
-            ev.add_chunk_sums(terms.sums(&pe[..len]));
             // A warm evaluation sums the gradient's moments only (up to
             // `s^n_terms`); the matrix's (up to `s^(2 n_terms)`) are the level's
             // first evaluation's (see [`WarmStart`]).
-            let moments = if warm { n_terms } else { 2 * n_terms };
+            let moments = if reuse { n_terms } else { 2 * n_terms };
             // pw = s^p per point, p = 0..=moments (vectorized over points).
             let mut pw = [1f32; CHUNK];
             for p in 0..=moments {
@@ -1527,26 +1610,36 @@ impl Tracker {
                         pw[q] *= ps[q];
                     }
                 }
-                // Summed in lanes: as one serial f32 sum each, these 54 sums per
-                // chunk were the tracker's hottest loop.
-                let dot = |a: &[f32; CHUNK]| -> f64 { lanes::dot(&a[..len], &pw[..len]) as f64 };
-                if !warm {
-                    let hk = if p == 0 { &mut ev.h } else { &mut ev.hs[p - 1] };
-                    for (a, o) in outer.iter().enumerate() {
-                        hk[a] += dot(o);
+                // Summed in lanes (as one serial f32 sum each, these 54 sums
+                // per chunk were the tracker's hottest loop), the lanes added
+                // up once after the last chunk.
+                if !reuse {
+                    for (o, acc) in outer.iter().zip(&mut h_lanes[p]) {
+                        lanes::dot_into(&o[..len], &pw[..len], acc);
                     }
                 }
                 if p <= n_terms {
-                    let gk = if p == 0 { &mut ev.g } else { &mut ev.gs[p - 1] };
-                    for (a, v) in terms.we.iter().enumerate() {
-                        gk[a] += dot(v);
+                    for (v, acc) in terms.we.iter().zip(&mut g_lanes[p]) {
+                        lanes::dot_into(&v[..len], &pw[..len], acc);
                     }
                 }
             }
             lo = hi;
         }
+        for (p, acc) in h_lanes.iter().enumerate() {
+            let hk = if p == 0 { &mut ev.h } else { &mut ev.hs[p - 1] };
+            for (h, a) in hk.iter_mut().zip(acc) {
+                *h = lanes::lanes_total(a);
+            }
+        }
+        for (p, acc) in g_lanes.iter().enumerate() {
+            let gk = if p == 0 { &mut ev.g } else { &mut ev.gs[p - 1] };
+            for (g, a) in gk.iter_mut().zip(acc) {
+                *g = lanes::lanes_total(a);
+            }
+        }
         if let Some(l) = warm_start {
-            if warm {
+            if reuse {
                 (ev.h, ev.hs) = (l.h, l.hs);
             } else {
                 (l.h, l.hs) = (ev.h, ev.hs);
@@ -1589,7 +1682,13 @@ impl Tracker {
                 &mut self.template[level],
             );
             if let Some(rows) = &self.rolling {
-                rectify_template(&mut self.template[level], rows, level, &rectified);
+                rectify_template(
+                    &mut self.template[level],
+                    rows,
+                    self.row_tables.get(level),
+                    level,
+                    &rectified,
+                );
             }
             k = k.halved();
         }
@@ -1601,23 +1700,81 @@ impl Tracker {
 /// row (`a(s)` of the template frame's readout path), in `xs, ys, zs`.
 /// The rays come from the points' pixels, so a template can be rectified
 /// again with another path.
-fn rectify_template(tpl: &mut LevelTemplate, rows: &RowTime, level: usize, intra: &IntraFrame) {
-    tpl.zs.clear();
-    let Some(k) = tpl.k else { return };
-    let w = tpl.width.max(1);
-    for i in 0..tpl.xs.len() {
-        let loc = tpl.loc[i] as usize;
-        let (u, v) = ((loc % w) as f32, (loc / w) as f32);
-        let (x, y) = k.ray(u, v);
-        let s = rows.at(level, u, v) as f64;
-        let ray = if s.is_finite() {
-            rotate_small(&intra.at(s).map(|a| a as f32).into(), &[x, y, 1.0])
-        } else {
-            [x, y, 1.0]
-        };
-        tpl.xs[i] = ray[0];
-        tpl.ys[i] = ray[1];
-        tpl.zs.push(ray[2]);
+fn rectify_template(
+    tpl: &mut LevelTemplate,
+    rows: &RowTime,
+    table: Option<&GrayImage>,
+    level: usize,
+    intra: &IntraFrame,
+) {
+    let Some(k) = tpl.k else {
+        tpl.zs.clear();
+        return;
+    };
+    let n = tpl.xs.len();
+    tpl.zs.resize(n, 0.0);
+    let w = tpl.width.max(1) as f64;
+    let path = intra.terms().map(|t| [t.x as f32, t.y as f32, t.z as f32]);
+    let (mut pu, mut pv, mut ps) = ([0f32; CHUNK], [0f32; CHUNK], [0f32; CHUNK]);
+    // In chunks, each pass a loop that vectorizes (a point at a time, with
+    // an integer division for its pixel and the path in f64, this was as
+    // costly as a tenth of the frames' tracking).
+    for lo in (0..n).step_by(CHUNK) {
+        let len = (n - lo).min(CHUNK);
+        let loc = &tpl.loc[lo..][..len];
+        for q in 0..len {
+            // Exact: `loc < 2^32` and `w` are exact in f64, and the half
+            // keeps the quotient off the integers.
+            let v = ((loc[q] as f64 + 0.5) / w).floor();
+            pv[q] = v as f32;
+            pu[q] = (loc[q] as f64 - v * w) as f32;
+        }
+        row_times_into(rows, table, level, &pu[..len], &pv[..len], &mut ps[..len]);
+        let (xs, ys, zs) = (
+            &mut tpl.xs[lo..][..len],
+            &mut tpl.ys[lo..][..len],
+            &mut tpl.zs[lo..][..len],
+        );
+        for q in 0..len {
+            let (x, y) = k.ray(pu[q], pv[q]);
+            let s = ps[q];
+            let ray = rotate_small(&path_at(&path, s), &[x, y, 1.0]);
+            // A pixel whose ray leaves the sensor's lens (NaN `s`) keeps its ray.
+            let ok = s.is_finite();
+            xs[q] = if ok { ray[0] } else { x };
+            ys[q] = if ok { ray[1] } else { y };
+            zs[q] = if ok { ray[2] } else { 1.0 };
+        }
+    }
+}
+
+/// The readout fractions of pyramid level `level`'s pixels `(pu, pv)` into
+/// `ps`: affine in the row, or from the level's table (`table`,
+/// [`RowTime::level_table`]; a level without one, not reached, looks each
+/// point up in `rows`).
+#[inline(always)]
+fn row_times_into(
+    rows: &RowTime,
+    table: Option<&GrayImage>,
+    level: usize,
+    pu: &[f32],
+    pv: &[f32],
+    ps: &mut [f32],
+) {
+    match (rows, table) {
+        (RowTime::Affine { a, b }, _) => {
+            let k = (1u32 << level) as f32;
+            let (a, b) = (a * k, a * 0.5 * (k - 1.0) + b);
+            for (s, v) in ps.iter_mut().zip(pv) {
+                *s = a * v + b;
+            }
+        }
+        (_, Some(table)) => sample_clamped(table, pu, pv, ps),
+        (rows, None) => {
+            for ((s, u), v) in ps.iter_mut().zip(pu).zip(pv) {
+                *s = rows.at(level, *u, *v);
+            }
+        }
     }
 }
 
@@ -1627,11 +1784,17 @@ fn rectify_template(tpl: &mut LevelTemplate, rows: &RowTime, level: usize, intra
 /// ([`rotate_small`]). Inlined into the loops over points, which vectorize.
 #[inline(always)]
 fn land_at(k: &Intrinsics, path: &[[f32; 3]; 4], s: f32, r: [f32; 3]) -> (f32, f32) {
-    let [phi, psi, chi, xi] = path;
-    let b: [f32; 3] =
-        std::array::from_fn(|i| -((phi[i] + (psi[i] + (chi[i] + xi[i] * s) * s) * s) * s));
+    let b = path_at(path, s).map(|a| -a);
     let z = rotate_small(&b, &r);
     k.project(z[0], z[1], z[2])
+}
+
+/// `a(s) = s phi + s^2 psi + s^3 chi + s^4 xi` of the readout path `path`
+/// (`[phi, psi, chi, xi]`), in Horner's form.
+#[inline(always)]
+fn path_at(path: &[[f32; 3]; 4], s: f32) -> [f32; 3] {
+    let [phi, psi, chi, xi] = path;
+    std::array::from_fn(|i| (phi[i] + (psi[i] + (chi[i] + xi[i] * s) * s) * s) * s)
 }
 
 /// `exp(b) z` for a small rotation vector `b`, to third order:

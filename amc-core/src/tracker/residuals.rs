@@ -21,6 +21,38 @@ pub(super) fn residuals(img: &GrayImage, pu: &[f32], pv: &[f32], tv: &[f32], pe:
     residuals_scalar(img, pu, pv, tv, pe);
 }
 
+/// Bilinear samples of `img` at `(pu, pv)` into `out`, each point first
+/// clamped into the image (past an edge, the edge's value; NaN coordinates
+/// give NaN), by [`residuals`]'s kernels with a template of zeros: the same
+/// bits on every CPU. The tracker samples its per-level tables of readout
+/// fractions this way ([`crate::shutter::RowTime::level_table`]), a chunk of
+/// points at a time.
+pub(super) fn sample_clamped(img: &GrayImage, pu: &[f32], pv: &[f32], out: &mut [f32]) {
+    const BLOCK: usize = 64;
+    const ZEROS: [f32; BLOCK] = [0.0; BLOCK];
+    // The kernels sample where `0 <= u < W - 1`: the last column and row
+    // are reached a hair inside them.
+    let umax = (img.width as f32 - 1.0).max(0.0) * (1.0 - f32::EPSILON);
+    let vmax = (img.height as f32 - 1.0).max(0.0) * (1.0 - f32::EPSILON);
+    let n = out.len().min(pu.len()).min(pv.len());
+    let (mut cu, mut cv) = ([0f32; BLOCK], [0f32; BLOCK]);
+    for lo in (0..n).step_by(BLOCK) {
+        let len = (n - lo).min(BLOCK);
+        let (bu, bv) = (&pu[lo..][..len], &pv[lo..][..len]);
+        for q in 0..len {
+            cu[q] = bu[q].clamp(0.0, umax);
+            cv[q] = bv[q].clamp(0.0, vmax);
+        }
+        residuals(
+            img,
+            &cu[..len],
+            &cv[..len],
+            &ZEROS[..len],
+            &mut out[lo..][..len],
+        );
+    }
+}
+
 /// The scalar reference of [`residuals`]. A point is sampled where
 /// `0 <= u < W - 1` and `0 <= v < H - 1` (so its four taps are in the image;
 /// NaN coordinates fail the test).
@@ -288,5 +320,75 @@ mod tests {
                 pv[k]
             );
         }
+    }
+
+    /// The tracker's per-level tables of readout fractions (a distorted
+    /// lens), sampled through the kernels, agree with the finest level's
+    /// table as [`RowTime::at`] reads it: exactly at level 0 but for the
+    /// last column and row, and within a small fraction of a row on the
+    /// coarser levels; past the edges they clamp, and NaN stays NaN.
+    #[test]
+    fn row_time_tables_sample_as_the_lookup() {
+        use crate::camera::CameraModel;
+        use crate::shutter::RowTime;
+        let sensor =
+            CameraModel::fisheye_hfov(320, 180, 150.0, [0.05, -0.01, 0.002, -0.0005]).unwrap();
+        let image = CameraModel::pinhole_hfov(320, 180, 110.0).unwrap();
+        let rows = RowTime::new(&sensor, &image);
+        assert!(matches!(rows, RowTime::Table { .. }));
+        let (mut w, mut h) = (320usize, 180usize);
+        for level in 0..4 {
+            let table = rows.level_table(level, w, h).expect("a table");
+            let mut pu: Vec<f32> = Vec::new();
+            let mut pv: Vec<f32> = Vec::new();
+            for i in 0..997 {
+                pu.push(((i * 7919) % 1009) as f32 / 1009.0 * (w as f32 + 6.0) - 3.0);
+                pv.push(((i * 104_729) % 1013) as f32 / 1013.0 * (h as f32 + 6.0) - 3.0);
+            }
+            pu.extend([f32::NAN, 0.0, (w - 1) as f32, -1e9, f32::INFINITY]);
+            pv.extend([1.0, f32::NAN, (h - 1) as f32, 1e9, 2.0]);
+            let mut got = vec![0f32; pu.len()];
+            sample_clamped(&table, &pu, &pv, &mut got);
+            // The level's own grid against the finest one's: inside the
+            // level's image, bilinear between the same values on a coarser
+            // grid (the bound, `s` on a level-`l` grid with `2^l` times the
+            // spacing, is a sixth of a finest row at level 3 and shrinks
+            // fourfold per level). Past its edges, where no point is sampled
+            // but a landing's iterates may stray, the level clamps at its
+            // own last pixel, not at the finest level's.
+            let (mut inner, mut edge) = (0f32, 0f32);
+            for k in 0..pu.len() {
+                let want = rows.at(level, pu[k], pv[k]);
+                if pu[k].is_nan() || pv[k].is_nan() {
+                    assert!(got[k].is_nan(), "level {level}: NaN point gave {}", got[k]);
+                    continue;
+                }
+                assert!(
+                    want.is_finite() && got[k].is_finite(),
+                    "level {level} point {k}"
+                );
+                let inside = (0.0..=(w - 1) as f32).contains(&pu[k])
+                    && (0.0..=(h - 1) as f32).contains(&pv[k]);
+                let worst = if inside { &mut inner } else { &mut edge };
+                *worst = worst.max((got[k] - want).abs());
+            }
+            eprintln!("level {level}: inside {inner:e}, edges {edge:e}");
+            let bound = 1e-6 + 1e-5 * (4f32.powi(level as i32) - 1.0);
+            assert!(
+                inner <= bound,
+                "level {level}: inside, off by {inner} > {bound}"
+            );
+            let rows_apart = (1 << level) as f32 / 180.0;
+            assert!(
+                edge <= rows_apart,
+                "level {level}: past the edges, off by {edge}"
+            );
+            (w, h) = (w / 2, h / 2);
+        }
+        // An affine readout has no table.
+        let pinhole = CameraModel::pinhole_hfov(320, 180, 90.0).unwrap();
+        assert!(RowTime::new(&pinhole, &pinhole)
+            .level_table(0, 320, 180)
+            .is_none());
     }
 }
