@@ -35,6 +35,13 @@ const MAX_POINTS_PER_EDGE: usize = 96;
 
 /// Bisection steps along a ray (a 2^-14 share of the half-diagonal).
 const REACH_STEPS: usize = 14;
+/// The fixed-point tolerance of a coverage test's rolling-shutter projection
+/// (pixels; see [`RollingProjector::project_within`]): a point is tested
+/// against a margin of [`EDGE_PX`], so a hundredth of a pixel is exact
+/// enough, and the binary searches' projections (most of a rolling-shutter
+/// run's, from the mid-readout guess) take a step or two fewer than at the
+/// renderer's tolerance.
+const COVERAGE_TOLERANCE_PX: f64 = 0.01;
 
 /// The need reported when no zoom shows every pixel (the centre uncovered).
 pub const NO_ZOOM_SUFFICES: f64 = 1e3;
@@ -88,11 +95,20 @@ pub fn zoom_matrix(zoom: f64) -> Matrix3<f64> {
 }
 
 /// Whether output point `q` (normalized, unzoomed) lands inside `src` through `m`.
+/// `row`: through a rolling shutter, a nearby point's landing row (a start
+/// for the fixed point, which saves steps), updated to this point's.
 #[inline]
-fn covers(src: &CameraModel, m: &Matrix3<f64>, rows: &RollingProjector, q: &Vector2<f64>) -> bool {
+fn covers(
+    src: &CameraModel,
+    m: &Matrix3<f64>,
+    rows: &RollingProjector,
+    q: &Vector2<f64>,
+    row: &mut Option<f64>,
+) -> bool {
     let ray = m * Vector3::new(q.x, q.y, 1.0);
-    match rows.project(src, &ray, None) {
+    match rows.project_within(src, &ray, *row, COVERAGE_TOLERANCE_PX) {
         Some(p) => {
+            *row = Some(p.y).filter(|y| y.is_finite());
             let (xmax, ymax) = (src.width as f64 - 1.0, src.height as f64 - 1.0);
             p.x >= EDGE_PX && p.y >= EDGE_PX && p.x <= xmax - EDGE_PX && p.y <= ymax - EDGE_PX
         }
@@ -108,17 +124,19 @@ fn reach(
     b: &Vector2<f64>,
     at_least: f64,
 ) -> f64 {
-    if covers(src, m, rows, b) {
+    // The search's points lie on one line: each starts from the last's row.
+    let mut row = None;
+    if covers(src, m, rows, b, &mut row) {
         return 1.0;
     }
     // Only a reach beyond what another frame already gives can matter.
-    if !covers(src, m, rows, &(b * at_least.max(1e-9))) {
+    if !covers(src, m, rows, &(b * at_least.max(1e-9)), &mut row) {
         return 0.0;
     }
     let (mut lo, mut hi) = (at_least, 1.0);
     for _ in 0..REACH_STEPS {
         let mid = 0.5 * (lo + hi);
-        if covers(src, m, rows, &(b * mid)) {
+        if covers(src, m, rows, &(b * mid), &mut row) {
             lo = mid;
         } else {
             hi = mid;
@@ -163,7 +181,7 @@ pub fn needed_zoom(
     if !rotations
         .iter()
         .enumerate()
-        .any(|(i, m)| covers(src, m, rows_of(i), &centre))
+        .any(|(i, m)| covers(src, m, rows_of(i), &centre, &mut None))
     {
         return NO_ZOOM_SUFFICES;
     }
