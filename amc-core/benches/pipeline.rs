@@ -133,6 +133,13 @@ fn clip(width: usize, height: usize) -> (CameraModel, Vec<Frame>) {
 /// [`clip`] filmed through a rolling shutter read out in `readout_s` seconds.
 fn clip_rolling(width: usize, height: usize, readout_s: f64) -> (CameraModel, Vec<Frame>) {
     let cam = CameraModel::pinhole_hfov(width, height, 90.0).expect("camera");
+    clip_through(cam, readout_s)
+}
+
+/// A shaky clip of `CLIP_FRAMES` frames filmed by `cam` through a rolling
+/// shutter read out in `readout_s` seconds (0: a global shutter).
+fn clip_through(cam: CameraModel, readout_s: f64) -> (CameraModel, Vec<Frame>) {
+    let (width, height) = (cam.width, cam.height);
     let pano = panorama();
     let renderer = EquirectRenderer::new(&cam, 1).expect("renderer");
     let shake = Shake::new(&ShakeParams::default()).expect("shake");
@@ -160,32 +167,49 @@ fn bench_tracking(c: &mut Criterion) {
     let mut g = c.benchmark_group("track");
     g.throughput(Throughput::Elements(1));
     // The global shutter, and a rolling shutter with its readout motion
-    // estimated (on frames filmed through one).
-    for readout_s in [0.0, READOUT_S] {
-        let (cam, frames) = clip_rolling(320, 180, readout_s);
-        let name = if readout_s > 0.0 {
-            "320x180-rolling"
-        } else {
-            "320x180"
-        };
-        g.bench_function(name, |b| {
-            let mut frontend = TrackingFrontend::new(&cam, 320).expect("frontend");
-            let mut tracker =
-                Tracker::new(frontend.camera(), TrackerParams::default()).expect("tracker");
-            if readout_s > 0.0 {
-                tracker.set_rolling(RowTime::new(&cam, frontend.camera()), readout_s);
-            }
-            let mut pyr = Pyramid::default();
-            let mut j = 0usize;
-            b.iter(|| {
-                let f = ping_pong(&frames, j);
-                frontend.prepare(&f.as_ref(), &mut pyr, tracker.levels());
-                black_box(tracker.track(&pyr, j as f64 / FPS));
-                j += 1;
-            })
-        });
+    // estimated (on frames filmed through one); a pinhole, and a 150 deg
+    // fisheye (an action camera's), whose undistorted rows bend.
+    let pinhole = CameraModel::pinhole_hfov(320, 180, 90.0).expect("camera");
+    let fisheye =
+        CameraModel::fisheye_hfov(320, 180, 150.0, [0.05, -0.01, 0.002, -0.0005]).expect("camera");
+    for (lens, cam) in [("", pinhole), ("-fisheye", fisheye)] {
+        for readout_s in [0.0, READOUT_S] {
+            bench_tracking_clip(
+                &mut g,
+                lens,
+                clip_through(cam.clone(), readout_s),
+                readout_s,
+            );
+        }
     }
     g.finish();
+}
+
+/// One tracking bench: `clip` (its camera and frames, filmed through a
+/// `readout_s` readout) tracked frame by frame.
+fn bench_tracking_clip(
+    g: &mut criterion::BenchmarkGroup<criterion::measurement::WallTime>,
+    lens: &str,
+    (cam, frames): (CameraModel, Vec<Frame>),
+    readout_s: f64,
+) {
+    let shutter = if readout_s > 0.0 { "-rolling" } else { "" };
+    g.bench_function(format!("320x180{lens}{shutter}"), |b| {
+        let mut frontend = TrackingFrontend::new(&cam, 320).expect("frontend");
+        let mut tracker =
+            Tracker::new(frontend.camera(), TrackerParams::default()).expect("tracker");
+        if readout_s > 0.0 {
+            tracker.set_rolling(RowTime::new(&cam, frontend.camera()), readout_s);
+        }
+        let mut pyr = Pyramid::default();
+        let mut j = 0usize;
+        b.iter(|| {
+            let f = ping_pong(&frames, j);
+            frontend.prepare(&f.as_ref(), &mut pyr, tracker.levels());
+            black_box(tracker.track(&pyr, j as f64 / FPS));
+            j += 1;
+        })
+    });
 }
 
 fn bench_stabilize(c: &mut Criterion) {
