@@ -17,7 +17,8 @@
 use amc_core::camera::CameraModel;
 use amc_core::frontend::TrackingFrontend;
 use amc_core::pyramid::Pyramid;
-use amc_core::shutter::RowTime;
+use amc_core::shutter::{IntraFrame, RowTime, TrajectorySmoother, TRAJECTORY_FRAMES};
+use amc_core::so3::Rot;
 use amc_core::synth::{EquirectRenderer, Shake, ShakeParams};
 use amc_core::tracker::{Tracker, TrackerParams};
 use amc_core::view::Mode;
@@ -417,9 +418,47 @@ fn bench_metrics(c: &mut Criterion) {
     g.finish();
 }
 
+/// The rolling shutter's trajectory fit, per frame (a part of tracking: the
+/// stabilizer runs it after the tracker on every frame).
+fn bench_trajectory(c: &mut Criterion) {
+    let mut g = c.benchmark_group("trajectory");
+    g.throughput(Throughput::Elements(1));
+    let shake = Shake::new(&ShakeParams {
+        shake_dps: 300.0,
+        band_hz: (12.0, 20.0),
+        seed: 1,
+        ..ShakeParams::default()
+    })
+    .expect("shake");
+    let frames: Vec<(f64, Rot, IntraFrame)> = (0..CLIP_FRAMES)
+        .map(|j| {
+            let t = j as f64 / FPS;
+            let phi = shake.angular_velocity_at(t) * READOUT_S;
+            let intra = IntraFrame {
+                phi,
+                ..IntraFrame::ZERO
+            };
+            (t, shake.orientation_at(t), intra)
+        })
+        .collect();
+    g.bench_function(format!("{TRAJECTORY_FRAMES}-frames"), |b| {
+        let mut smoother = TrajectorySmoother::new();
+        let mut j = 0usize;
+        b.iter(|| {
+            // Time runs on past the clip (a fit needs increasing times).
+            let (t, pose, intra) = frames[j % frames.len()];
+            let t = t + (j / frames.len()) as f64 * frames.len() as f64 / FPS;
+            black_box(smoother.push(t, pose, intra, 1.0, READOUT_S));
+            j += 1;
+        })
+    });
+    g.finish();
+}
+
 criterion_group!(
     benches,
     bench_tracking,
+    bench_trajectory,
     bench_stabilize,
     bench_render,
     bench_metrics

@@ -95,6 +95,9 @@ impl ReadoutEstimator {
         p.render.n_avg = 1;
         let mut stab = Stabilizer::new(lens, width, height, p)?;
         stab.set_rendering(false);
+        // The per-frame poses, as measured: a trajectory through them would
+        // be fitted with the nominal readout.
+        stab.set_trajectory_smoothing(false);
         Ok(Self {
             stab,
             telemetry: Vec::new(),

@@ -37,8 +37,10 @@ mod project;
 mod row_time;
 #[cfg(test)]
 mod tests;
+mod trajectory;
 
 pub use motion::{row_fraction, IntraFrame, INTRA_TERMS};
 pub use params::{ShutterParams, MAX_READOUT_MS};
 pub use project::{project_rolling, RollingProjector, FIXED_POINT_STEPS, FIXED_POINT_TOLERANCE_PX};
 pub use row_time::RowTime;
+pub use trajectory::{TrajectorySmoother, TRAJECTORY_FRAMES};

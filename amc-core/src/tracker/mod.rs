@@ -778,6 +778,14 @@ impl Tracker {
         self.intra
     }
 
+    /// Whether the readout path's even terms (`psi`, and `xi`) are estimated,
+    /// at the pace of the frames so far (see [`Tracker::path_terms`]): only
+    /// then is a frame's mid-readout pose less certain than a global
+    /// shutter's (the centre of a fitted path trades off against its bend).
+    pub fn estimates_bend(&self) -> bool {
+        self.path_terms() >= 2
+    }
+
     /// Tracks the next frame (its pyramid and timestamp in seconds) and returns
     /// `R_{0,j}`, the rotation from this camera to the first frame's camera.
     pub fn track(&mut self, pyr: &Pyramid, t: f64) -> (Rot, TrackInfo) {
