@@ -706,8 +706,8 @@ struct RollingCase {
 /// clip, its readout path free, is 1.7-4.2x off the plain rotation's: what
 /// is left is the variance of the path's terms, not a bias. Without the
 /// model the error is 0.19-1.0 deg (70-800x). The bars leave about 1.3x.
-/// A readout given 5% long costs 0.98-1.06x (the trajectory finds the
-/// stretch; trusting the readout given, it was 5-13x); the bar is 1.2x.
+/// A readout given 15% long costs 0.99-1.05x (the trajectory finds the
+/// stretch; trusting the readout given, 5% cost 5-13x); the bar is 1.2x.
 /// Orientation after 4 s: within 0.8-1.2x of the global shutter's on the
 /// pinhole and the fisheye at 100 deg/s, 1.6x and 2.3x on the fisheye at
 /// 300 deg/s (0.041 and 0.058 deg against 0.025; the same estimator on the
@@ -767,9 +767,9 @@ fn rolling_shutter_estimate_matches_ground_truth() {
         params.shutter.readout_ms = c.readout_ms;
         let tel = stabilize_motion_rolling(&gs_case, &pano, params.clone(), &motion, readout_s);
         let rs = errors_of(&tel, &shake);
-        // A readout given 5% long.
+        // A readout given 15% long.
         let mut long = params;
-        long.shutter.readout_ms *= 1.05;
+        long.shutter.readout_ms *= 1.15;
         let off = errors_of(
             &stabilize_motion_rolling(&gs_case, &pano, long, &motion, readout_s),
             &shake,
@@ -807,14 +807,14 @@ fn rolling_shutter_estimate_matches_ground_truth() {
             auto.final_orientation(),
         );
         eprintln!(
-            "[{}] with the readout given 5% long: {:.5} deg ({:.2}x)",
+            "[{}] with the readout given 15% long: {:.5} deg ({:.2}x)",
             c.name,
             off.median_frame(),
             off.median_frame() / rs.median_frame()
         );
         if !(off.median_frame() <= 1.2 * rs.median_frame()) {
             failures.push(format!(
-                "[{}] median per-frame error {:.5} deg with the readout 5% long > 1.2 x {:.5}",
+                "[{}] median per-frame error {:.5} deg with the readout 15% long > 1.2 x {:.5}",
                 c.name,
                 off.median_frame(),
                 rs.median_frame()

@@ -110,8 +110,10 @@ const NODES: [(f64, f64); 6] = [
 /// parameter of every fit (a sample read at `s` is the rotation at
 /// `t + readout (1 + e) s`, to first order `x(t + readout s) + e s a'(s)`),
 /// and its estimates are pooled over the recent fits, each weighted by its
-/// information (a fast pace pins it, a slow one barely); the pooled value is
-/// the one used.
+/// information (a fast pace pins it, a slow one barely). The pooled value is
+/// the one used, and the next fit places its samples with it, so the
+/// first-order model only has to find what is left: on exact paths the
+/// readout is found to 0.02% from 5% long or 20% short.
 #[derive(Clone, Copy, Debug, Default)]
 struct Stretch {
     /// Decayed sums of information-weighted estimates and of information.
@@ -221,6 +223,11 @@ impl TrajectorySmoother {
 
     /// The fit of the frames held, evaluated at the newest one.
     fn fit(&mut self, readout_s: f64) -> Option<Rot> {
+        // The samples are placed with the stretch found so far, and the fit
+        // estimates what is left of it (a first-order model: from 15% off,
+        // a single step left 2.5%).
+        let placed = 1.0 + self.stretch.value();
+        let readout_s = readout_s * placed;
         let newest = *self.frames.back()?;
         let oldest = self.frames.front()?;
         let start = oldest.t - 0.5 * readout_s;
@@ -307,9 +314,11 @@ impl TrajectorySmoother {
         let info = qq - dz;
         self.fits += 1;
         if info > 0.0 && info.is_finite() && self.fits > STRETCH_AFTER {
-            self.stretch.add((qy - dx0) / info, info);
+            let left = (qy - dx0) / info;
+            self.stretch.add(placed * (1.0 + left) - 1.0, info);
         }
-        let e = self.stretch.value();
+        // What the pooled stretch leaves of the placement's.
+        let e = (1.0 + self.stretch.value()) / placed - 1.0;
 
         // The pose: `x(t_newest)`, with `x = x0 - e z`.
         let (first, basis) = bspline_basis((newest.t - start) / spacing);
@@ -426,7 +435,7 @@ mod tests {
 
     /// Exact poses and paths come back as they were; and so they do with the
     /// paths' common offset (the tracker's gauge error) and a readout given
-    /// 5% long, which the fit finds.
+    /// 5% long or 20% short, which the fit finds.
     #[test]
     fn exact_poses_are_kept_through_offsets_and_a_wrong_readout() {
         let (fps, readout) = (60.0, 0.015);
@@ -439,6 +448,7 @@ mod tests {
             (1.0, IntraFrame::ZERO),
             (1.0, offset),
             (1.05, IntraFrame::ZERO),
+            (0.8, offset),
         ] {
             let mut smoother = TrajectorySmoother::new();
             let mut worst = 0.0f64;

@@ -779,7 +779,7 @@ impl Tracker {
     }
 
     /// Whether the readout path's even terms (`psi`, and `xi`) are estimated,
-    /// at the pace of the frames so far (see [`Tracker::path_terms`]): only
+    /// at the pace of the frames so far (a fast one, as `PACE_SWITCH` tells): only
     /// then is a frame's mid-readout pose less certain than a global
     /// shutter's (the centre of a fitted path trades off against its bend).
     pub fn estimates_bend(&self) -> bool {
