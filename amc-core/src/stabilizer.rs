@@ -156,13 +156,18 @@ impl Tracking {
                 // At a slow pace the tracker fits `phi` alone, which leaves
                 // the pose as certain as a global shutter's: there the fit
                 // only adds its own assumptions (cc9 against its gyro: 0.057
-                // -> 0.064 deg per frame).
-                let r = if self.tracker.estimates_bend() {
-                    smoothed
-                } else {
-                    r
-                };
-                (r, intra, info)
+                // -> 0.064 deg per frame), and the tracker's own pose and
+                // gauge stand.
+                if !self.tracker.estimates_bend() {
+                    return (r, intra, info);
+                }
+                // A new template is rectified again with its path's level as
+                // the trajectory finds it (the tracker's own gauge check is
+                // slower and noisier); frames aligned to it inherit it.
+                if let (true, Some(error)) = (info.template_reset, smoother.path_offset()) {
+                    self.tracker.regauge_template(&error);
+                }
+                (smoothed, self.tracker.intra(), info)
             }
             None => (r, intra, info),
         }

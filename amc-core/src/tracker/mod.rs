@@ -786,6 +786,31 @@ impl Tracker {
         self.path_terms() >= 2
     }
 
+    /// If the last frame became the template (rectified with its own path),
+    /// rectifies it again with that path less `error`: the gauge error a
+    /// trajectory through the recent frames found
+    /// ([`crate::shutter::TrajectorySmoother::path_offset`]). From then on the
+    /// corrections keep the gauge, so the block check restarts (see [`Gauge`]).
+    ///
+    /// The block check averages `phi - tau omega` over 8-64 frames and is
+    /// noisy and late: between its corrections the gauge wanders 0.04-0.13
+    /// deg, and a template rectified with a path off by `c` biases every frame
+    /// aligned to it by about `|a| |c| / 2` (see [`Tracker::settle_gauge`]).
+    pub fn regauge_template(&mut self, error: &IntraFrame) {
+        if self.frames_since_reset != 0 || self.tpl_path != self.intra {
+            return;
+        }
+        let Some(rows) = &self.rolling else { return };
+        let path = self.intra.plus(error, -1.0);
+        self.tpl_path = path;
+        self.intra = path;
+        for (level, tpl) in self.template.iter_mut().enumerate() {
+            rectify_template(tpl, rows, self.row_tables.get(level), level, &path);
+        }
+        self.gauge.sums = [Tangent::zeros(); INTRA_TERMS];
+        self.gauge.count = 0;
+    }
+
     /// Tracks the next frame (its pyramid and timestamp in seconds) and returns
     /// `R_{0,j}`, the rotation from this camera to the first frame's camera.
     pub fn track(&mut self, pyr: &Pyramid, t: f64) -> (Rot, TrackInfo) {
