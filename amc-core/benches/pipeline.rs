@@ -442,13 +442,13 @@ fn bench_trajectory(c: &mut Criterion) {
         })
         .collect();
     g.bench_function(format!("{TRAJECTORY_FRAMES}-frames"), |b| {
-        let mut smoother = TrajectorySmoother::new();
+        let mut smoother = TrajectorySmoother::new(READOUT_S);
         let mut j = 0usize;
         b.iter(|| {
             // Time runs on past the clip (a fit needs increasing times).
             let (t, pose, intra) = frames[j % frames.len()];
             let t = t + (j / frames.len()) as f64 * frames.len() as f64 / FPS;
-            black_box(smoother.push(t, pose, intra, 1.0, READOUT_S));
+            black_box(smoother.push(t, pose, intra, 1.0));
             j += 1;
         })
     });

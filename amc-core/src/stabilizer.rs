@@ -138,8 +138,8 @@ struct Tracking {
     /// With a rolling shutter, the recent frames' poses and readout paths
     /// fitted as one trajectory, which gives each frame its pose (`None`: a
     /// global shutter, or switched off with
-    /// [`Stabilizer::set_trajectory_smoothing`]); and the readout, seconds.
-    smoother: Option<(TrajectorySmoother, f64)>,
+    /// [`Stabilizer::set_trajectory_smoothing`]).
+    smoother: Option<TrajectorySmoother>,
 }
 
 impl Tracking {
@@ -150,9 +150,9 @@ impl Tracking {
         let (r, info) = self.tracker.track(&self.pyr, t);
         let intra = self.tracker.intra();
         match &mut self.smoother {
-            Some((smoother, readout_s)) => {
+            Some(smoother) => {
                 let weight = if info.lost { 0.0 } else { 1.0 };
-                let smoothed = smoother.push(t, r, intra, weight, *readout_s);
+                let smoothed = smoother.push(t, r, intra, weight);
                 // At a slow pace the tracker fits `phi` alone, which leaves
                 // the pose as certain as a global shutter's: there the fit
                 // only adds its own assumptions (cc9 against its gyro: 0.057
@@ -334,7 +334,7 @@ impl Stabilizer {
                 smoother: params
                     .shutter
                     .is_rolling()
-                    .then(|| (TrajectorySmoother::new(), params.shutter.readout_s())),
+                    .then(|| TrajectorySmoother::new(params.shutter.readout_s())),
             },
             rendering: Rendering {
                 warper,
@@ -396,9 +396,9 @@ impl Stabilizer {
     /// those, which the fit would tie to the nominal readout it tracks with.
     /// No effect with a global shutter. Set it before the first frame.
     pub fn set_trajectory_smoothing(&mut self, on: bool) {
-        let readout_s = self.params.shutter.readout_s();
-        self.tracking.smoother = (on && self.params.shutter.is_rolling())
-            .then(|| (TrajectorySmoother::new(), readout_s));
+        let shutter = &self.params.shutter;
+        self.tracking.smoother =
+            (on && shutter.is_rolling()).then(|| TrajectorySmoother::new(shutter.readout_s()));
     }
 
     /// Pipelining: when on, each [`Stabilizer::push`] renders the output that

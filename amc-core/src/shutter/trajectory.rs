@@ -163,6 +163,8 @@ struct Observed {
 /// returns the newest frame's pose on it ([`TrajectorySmoother::push`]).
 /// Memory: [`TRAJECTORY_FRAMES`] frames and fixed-size buffers.
 pub struct TrajectorySmoother {
+    /// The readout given, seconds.
+    readout_s: f64,
     frames: VecDeque<Observed>,
     /// Normal matrix, shared by the three axes.
     normal: Box<SMatrix<f64, MAX_UNKNOWNS, MAX_UNKNOWNS>>,
@@ -177,16 +179,12 @@ pub struct TrajectorySmoother {
     offset: IntraFrame,
 }
 
-impl Default for TrajectorySmoother {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
 impl TrajectorySmoother {
-    /// An empty smoother.
-    pub fn new() -> Self {
+    /// An empty smoother for frames read out in `readout_s` seconds (a
+    /// readout up to a quarter off is corrected, see [`Stretch`]).
+    pub fn new(readout_s: f64) -> Self {
         Self {
+            readout_s,
             frames: VecDeque::with_capacity(TRAJECTORY_FRAMES),
             normal: Box::new(SMatrix::zeros()),
             rhs: Box::new(SMatrix::zeros()),
@@ -214,19 +212,10 @@ impl TrajectorySmoother {
 
     /// Adds frame `t` (seconds; after the last one) with the tracker's pose
     /// and readout path for it, and returns its pose on the spline through
-    /// the recent frames, read out in `readout_s` seconds (a readout up to a
-    /// quarter off is corrected, see [`Stretch`]). `weight` is the frame's
-    /// say in the fit (0: a lost frame, its estimate a guess); with too few
-    /// frames, or a weightless newest frame, the tracker's own pose is
-    /// returned.
-    pub fn push(
-        &mut self,
-        t: f64,
-        pose: Rot,
-        intra: IntraFrame,
-        weight: f64,
-        readout_s: f64,
-    ) -> Rot {
+    /// the recent frames. `weight` is the frame's say in the fit (0: a lost
+    /// frame, its estimate a guess); with too few frames, a weightless newest
+    /// frame or no readout, the tracker's own pose is returned.
+    pub fn push(&mut self, t: f64, pose: Rot, intra: IntraFrame, weight: f64) -> Rot {
         if self.frames.len() == TRAJECTORY_FRAMES {
             self.frames.pop_front();
         }
@@ -238,19 +227,19 @@ impl TrajectorySmoother {
             at_nodes: NODES.map(|(s, _)| pose * intra.rotation_at(s)),
         });
         let weighted = self.frames.iter().filter(|f| f.weight > 0.0).count();
-        if weight <= 0.0 || weighted < MIN_FRAMES || !(readout_s > 0.0) {
+        if weight <= 0.0 || weighted < MIN_FRAMES || !(self.readout_s > 0.0) {
             return pose;
         }
-        self.fit(readout_s).unwrap_or(pose)
+        self.fit().unwrap_or(pose)
     }
 
     /// The fit of the frames held, evaluated at the newest one.
-    fn fit(&mut self, readout_s: f64) -> Option<Rot> {
+    fn fit(&mut self) -> Option<Rot> {
         // The samples are placed with the stretch found so far, and the fit
         // estimates what is left of it (a first-order model: from 15% off,
         // a single step left 2.5%).
         let placed = 1.0 + self.stretch.value();
-        let readout_s = readout_s * placed;
+        let readout_s = self.readout_s * placed;
         let newest = *self.frames.back()?;
         let oldest = self.frames.front()?;
         let start = oldest.t - 0.5 * readout_s;
@@ -478,13 +467,13 @@ mod tests {
             (1.05, IntraFrame::ZERO),
             (0.8, offset),
         ] {
-            let mut smoother = TrajectorySmoother::new();
+            let mut smoother = TrajectorySmoother::new(given * readout);
             let mut worst = 0.0f64;
             for j in 0..240 {
                 let t = j as f64 / fps;
                 let pose = shake(t);
                 let intra = quartic_through(&pose, |s| shake(t + readout * s)).plus(&offset, 1.0);
-                let p = smoother.push(t, pose, intra, 1.0, given * readout);
+                let p = smoother.push(t, pose, intra, 1.0);
                 if j >= 60 {
                     worst = worst.max(so3::angle_between(&p, &pose).to_degrees());
                 }
@@ -536,7 +525,7 @@ mod tests {
     fn the_trajectory_beats_the_frames_on_their_own() {
         let (fps, readout, rows, sigma) = (60.0, 0.015, 48, 0.02f64.to_radians());
         let mut noise = Noise(0x9e37_79b9_7f4a_7c15);
-        let mut smoother = TrajectorySmoother::new();
+        let mut smoother = TrajectorySmoother::new(readout);
         let (mut raw, mut smoothed) = (Vec::new(), Vec::new());
         let mut last: Option<(Rot, Rot, Rot)> = None;
         for j in 0..300 {
@@ -564,7 +553,7 @@ mod tests {
             };
             let pose = poly(0.0);
             let intra = quartic_through(&pose, poly);
-            let p = smoother.push(t, pose, intra, 1.0, readout);
+            let p = smoother.push(t, pose, intra, 1.0);
             if let Some((truth0, pose0, p0)) = last {
                 if j > 30 {
                     let d_true = truth0.inverse() * truth;

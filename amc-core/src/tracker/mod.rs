@@ -790,12 +790,12 @@ impl Tracker {
     /// rectifies it again with that path less `error`: the gauge error a
     /// trajectory through the recent frames found
     /// ([`crate::shutter::TrajectorySmoother::path_offset`]). From then on the
-    /// corrections keep the gauge, so the block check restarts (see [`Gauge`]).
+    /// corrections keep the gauge, so the block check restarts (`Gauge`).
     ///
     /// The block check averages `phi - tau omega` over 8-64 frames and is
     /// noisy and late: between its corrections the gauge wanders 0.04-0.13
     /// deg, and a template rectified with a path off by `c` biases every frame
-    /// aligned to it by about `|a| |c| / 2` (see [`Tracker::settle_gauge`]).
+    /// aligned to it by about `|a| |c| / 2` (see `Tracker::settle_gauge`).
     pub fn regauge_template(&mut self, error: &IntraFrame) {
         if self.frames_since_reset != 0 || self.tpl_path != self.intra {
             return;
