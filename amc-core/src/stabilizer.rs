@@ -22,7 +22,9 @@ use crate::image::{Frame, FrameRef, PixelFormat};
 use crate::pyramid::Pyramid;
 use crate::render::robust::weighted_average;
 use crate::render::{chroma_camera, Accumulator, Deghost, RenderParams, WarpedFrame, Warper};
-use crate::shutter::{IntraFrame, RollingProjector, RowTime, ShutterParams, TrajectorySmoother};
+use crate::shutter::{
+    GaugeEase, IntraFrame, RollingProjector, RowTime, ShutterParams, TrajectorySmoother,
+};
 use crate::so3::{self, Rot};
 use crate::tracker::{TrackInfo, Tracker, TrackerParams};
 use crate::view::{backward_pass, Mode, ViewParams};
@@ -123,7 +125,8 @@ struct Buffered {
     r_est: Rot,
     /// Its motion during the readout (zero with a global shutter).
     intra: IntraFrame,
-    /// Its rows' readout rotations, tabulated (empty with a global shutter).
+    /// Its rows' readout rotations as rendered (`Tracked::rendered`),
+    /// tabulated (empty with a global shutter).
     rows: RollingProjector,
     info: TrackInfo,
     /// Forward-filtered view at this frame.
@@ -140,36 +143,66 @@ struct Tracking {
     /// global shutter, or switched off with
     /// [`Stabilizer::set_trajectory_smoothing`]).
     smoother: Option<TrajectorySmoother>,
+    /// With a rolling shutter, the gauge's corrections eased into the
+    /// rendered paths.
+    ease: GaugeEase,
+}
+
+/// One frame as [`Tracking`] estimated it.
+struct Tracked {
+    /// `R_{0,j}`, at mid-readout.
+    pose: Rot,
+    /// Its motion during the readout, as best known (telemetry).
+    path: IntraFrame,
+    /// The motion its rows are rendered with: `path` with the gauge's latest
+    /// corrections eased in ([`GaugeEase`]).
+    rendered: IntraFrame,
+    info: TrackInfo,
 }
 
 impl Tracking {
     /// Estimates the orientation of `frame`, taken at `t`.
-    fn track(&mut self, frame: &FrameRef<'_>, t: f64) -> (Rot, IntraFrame, TrackInfo) {
+    fn track(&mut self, frame: &FrameRef<'_>, t: f64) -> Tracked {
         let levels = self.tracker.levels();
         self.frontend.prepare(frame, &mut self.pyr, levels);
         let (r, info) = self.tracker.track(&self.pyr, t);
-        let intra = self.tracker.intra();
-        match &mut self.smoother {
-            Some(smoother) => {
-                let weight = if info.lost { 0.0 } else { 1.0 };
-                let smoothed = smoother.push(t, r, intra, weight);
-                // At a slow pace the tracker fits `phi` alone, which leaves
-                // the pose as certain as a global shutter's: there the fit
-                // only adds its own assumptions (cc9 against its gyro: 0.057
-                // -> 0.064 deg per frame), and the tracker's own pose and
-                // gauge stand.
-                if !self.tracker.estimates_bend() {
-                    return (r, intra, info);
-                }
+        let mut pose = r;
+        let mut path = self.tracker.intra();
+        let mut corrections = self.tracker.gauge_corrections();
+        if let Some(smoother) = &mut self.smoother {
+            let weight = if info.lost { 0.0 } else { 1.0 };
+            let smoothed = smoother.push(t, r, path, weight);
+            // At a slow pace the tracker fits `phi` alone, which leaves the
+            // pose as certain as a global shutter's: there the fit only adds
+            // its own assumptions (cc9 against its gyro: 0.057 -> 0.064 deg
+            // per frame), and the tracker's own pose and gauge stand.
+            if self.tracker.estimates_bend() {
                 // A new template is rectified again with its path's level as
                 // the trajectory finds it (the tracker's own gauge check is
                 // slower and noisier); frames aligned to it inherit it.
                 if let (true, Some(error)) = (info.template_reset, smoother.path_offset()) {
                     self.tracker.regauge_template(&error);
                 }
-                (smoothed, self.tracker.intra(), info)
+                pose = smoothed;
+                path = self.tracker.intra();
+                corrections = self.tracker.gauge_corrections();
+                // Until the tracker first checks its gauge (8 frames), every
+                // path is off by minus the first frame's: the trajectory's
+                // offset finds it from the third frame on.
+                if let (false, Some(offset)) =
+                    (self.tracker.gauge_known(), smoother.fitted_offset())
+                {
+                    path = path.plus(&offset, -1.0);
+                    corrections = corrections.plus(&offset, 1.0);
+                }
             }
-            None => (r, intra, info),
+        }
+        let rendered = self.ease.rendered(&path, &corrections);
+        Tracked {
+            pose,
+            path,
+            rendered,
+            info,
         }
     }
 }
@@ -335,6 +368,7 @@ impl Stabilizer {
                     .shutter
                     .is_rolling()
                     .then(|| TrajectorySmoother::new(params.shutter.readout_s())),
+                ease: GaugeEase::default(),
             },
             rendering: Rendering {
                 warper,
@@ -564,7 +598,7 @@ impl Stabilizer {
         // holds every frame it needs: this one is added after).
         let pending = self.pipelined && self.received > lookahead + self.rendering.next_out;
         let src = (self.width, self.height);
-        let ((r_est, intra, info), rendered) = if pending {
+        let (tracked, rendered) = if pending {
             let (tracking, rendering) = (&mut self.tracking, &mut self.rendering);
             let (ring, params) = (&self.ring, &self.params);
             join(
@@ -574,6 +608,12 @@ impl Stabilizer {
         } else {
             (self.tracking.track(&frame, t), None)
         };
+        let Tracked {
+            pose: r_est,
+            path: intra,
+            rendered: rendered_path,
+            info,
+        } = tracked;
         self.view_fwd = if self.received == 0 {
             r_est
         } else {
@@ -590,7 +630,7 @@ impl Stabilizer {
             .spare
             .pop()
             .unwrap_or_else(|| (Frame::new(0, 0, frame.format), RollingProjector::default()));
-        rows.set(&intra, self.height);
+        rows.set(&rendered_path, self.height);
         buf.copy_from(&frame);
         // Tail padding for the vectorized sampler's dword gathers.
         buf.data

@@ -950,8 +950,11 @@ fn rolling_shutter_needs_its_readout_and_auto_finds_it() {
 /// Saccade mode without averaging (`n_avg` 1, the paper's fixed margin) on
 /// rolling-shutter clips: every source row is rendered at its own
 /// orientation, so the view holds as still as with a global shutter.
-/// Measured: normal flow 1.24x (pinhole, 100 deg/s, 10 ms), 1.06x (fisheye)
-/// the global shutter's; without the readout, 3.7x and more.
+/// Measured: normal flow 1.04x (pinhole, 100 deg/s, 10 ms), 1.01x (fisheye)
+/// the global shutter's; without the readout, 3.7x and more. (With the
+/// gauge's corrections shown at once, 1.26x and 1.06x: the first frames'
+/// paths, off by the first frame's unknown one, were put right in one jump;
+/// see [`amc_core::shutter::GaugeEase`].)
 #[test]
 fn rolling_shutter_saccade_holds_still() {
     let (w, h) = SIZE;
@@ -959,7 +962,7 @@ fn rolling_shutter_saccade_holds_still() {
         (
             "pinhole",
             CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
-            1.35,
+            1.2,
         ),
         (
             "fisheye",

@@ -31,6 +31,7 @@
 //! The readout time itself is given (`readout_ms`, [`ShutterParams`]) or
 //! estimated from the footage (`crate::readout`, above the stabilizer).
 
+mod ease;
 mod motion;
 mod params;
 mod project;
@@ -39,6 +40,7 @@ mod row_time;
 mod tests;
 mod trajectory;
 
+pub use ease::{GaugeEase, EASE_FRAMES};
 pub use motion::{row_fraction, IntraFrame, INTRA_TERMS};
 pub use params::{ShutterParams, MAX_READOUT_MS};
 pub use project::{project_rolling, RollingProjector, FIXED_POINT_STEPS, FIXED_POINT_TOLERANCE_PX};

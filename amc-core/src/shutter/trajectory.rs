@@ -204,6 +204,16 @@ impl TrajectorySmoother {
         (self.fits > STRETCH_AFTER).then_some(self.offset)
     }
 
+    /// The paths' common offset at the last fit, from the first fit on: what
+    /// [`TrajectorySmoother::path_offset`] gives once trusted, but also while
+    /// the tracker's gauge is still the first frame's (every path then has
+    /// the same offset, minus the first frame's path, and three frames pin
+    /// it to 0.1-0.2 deg at 100 deg/s through 10 ms, six to 0.04). `None`
+    /// before the first fit.
+    pub fn fitted_offset(&self) -> Option<IntraFrame> {
+        (self.fits > 0).then_some(self.offset)
+    }
+
     /// The readout the paths have shown so far, as a multiple of the one
     /// given (1 until they show it).
     pub fn readout_scale(&self) -> f64 {

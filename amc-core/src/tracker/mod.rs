@@ -557,6 +557,9 @@ pub struct Tracker {
     /// Rolling shutter: whether the gauge has been checked once (see
     /// [`Tracker::settle_gauge`]).
     gauge_settled: bool,
+    /// Rolling shutter: the sum of the corrections made to the gauge (see
+    /// [`Tracker::gauge_corrections`]).
+    gauge_corrections: IntraFrame,
     /// Rolling shutter: the start of a level's evaluations after its first
     /// (buffers reused from frame to frame).
     warm_start: WarmStart,
@@ -733,6 +736,7 @@ impl Tracker {
             frame_dt: 0.0,
             tpl_path: IntraFrame::ZERO,
             gauge_settled: false,
+            gauge_corrections: IntraFrame::ZERO,
             warm_start: WarmStart::default(),
             params,
         })
@@ -786,6 +790,23 @@ impl Tracker {
         self.path_terms() >= 2
     }
 
+    /// Whether the readout paths reported ([`Tracker::intra`]) are in the
+    /// absolute gauge, checked against time at least once (see `Gauge`);
+    /// before that, in the first frame's: each is the difference between
+    /// the frame's path and the first frame's, whose own was unknown (zero).
+    pub fn gauge_known(&self) -> bool {
+        self.gauge_settled
+    }
+
+    /// The sum of the corrections made to the readout paths' gauge so far
+    /// (the block check's and [`Tracker::regauge_template`]'s): each moved
+    /// every later path reported by minus itself. A caller that shows the
+    /// paths can ease the change in over a few frames instead of jumping
+    /// ([`crate::shutter::GaugeEase`]).
+    pub fn gauge_corrections(&self) -> IntraFrame {
+        self.gauge_corrections
+    }
+
     /// If the last frame became the template (rectified with its own path),
     /// rectifies it again with that path less `error`: the gauge error a
     /// trajectory through the recent frames found
@@ -802,6 +823,7 @@ impl Tracker {
         }
         let Some(rows) = &self.rolling else { return };
         let path = self.intra.plus(error, -1.0);
+        self.gauge_corrections = self.gauge_corrections.plus(error, 1.0);
         self.tpl_path = path;
         self.intra = path;
         for (level, tpl) in self.template.iter_mut().enumerate() {
@@ -1062,6 +1084,7 @@ impl Tracker {
         g.count = 0;
         self.intra = self.intra.plus(&c, -1.0);
         self.gauge_tpl = self.gauge_tpl.plus(&c, 1.0);
+        self.gauge_corrections = self.gauge_corrections.plus(&c, 1.0);
         true
     }
 
