@@ -95,7 +95,10 @@ mod tests {
         for j in 0..(5.0 * EASE_FRAMES) as usize {
             let shown = ease.rendered(&truth, &c);
             let step = (shown.phi - last.phi).norm();
-            assert!(step <= c_norm / EASE_FRAMES + 1e-12, "frame {j}: step {step}");
+            assert!(
+                step <= c_norm / EASE_FRAMES + 1e-12,
+                "frame {j}: step {step}"
+            );
             last = shown;
         }
         assert!((last.phi - truth.phi).norm() < 0.01 * c_norm, "{last:?}");

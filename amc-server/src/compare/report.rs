@@ -731,8 +731,10 @@ const METHODS_TEXT: &str = r#"## How it is measured
   smaller than the input compare correctly) between input and output frames, and between
   consecutive outputs. Cropping: mean of 1/sqrt|det A| (kept linear fraction of the input;
   our default margin keeps 0.75). Distortion: worst frame's ratio of the two eigenvalue
-  magnitudes of A's 2x2 part (for fisheye inputs the input-output map is not a homography,
-  so cropping and distortion there are approximate). Stability: share of the 2nd-6th FFT
+  magnitudes of A's 2x2 part (through a distorted lens, ours and the paper's code are fitted
+  to the input seen through a pinhole of its focal length, as they render it, so a camera's
+  turn is a homography; ffmpeg's filters to the input as filmed; a fit whose residual is 3x
+  the clip's mean is retried from fresh starts). Stability: share of the 2nd-6th FFT
   bins in the energy of the accumulated translation and rotation paths, the smaller of the
   two; the fixed-band variant uses 0 < f <= 1 Hz instead of bins. ITF: mean PSNR of
   consecutive outputs (dB, valid pixels).
