@@ -14,27 +14,30 @@ fn method<'a>(clip: &'a serde_json::Value, name: &str) -> &'a serde_json::Value 
         .unwrap_or_else(|| panic!("no method {name} in {clip}"))
 }
 
+/// Renders a 1 s, 192x108, 60 fps synthetic clip (seed 3) into `dir`,
+/// with `extra` options of `amc synth`.
+fn short_clip(dir: &Path, extra: &[&str]) {
+    let mut args = vec![
+        "--width",
+        "192",
+        "--height",
+        "108",
+        "--fps",
+        "60",
+        "--seconds",
+        "1",
+        "--seed",
+        "3",
+    ];
+    args.extend_from_slice(extra);
+    synth(dir, &args);
+}
+
 #[test]
 fn compare_short_synthetic_clip() {
     let tmp = tempfile::tempdir().unwrap();
     let clip = tmp.path().join("shaky");
-    synth(
-        &clip,
-        &[
-            "--width",
-            "192",
-            "--height",
-            "108",
-            "--fps",
-            "60",
-            "--seconds",
-            "1",
-            "--shake-dps",
-            "100",
-            "--seed",
-            "3",
-        ],
-    );
+    short_clip(&clip, &["--shake-dps", "100"]);
     let report = tmp.path().join("report");
     let t0 = std::time::Instant::now();
     amc_ok(&["compare", &s(&clip), "--report", &s(&report), "-q"]);
@@ -166,22 +169,9 @@ fn compare_bad_input_is_one_line_error() {
 fn compare_measures_a_fisheye_in_the_projection_rendered() {
     let tmp = tempfile::tempdir().unwrap();
     let clip = tmp.path().join("fish");
-    synth(
+    short_clip(
         &clip,
-        &[
-            "--width",
-            "192",
-            "--height",
-            "108",
-            "--fov",
-            "150",
-            "--fisheye",
-            "0.05,-0.01,0.002,-0.0005",
-            "--seconds",
-            "1",
-            "--seed",
-            "3",
-        ],
+        &["--fov", "150", "--fisheye", "0.05,-0.01,0.002,-0.0005"],
     );
     let report = tmp.path().join("report");
     amc_ok(&["compare", &s(&clip), "--report", &s(&report), "-q"]);
