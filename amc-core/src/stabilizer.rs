@@ -165,11 +165,16 @@ impl Tracking {
     fn track(&mut self, frame: &FrameRef<'_>, t: f64) -> Tracked {
         let levels = self.tracker.levels();
         self.frontend.prepare(frame, &mut self.pyr, levels);
+        let gauge_before = self.tracker.gauge_corrections();
         let (r, info) = self.tracker.track(&self.pyr, t);
         let mut pose = r;
         let mut path = self.tracker.intra();
         let mut corrections = self.tracker.gauge_corrections();
         if let Some(smoother) = &mut self.smoother {
+            // The frames held were reported before this frame's correction
+            // of the gauge, if it made one: they move with it, so that the
+            // window keeps one common offset.
+            smoother.regauge(&corrections.plus(&gauge_before, -1.0));
             let weight = if info.lost { 0.0 } else { 1.0 };
             let smoothed = smoother.push(t, r, path, weight);
             // At a slow pace the tracker fits `phi` alone, which leaves the
@@ -182,6 +187,8 @@ impl Tracking {
                 // slower and noisier); frames aligned to it inherit it.
                 if let (true, Some(error)) = (info.template_reset, smoother.path_offset()) {
                     self.tracker.regauge_template(&error);
+                    // This frame, pushed before, and the ones held move alike.
+                    smoother.regauge(&self.tracker.gauge_corrections().plus(&corrections, -1.0));
                 }
                 pose = smoothed;
                 path = self.tracker.intra();
