@@ -33,7 +33,7 @@
 //!   corrects its gauge (its block check, or a template regauged), the
 //!   frames held are corrected alike ([`TrajectorySmoother::regauge`]).
 //!   Before, every window that straddled a correction (each new template's,
-//!   once regauged) mixed two, and the per-frame error was 1.02-1.12x what
+//!   once regauged) mixed two, and the per-frame error was 1.01-1.13x what
 //!   it is now (fisheye, 100 deg/s through 20 ms: 1.53x -> 1.36x the global
 //!   shutter's; 300 deg/s: 2.17x -> 1.95x).
 //! * `e`, the readout's stretch ([`Stretch`]).
