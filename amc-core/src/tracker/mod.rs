@@ -818,17 +818,13 @@ impl Tracker {
     /// deg, and a template rectified with a path off by `c` biases every frame
     /// aligned to it by about `|a| |c| / 2` (see `Tracker::settle_gauge`).
     pub fn regauge_template(&mut self, error: &IntraFrame) {
-        if self.frames_since_reset != 0 || self.tpl_path != self.intra {
+        if self.frames_since_reset != 0 || self.tpl_path != self.intra || self.rolling.is_none() {
             return;
         }
-        let Some(rows) = &self.rolling else { return };
         let path = self.intra.plus(error, -1.0);
         self.gauge_corrections = self.gauge_corrections.plus(error, 1.0);
-        self.tpl_path = path;
         self.intra = path;
-        for (level, tpl) in self.template.iter_mut().enumerate() {
-            rectify_template(tpl, rows, self.row_tables.get(level), level, &path);
-        }
+        self.rectify_template_again(path);
         self.gauge.sums = [Tangent::zeros(); INTRA_TERMS];
         self.gauge.count = 0;
     }
@@ -1116,13 +1112,23 @@ impl Tracker {
             self.gauge_settled = true;
             self.frames_since_reset = 0;
         }
-        let Some(rows) = &self.rolling else { return };
+        if self.rolling.is_none() {
+            return;
+        }
         // The template was rectified with `tpl_path`; its estimates since are
         // off by `gauge_tpl`, so its own path is `tpl_path - gauge_tpl`.
-        self.tpl_path = self.tpl_path.plus(&self.gauge_tpl, -1.0);
+        let path = self.tpl_path.plus(&self.gauge_tpl, -1.0);
         self.gauge_tpl = IntraFrame::ZERO;
+        self.rectify_template_again(path);
+    }
+
+    /// Rectifies the current template again (every level), with `path` as
+    /// its own readout path from now on. No effect with a global shutter.
+    fn rectify_template_again(&mut self, path: IntraFrame) {
+        let Some(rows) = &self.rolling else { return };
+        self.tpl_path = path;
         for (level, tpl) in self.template.iter_mut().enumerate() {
-            rectify_template(tpl, rows, self.row_tables.get(level), level, &self.tpl_path);
+            rectify_template(tpl, rows, self.row_tables.get(level), level, &path);
         }
     }
 
