@@ -67,6 +67,17 @@ pub fn read_orientations(path: &Path) -> Result<Vec<Rot>, GtError> {
     Ok(out)
 }
 
+/// The `frame,t,rx,ry,rz` text [`read_orientations`] reads: one row per
+/// orientation `R_{0,j}` (as its rotation vector) at time `times[j]`.
+pub fn orientations_csv(times: &[f64], rots: &[Rot]) -> String {
+    let mut s = String::from("frame,t,rx,ry,rz\n");
+    for (j, (t, r)) in times.iter().zip(rots).enumerate() {
+        let w = so3::log(r);
+        s.push_str(&format!("{j},{t},{},{},{}\n", w.x, w.y, w.z));
+    }
+    s
+}
+
 /// Accuracy of an estimate against ground truth, in degrees.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct GtReport {
@@ -111,5 +122,26 @@ pub fn compare(gt: &[Rot], est: &[Rot]) -> GtReport {
         max_frame_error_deg: pick(1.0),
         final_orientation_error_deg: final_orient,
         max_orientation_error_deg: max_orient,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn orientations_are_read_back_as_written() {
+        let rots: Vec<Rot> = (0..5)
+            .map(|j| so3::exp(&Tangent::new(0.1 * j as f64, -0.02, 0.3 - 0.05 * j as f64)))
+            .collect();
+        let times: Vec<f64> = (0..5).map(|j| j as f64 / 60.0).collect();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("o.csv");
+        std::fs::write(&path, orientations_csv(&times, &rots)).unwrap();
+        let back = read_orientations(&path).unwrap();
+        assert_eq!(back.len(), rots.len());
+        for (a, b) in rots.iter().zip(&back) {
+            assert!(so3::angle_between(a, b) < 1e-12);
+        }
     }
 }

@@ -19,7 +19,6 @@
 
 use amc_core::camera::CameraModel;
 use amc_core::image::{Frame, FrameRef, PixelFormat};
-use amc_core::so3;
 use amc_core::synth::{
     downsample_pano, pano_downsample_factor, EquirectRenderer, Shake, ShakeParams,
 };
@@ -420,13 +419,9 @@ fn render_frames(
 /// The `gt.csv` text: `frame,t,rx,ry,rz` (rotation vector of `R_{0,j}` at
 /// `t = frame / fps`, the mid-readout time with a rolling shutter).
 fn ground_truth_csv(shake: &Shake, frames: usize, fps: f64) -> String {
-    let mut s = String::from("frame,t,rx,ry,rz\n");
-    for j in 0..frames {
-        let t = j as f64 / fps;
-        let r = so3::log(&shake.orientation_at(t));
-        s.push_str(&format!("{j},{t},{},{},{}\n", r.x, r.y, r.z));
-    }
-    s
+    let times: Vec<f64> = (0..frames).map(|j| j as f64 / fps).collect();
+    let rots: Vec<_> = times.iter().map(|&t| shake.orientation_at(t)).collect();
+    crate::gt::orientations_csv(&times, &rots)
 }
 
 /// Renders the clip described by `args` into `args.output` (a new or empty

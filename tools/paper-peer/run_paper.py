@@ -3,7 +3,8 @@
 on one clip and writes its output as raw .y4m, for `amc compare --peer paper`.
 
     run_paper.py --source SRC --input CLIP --output OUT.y4m --mode stabilize \
-        [--valid OUT.valid] [--fps F] [--lens lens.json | --fov DEG] [--frames N]
+        [--valid OUT.valid] [--fps F] [--lens lens.json | --fov DEG] [--frames N] \
+        [--rotations ORIENTATIONS.csv]
     run_paper.py --source SRC --check
 
 The authors' script reads a recording (a folder of BGR frames as .npy, their
@@ -22,7 +23,14 @@ stabilized frame as a JPEG. This loader:
   undoes the 2x pixel duplication of --export_cropped (every second pixel)
   and writes them to OUT.y4m (4:4:4, BT.601 limited range);
 * with --valid, writes the output's validity, one byte per output pixel per
-  frame (1 valid, 0 not), frames in order (see valid_mask()).
+  frame (1 valid, 0 not), frames in order (see valid_mask());
+* with --rotations, hands its renderer those orientations instead of its
+  tracker's (its view filter, warp and average are unchanged): a CSV with a
+  header naming columns rx, ry, rz, one row per frame, the rotation vector of
+  R_{0,j} (camera j's vectors into camera 0's frame; x right, y down, z
+  forward), as amc's telemetry and gt.csv write them. amc compare uses it to
+  tell what the paper's tracker does to its numbers from what its renderer
+  does (the paper's code fed our estimates, and the truth).
 
 Headless stubs: their script opens windows and polls keys (cv2.imshow,
 waitKey, namedWindow, createTrackbar: no-ops; waitKey returns -1, no key),
@@ -236,6 +244,32 @@ def valid_mask(cv2, np, valid, crop):
     return cv2.erode(m, np.ones((3, 3), np.uint8))
 
 
+def read_rotations(path):
+    """The rows' R_{0,j} (3x3) from a CSV with columns rx, ry, rz."""
+    import cv2
+    import numpy as np
+
+    with open(path) as f:
+        header = [c.strip() for c in f.readline().split(",")]
+        try:
+            cols = [header.index(c) for c in ("rx", "ry", "rz")]
+        except ValueError:
+            raise SystemExit(f"run_paper.py: {path}: no rx, ry, rz columns in the header {header}")
+        out = []
+        for n, line in enumerate(f, start=2):
+            if not line.strip():
+                continue
+            cells = line.split(",")
+            try:
+                w = np.array([float(cells[c]) for c in cols])
+            except (IndexError, ValueError):
+                raise SystemExit(f"run_paper.py: {path} line {n}: not three numbers in rx, ry, rz")
+            if not np.all(np.isfinite(w)):
+                raise SystemExit(f"run_paper.py: {path} line {n}: a rotation is not finite")
+            out.append(cv2.Rodrigues(w)[0])
+    return out
+
+
 def run(args):
     cv2, rs = import_paper(args.source)
     import numpy as np
@@ -243,10 +277,13 @@ def run(args):
     if args.check:
         print("rotation_stabilize imports:", rs.__file__)
         return
+    rotations = read_rotations(args.rotations) if args.rotations else None
     work = tempfile.mkdtemp(prefix=".amc-paper-", dir=args.work)
     try:
         t0 = time.perf_counter()
         (w, h), n, fps, model = write_recording(args, work)
+        if rotations is not None and len(rotations) != n:
+            raise SystemExit(f"run_paper.py: {args.rotations}: {len(rotations)} rotations for {n} frames")
         t1 = time.perf_counter()
         ds_w, ds_h = int(w / DOWNSAMPLE), int(h / DOWNSAMPLE)
         crop = (int(ds_w * MARGINS), int(ds_h * MARGINS),
@@ -254,12 +291,18 @@ def run(args):
         out = Y4mWriter(args.output, fps)
         valid_out = open(args.valid, "wb") if args.valid else None
         stabilized_dir = os.path.join(work, CAM + "_stabilized")
-        state = {"valid": None, "frames": 0}
+        state = {"valid": None, "frames": 0, "updates": 0}
 
         # The mask the renderer returns with each stabilized frame.
         update = rs.RotStabOmega.update
 
         def update_keeping_valid(self, *a, **k):
+            if rotations is not None:
+                # Its R_cprime_c0_t0 takes output rays to source rays (its warp
+                # samples the source at K R_cprime_c0_t0 R_view^T K^-1 x): the
+                # transpose of our R_{0,j}. Given, its tracker is not asked.
+                k["R_cprime_c0_t0"] = rotations[state["updates"]].T.astype(np.float64)
+            state["updates"] += 1
             r = update(self, *a, **k)
             state["valid"] = r[2]
             return r
@@ -332,6 +375,8 @@ def main():
     p.add_argument("--fov", type=float, default=40.0,
                    help="horizontal field of view of a centred pinhole, degrees (without --lens)")
     p.add_argument("--frames", type=int, help="only the first N frames")
+    p.add_argument("--rotations",
+                   help="CSV (columns rx, ry, rz: R_{0,j} per frame) its renderer takes instead of its tracker's estimates")
     p.add_argument("--work", help="folder for the temporary recording (default: the system's)")
     args = p.parse_args()
     if not args.check and not (args.input and args.output):

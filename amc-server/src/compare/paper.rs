@@ -245,13 +245,17 @@ pub struct PaperOutputs {
     pub log: PathBuf,
 }
 
-/// Runs the paper's code on `input` in `method`'s mode, timed like the other peers.
+/// Runs the paper's code on `input` in `method`'s mode, timed like the other
+/// peers; with `rotations` (a CSV with columns `rx,ry,rz`, see
+/// [`crate::gt::orientations_csv`]) its renderer takes those orientations
+/// instead of its tracker's.
 #[allow(clippy::too_many_arguments)]
 pub fn run(
     env: &PaperEnv,
     method: Method,
     input: &Path,
     lens_json: &Path,
+    rotations: Option<&Path>,
     fps: f64,
     work: &Path,
     limit: Duration,
@@ -283,6 +287,9 @@ pub fn run(
         .arg(lens_json)
         .arg("--work")
         .arg(work);
+    if let Some(r) = rotations {
+        cmd.arg("--rotations").arg(r);
+    }
     let usage = best_of(repeat, || run_timed(label, &mut cmd, &outs.log, limit))?;
     Ok((usage, outs))
 }

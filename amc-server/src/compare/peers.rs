@@ -56,6 +56,26 @@ pub enum Method {
     MatchedStabilize,
     /// Ours, `--mode saccade` at the paper's framing and output size.
     MatchedSaccade,
+    /// The paper's code in its stabilize mode with its tracker's orientations
+    /// replaced by ours (those of [`Method::MatchedStabilize`]): its view
+    /// filter, renderer and average on our estimates, which separates what its
+    /// tracker does to its numbers from what its renderer does.
+    PaperFedOurs,
+    /// The same fed the clip's true orientations (clips with `gt.csv` only).
+    PaperFedTruth,
+    /// Its saccade mode fed ours (those of [`Method::MatchedSaccade`]).
+    PaperFedOursSaccade,
+    /// Its saccade mode fed the truth.
+    PaperFedTruthSaccade,
+}
+
+/// Whose orientations the paper's renderer is fed instead of its tracker's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fed {
+    /// Ours at matched settings, in the same mode.
+    Ours,
+    /// The clip's ground truth.
+    Truth,
 }
 
 impl Method {
@@ -71,14 +91,19 @@ impl Method {
     ];
 
     /// Run besides [`Method::ALL`] with `--peer paper`: the paper's code in its
-    /// three modes and ours at matched settings.
-    pub const PAPER: [Method; 6] = [
+    /// three modes, ours at matched settings, then the paper's stabilize mode
+    /// fed our orientations and (where known) the true ones.
+    pub const PAPER: [Method; 10] = [
         Method::PaperNone,
         Method::PaperStabilize,
         Method::PaperSaccade,
         Method::MatchedNone,
         Method::MatchedStabilize,
         Method::MatchedSaccade,
+        Method::PaperFedOurs,
+        Method::PaperFedTruth,
+        Method::PaperFedOursSaccade,
+        Method::PaperFedTruthSaccade,
     ];
 
     /// Short name used in tables, plots and file names.
@@ -98,6 +123,10 @@ impl Method {
             Method::MatchedNone => "ours-matched-none",
             Method::MatchedStabilize => "ours-matched-stabilize",
             Method::MatchedSaccade => "ours-matched-saccade",
+            Method::PaperFedOurs => "paper-fed-ours-stabilize",
+            Method::PaperFedTruth => "paper-fed-truth-stabilize",
+            Method::PaperFedOursSaccade => "paper-fed-ours-saccade",
+            Method::PaperFedTruthSaccade => "paper-fed-truth-saccade",
         }
     }
 
@@ -129,6 +158,17 @@ impl Method {
             Method::PaperNone => Some("none"),
             Method::PaperStabilize => Some("stabilize"),
             Method::PaperSaccade => Some("saccade"),
+            Method::PaperFedOurs | Method::PaperFedTruth => Some("stabilize"),
+            Method::PaperFedOursSaccade | Method::PaperFedTruthSaccade => Some("saccade"),
+            _ => None,
+        }
+    }
+
+    /// The paper's code fed other orientations than its tracker's: whose.
+    pub fn fed(self) -> Option<Fed> {
+        match self {
+            Method::PaperFedOurs | Method::PaperFedOursSaccade => Some(Fed::Ours),
+            Method::PaperFedTruth | Method::PaperFedTruthSaccade => Some(Fed::Truth),
             _ => None,
         }
     }
@@ -510,6 +550,34 @@ pub fn run_ours(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_paper_is_fed_our_estimates_after_they_are_made() {
+        // compare_clip runs the methods in this order and hands the paper's
+        // renderer the orientations of our matched stabilize run.
+        let at = |m: Method| Method::PAPER.iter().position(|&x| x == m).unwrap();
+        for fed in Method::PAPER.into_iter().filter(|m| m.fed().is_some()) {
+            let mode = fed.paper_mode().unwrap();
+            let ours = Method::PAPER
+                .into_iter()
+                .find(|m| m.is_matched() && m.our_mode() == Some(mode))
+                .unwrap();
+            assert!(
+                at(ours) < at(fed),
+                "{} before {}",
+                ours.label(),
+                fed.label()
+            );
+            assert!(!fed.is_ours() && !fed.is_matched());
+            assert!(fed.label().ends_with(mode));
+        }
+        let labels: std::collections::HashSet<_> = Method::ALL
+            .iter()
+            .chain(&Method::PAPER)
+            .map(|m| m.label())
+            .collect();
+        assert_eq!(labels.len(), Method::ALL.len() + Method::PAPER.len());
+    }
 
     #[test]
     fn filter_paths_are_escaped() {

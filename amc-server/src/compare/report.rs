@@ -6,7 +6,7 @@
 use super::config::CompareConfig;
 use super::error::CompareError;
 use super::paper::PaperStatus;
-use super::peers::Method;
+use super::peers::{Fed, Method};
 use super::results::{ClipResult, MethodResult};
 use crate::plot::{self, ModeSeries};
 use amc_core::image::Frame;
@@ -529,6 +529,11 @@ pub fn paper_table(c: &ClipResult) -> Option<String> {
             ratio(op.sharpness, base.sharpness),
         );
     }
+    for mode in ["stabilize", "saccade"] {
+        if let Some(t) = fed_table(c, base, mode) {
+            s += &t;
+        }
+    }
     let borders: Vec<String> = pairs
         .iter()
         .filter_map(|(_, ours)| find(c, ours))
@@ -545,6 +550,97 @@ pub fn paper_table(c: &ClipResult) -> Option<String> {
         borders.join(", ")
     );
     Some(s)
+}
+
+/// The paper's code in `mode` fed our orientations and the true ones, beside
+/// its own and ours, against the common baseline `base`: it tells what the
+/// paper's tracker does to its numbers (its own row against the row fed ours)
+/// from what its renderer does (the row fed ours against ours matched).
+fn fed_table(c: &ClipResult, base: &amc_core::metrics::ClipMetrics, mode: &str) -> Option<String> {
+    let in_mode = |m: &Method| m.paper_mode() == Some(mode) || m.our_mode() == Some(mode);
+    let of = |fed: Option<Fed>, matched: bool| {
+        Method::PAPER
+            .into_iter()
+            .filter(in_mode)
+            .find(|m| m.fed() == fed && m.is_matched() == matched)
+    };
+    find(c, of(Some(Fed::Ours), false)?.label())?;
+    let ratio = |v: f64, b: f64| {
+        if b > 0.0 {
+            format!("{:.3}", v / b)
+        } else {
+            "-".into()
+        }
+    };
+    let mut s = format!(
+        "\nThe paper's {mode} mode fed other orientations than its tracker's (its view filter, \
+         renderer and average unchanged), against the same baseline: its own row against the row \
+         fed ours is what the two trackers' estimates do to the numbers, the row fed ours against \
+         ours matched is what the two renderers do.\n\n\
+         | orientations | renderer | method | frame change | normal flow | sharpness |\n\
+         |---|---|---|---|---|---|\n",
+    );
+    let rows = [
+        ("its tracker's", "the paper's", of(None, false)),
+        ("ours", "the paper's", of(Some(Fed::Ours), false)),
+        ("the truth", "the paper's", of(Some(Fed::Truth), false)),
+        ("ours", "ours", of(None, true)),
+    ];
+    for (orientations, renderer, method) in rows {
+        let Some(m) = method.and_then(|method| find(c, method.label())) else {
+            continue;
+        };
+        let p = &m.measured.paper;
+        let _ = writeln!(
+            s,
+            "| {orientations} | {renderer} | {} | {} | {} | {} |",
+            m.method,
+            ratio(p.rms_change, base.rms_change),
+            ratio(p.rms_normal_flow, base.rms_normal_flow),
+            ratio(p.sharpness, base.sharpness),
+        );
+    }
+    // Where the paper's code removes more than ours, how much of the
+    // difference its orientations make and how much its renderer.
+    let get = |m: Option<Method>| {
+        m.and_then(|m| find(c, m.label()))
+            .map(|r| &r.measured.paper)
+    };
+    if let (Some(own), Some(fed), Some(ours)) = (
+        get(of(None, false)),
+        get(of(Some(Fed::Ours), false)),
+        get(of(None, true)),
+    ) {
+        type Metric = fn(&amc_core::metrics::ClipMetrics) -> f64;
+        let metrics: [(&str, Metric); 2] = [
+            ("frame change", |m| m.rms_change),
+            ("normal flow", |m| m.rms_normal_flow),
+        ];
+        for (name, value) in metrics {
+            let (own, fed, ours) = (value(own), value(fed), value(ours));
+            if own < ours {
+                let b = base_of(value(base));
+                let _ = writeln!(
+                    s,
+                    "\nThe paper's code removes more {name} in {mode} mode than ours matched \
+                     ({:.3} against {:.3}); of the difference, {:.3}, its orientations make \
+                     {:+.3} (fed ours, its renderer gives {:.3}) and its renderer {:+.3}.",
+                    own / b,
+                    ours / b,
+                    (ours - own) / b,
+                    (fed - own) / b,
+                    fed / b,
+                    (ours - fed) / b,
+                );
+            }
+        }
+    }
+    Some(s)
+}
+
+/// A baseline to divide by (never zero).
+fn base_of(v: f64) -> f64 {
+    v.max(f64::MIN_POSITIVE)
 }
 
 /// The report's line on the paper's code (none when it was not asked for).
@@ -708,7 +804,10 @@ const METHODS_TEXT: &str = r#"## How it is measured
   `paper-saccade`: adds `--saccade`), its exported crop read back at its processing
   resolution, and ours at matched settings (`ours-matched-*`: `--fps 60`, since its view
   filter steps 1/60 s per frame whatever the clip's rate, `--rate-a 2 --rate-b 40` (its
-  gains), `--zoom none --margin 0.125`, its output size). Its speed is that of the whole
+  gains), `--zoom none --margin 0.125`, its output size); then its stabilize and saccade
+  modes with its tracker's orientations replaced (`paper-fed-ours-*`: those of our matched
+  run in the same mode; `paper-fed-truth-*`: the true ones, where the clip has them), which
+  tells what its tracker does to its numbers from what its renderer does. Its speed is that of the whole
   Python process (decoding the clip into its recording layout, JAX start-up and
   compilation, its loop; in brackets "its loop": its `stabilize()` call alone, JAX's
   compilation on the first frames included); its valid pixels are those its own

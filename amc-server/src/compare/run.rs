@@ -10,13 +10,13 @@ use crate::engine;
 use crate::gt::{self, GtReport};
 use amc_core::image::{Frame, GrayImage, PixelFormat};
 use amc_core::metrics::masked_luma_into;
-use amc_core::so3::{self, Tangent};
+use amc_core::so3::{self, Rot, Tangent};
 use amc_core::view::Mode;
 use amc_core::{Stabilizer, StabilizerParams};
 use amc_video::{self as video, InputOptions};
 use measure::{Measured, Measurer};
-use peers::{FfmpegInput, Method};
-use std::path::Path;
+use peers::{Fed, FfmpegInput, Method};
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// The input decoded once: luma pyramids, timestamps and the middle frame.
@@ -194,6 +194,8 @@ struct OursMeasured {
     middle: Option<Frame>,
     saccades: Vec<bool>,
     frames_with_border: usize,
+    /// The estimated orientations `R_{0,j}` and their times.
+    estimates: (Vec<f64>, Vec<Rot>),
 }
 
 /// Measures one of our modes in-process (same output as the timed child).
@@ -216,6 +218,7 @@ fn measure_ours(
     let mut m = Measurer::new(fps_of(input), w, clip.lens.fx);
     let mut frame = Frame::new(w, h, PixelFormat::Rgb8);
     let mut est = Vec::new();
+    let mut est_times = Vec::new();
     let mut saccades = Vec::new();
     let mut middle = None;
     let mut frames_with_border = 0usize;
@@ -250,6 +253,7 @@ fn measure_ours(
             middle = Some(f);
         }
         est.push(so3::exp(&Tangent::from(tel.r_est)));
+        est_times.push(tel.t);
         saccades.push(tel.saccade);
     };
     while let Some(t) = src.next_frame(&mut frame)? {
@@ -267,6 +271,7 @@ fn measure_ours(
         middle,
         saccades,
         frames_with_border,
+        estimates: (est_times, est),
     })
 }
 
@@ -334,13 +339,16 @@ fn measure_paper(
     Ok((m.finish(), middle))
 }
 
-/// Runs the paper's code on `clip` in `method`'s mode and measures it.
+/// Runs the paper's code on `clip` in `method`'s mode (its renderer fed
+/// `rotations` when given) and measures it.
+#[allow(clippy::too_many_arguments)]
 fn run_paper_method(
     env: &paper::PaperEnv,
     method: Method,
     clip: &Clip,
     input: &DecodedInput,
     lens_json: &Path,
+    rotations: Option<&Path>,
     dir: &Path,
     args: &CompareConfig,
 ) -> Result<MethodResult, CompareError> {
@@ -349,6 +357,7 @@ fn run_paper_method(
         method,
         &clip.input,
         lens_json,
+        rotations,
         fps_of(input),
         dir,
         timeout(args),
@@ -408,6 +417,8 @@ fn compare_clip(
     };
     let mut methods = Vec::new();
     let mut paper_skipped = None;
+    // Our matched runs' orientations (by mode), which the paper's renderer is fed next.
+    let mut ours_orientations: Vec<(&str, PathBuf)> = Vec::new();
     let extra: &[Method] = match paper_status {
         PaperStatus::Ready(_) => &Method::PAPER,
         _ => &[],
@@ -419,9 +430,44 @@ fn compare_clip(
                 continue;
             }
         }
+        // The orientations the paper's renderer takes instead of its tracker's.
+        let mode = method.paper_mode().unwrap_or_default();
+        let fed = match method.fed() {
+            Some(Fed::Ours) => match ours_orientations.iter().find(|(m, _)| *m == mode) {
+                Some((_, path)) => Some(path.clone()),
+                None => {
+                    say(format!(
+                        "{}: skipped (no matched {mode} estimates of ours)",
+                        method.label()
+                    ));
+                    continue;
+                }
+            },
+            // Only where the truth is known (the synthetic clips).
+            Some(Fed::Truth) => match &clip.gt {
+                Some(gt) => {
+                    let path = dir.join("truth.orientations.csv");
+                    std::fs::write(&path, gt::orientations_csv(&input.times, gt))
+                        .map_err(|e| CompareError::io(&path, e))?;
+                    Some(path)
+                }
+                None => continue,
+            },
+            None => None,
+        };
         say(format!("{}: timed run", method.label()));
         let r = if let (PaperStatus::Ready(env), Some(_)) = (paper_status, method.paper_mode()) {
-            match run_paper_method(env, method, clip, &input, &lens_json, &dir, args) {
+            let measured = run_paper_method(
+                env,
+                method,
+                clip,
+                &input,
+                &lens_json,
+                fed.as_deref(),
+                &dir,
+                args,
+            );
+            match measured {
                 Ok(r) if r.frames > 0 => r,
                 // Research code on a clip it may not take (a lens, a length):
                 // reported as skipped on this clip, the comparison goes on.
@@ -466,7 +512,14 @@ fn compare_clip(
                 middle,
                 saccades,
                 frames_with_border,
+                estimates: (times, estimates),
             } = measure_ours(method, clip, &input, args)?;
+            if let (true, Some(mode)) = (method.is_matched(), method.our_mode()) {
+                let path = dir.join(format!("{}.orientations.csv", method.label()));
+                std::fs::write(&path, gt::orientations_csv(&times, &estimates))
+                    .map_err(|e| CompareError::io(&path, e))?;
+                ours_orientations.push((mode, path));
+            }
             MethodResult {
                 method: method.label(),
                 frames: measured.frames.len(),
