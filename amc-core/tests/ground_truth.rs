@@ -862,6 +862,63 @@ fn rolling_shutter_estimate_matches_ground_truth() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// Large shake slower than the flapping-wing band: 300 deg/s in 6-10 Hz and
+/// in 3-5 Hz (a legged robot's gait, a runner's hand), through a 20 ms
+/// readout. Its rates change little from frame to frame, so by the pace
+/// alone it counted as slow and only `phi` was estimated, while the path
+/// bends by 1-2 px within a readout: 140x and 55x the global shutter's
+/// per-frame error. Counted fast by that bend (the tracker's `MIN_BEND_PX`):
+/// 2.40x and 3.77x. The bars leave about 1.3x.
+#[test]
+fn rolling_shutter_follows_large_slower_shake() {
+    let (w, h) = SIZE;
+    let camera = CameraModel::pinhole_hfov(w, h, 90.0).unwrap();
+    let pano = panorama();
+    let readout_ms = 20.0;
+    let mut failures = Vec::new();
+    for (band_hz, max_ratio) in [((6.0, 10.0), 3.1), ((3.0, 5.0), 4.9)] {
+        let shake = Shake::new(&ShakeParams {
+            shake_dps: 300.0,
+            band_hz,
+            seed: 1,
+            ..ShakeParams::default()
+        })
+        .expect("valid shake");
+        let case = Case {
+            name: "slower shake",
+            camera: camera.clone(),
+            shake_dps: 300.0,
+            seed: 1,
+            format: PixelFormat::Rgb8,
+            max_median_frame_deg: 0.0,
+            max_final_deg: 0.0,
+            max_orientation_deg: 0.0,
+        };
+        let motion = |t: f64| shake.orientation_at(t);
+        let gs = errors_of(
+            &stabilize_motion(&case, &pano, StabilizerParams::default(), &motion),
+            &shake,
+        );
+        let mut params = StabilizerParams::default();
+        params.shutter.readout_ms = readout_ms;
+        let rs = errors_of(
+            &stabilize_motion_rolling(&case, &pano, params, &motion, readout_ms / 1000.0),
+            &shake,
+        );
+        let ratio = rs.median_frame() / gs.median_frame();
+        eprintln!(
+            "[{:?} Hz] median per-frame error {:.5} deg ({ratio:.2}x the global shutter's {:.5})",
+            band_hz,
+            rs.median_frame(),
+            gs.median_frame()
+        );
+        if !(ratio <= max_ratio) {
+            failures.push(format!("[{band_hz:?} Hz] {ratio:.2}x > {max_ratio}x"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
 /// Without the readout (`readout_ms` 0) the same clip is tracked as today's
 /// global shutter would: 50x the error. And `auto`, end to end through
 /// [`amc_core::readout::ReadoutEstimator`], finds 10 ms on it and 0 on the

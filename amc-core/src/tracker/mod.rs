@@ -663,6 +663,17 @@ const MIN_FAST_READOUT_PX: f64 = 0.5;
 /// on 100-300 deg/s shake at 12-20 Hz and 60 frames/s; 0.55-0.71 on cc9 (a
 /// phone in a car, 30 frames/s).
 const PACE_SWITCH: f64 = 0.3;
+/// Least typical second-order bend of the readout path (finest-level pixels,
+/// at the readout's ends, see [`Tracker::quadratic_bend_px`]) at which the
+/// motion counts as fast whatever its pace: large, slower shake (a legged
+/// robot's gait, a runner's hand) turns less from frame to frame than
+/// [`PACE_SWITCH`] asks, yet its path bends within a readout, which `phi`
+/// alone cannot follow. Measured at 300 deg/s through 20 ms at 60 frames/s
+/// (median per-frame error, ratio to a global shutter's): 6-10 Hz shake 140x
+/// -> 2.4x, 3-5 Hz 55x -> 3.8x (bends of about 2 and 1 px); 12-20 Hz shake
+/// was fast already and is unchanged. cc9 (a phone in a car, 33 ms: about
+/// 0.1 px) and slow drone flight stay slow.
+const MIN_BEND_PX: f64 = 0.5;
 /// Weight of one frame in the moving averages of [`PACE_SWITCH`].
 const PACE_GAIN: f64 = 0.05;
 
@@ -950,12 +961,15 @@ impl Tracker {
         (r_0j, info)
     }
 
-    /// Whether the motion is fast for the readout path's model (see
-    /// [`PACE_SWITCH`]); slow until two rates are known.
+    /// Whether the motion is fast for the readout path's model: it turns
+    /// within a few frames ([`PACE_SWITCH`]), or its path bends visibly within
+    /// a readout however slow its pace ([`MIN_BEND_PX`]); slow until two
+    /// rates are known.
     fn fast_motion(&self) -> bool {
         self.readout_motion_px()
             .is_some_and(|px| px >= MIN_FAST_READOUT_PX)
-            && self.pace.0 < PACE_SWITCH * self.pace.1
+            && (self.pace.0 < PACE_SWITCH * self.pace.1
+                || self.quadratic_bend_px().is_some_and(|px| px >= MIN_BEND_PX))
     }
 
     /// How many terms of the readout path are estimated (on the levels that
@@ -1023,13 +1037,30 @@ impl Tracker {
     /// pixels is [`Tracker::readout_motion_px`], and `2 pi f dt` is the arc
     /// cosine of the rates' lag-one autocorrelation ([`PACE_SWITCH`]).
     fn quartic_bend_px(&self) -> Option<f64> {
+        let (motion, x) = self.readout_phase()?;
+        Some(motion * x.powi(3) / 384.0)
+    }
+
+    /// The typical second-order bend of the readout path at the readout's
+    /// ends, in finest-level pixels (as [`Tracker::quartic_bend_px`]: the
+    /// second Taylor term `tau^2 theta'' / 2` is of size `omega tau x / 2`,
+    /// and `1/4` of it at `s = 1/2`); `None` until two rates are known.
+    fn quadratic_bend_px(&self) -> Option<f64> {
+        let (motion, x) = self.readout_phase()?;
+        Some(motion * x / 8.0)
+    }
+
+    /// The typical rotation across a readout in finest-level pixels
+    /// ([`Tracker::readout_motion_px`]) and the shake's phase across it,
+    /// `x = 2 pi f tau` (from the rates' lag-one autocorrelation, see
+    /// [`PACE_SWITCH`]); `None` until two rates are known.
+    fn readout_phase(&self) -> Option<(f64, f64)> {
         let motion = self.readout_motion_px()?;
         if !(self.frame_dt > 0.0) {
             return None;
         }
         let rho = (self.pace.0 / self.pace.1).clamp(-1.0, 1.0);
-        let x = rho.acos() * self.readout_s / self.frame_dt;
-        Some(motion * x.powi(3) / 384.0)
+        Some((motion, rho.acos() * self.readout_s / self.frame_dt))
     }
 
     /// The typical rotation across a readout, in finest-level pixels: the
