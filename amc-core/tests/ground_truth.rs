@@ -45,6 +45,29 @@ struct Case {
     max_orientation_deg: f64,
 }
 
+impl Case {
+    /// A clip rendered and stabilized for a test with bars of its own (those
+    /// of the table unused).
+    fn unbarred(
+        name: &'static str,
+        camera: CameraModel,
+        shake_dps: f64,
+        seed: u64,
+        format: PixelFormat,
+    ) -> Self {
+        Case {
+            name,
+            camera,
+            shake_dps,
+            seed,
+            format,
+            max_median_frame_deg: 0.0,
+            max_final_deg: 0.0,
+            max_orientation_deg: 0.0,
+        }
+    }
+}
+
 /// The errors of one clip, degrees.
 struct Errors {
     /// Per-frame errors `e_j`, `j = 1..n`.
@@ -364,16 +387,13 @@ fn estimate_matches_ground_truth() {
 fn roll_lock_holds_the_horizon_and_follow_keeps_the_cameras_roll() {
     use amc_core::Roll;
     let (w, h) = SIZE;
-    let case = Case {
-        name: "roll",
-        camera: CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
-        shake_dps: 100.0,
-        seed: 4,
-        format: PixelFormat::Rgb8,
-        max_median_frame_deg: 0.0,
-        max_final_deg: 0.0,
-        max_orientation_deg: 0.0,
-    };
+    let case = Case::unbarred(
+        "roll",
+        CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
+        100.0,
+        4,
+        PixelFormat::Rgb8,
+    );
     let pano = panorama();
     let rot = |v: [f64; 3]| so3::exp(&Tangent::from(v));
     // How far the right axis leans out of the first frame's level plane, degrees.
@@ -445,16 +465,7 @@ fn auto_zoom_never_shows_a_border() {
     ];
     let z_max = FramingParams::default().max_zoom();
     for (name, camera, dps) in cases {
-        let case = Case {
-            name,
-            camera,
-            shake_dps: dps,
-            seed: 7,
-            format: PixelFormat::Yuv420p,
-            max_median_frame_deg: 0.0,
-            max_final_deg: 0.0,
-            max_orientation_deg: 0.0,
-        };
+        let case = Case::unbarred(name, camera, dps, 7, PixelFormat::Yuv420p);
         for (mode, lookahead) in [
             (Mode::Stabilize, 0),
             (Mode::Stabilize, 30),
@@ -491,16 +502,13 @@ fn a_sudden_turn_does_not_pump_the_zoom() {
     use amc_core::framing::{FramingParams, ZOOM_FALL_PER_S, ZOOM_RISE_PER_S};
     let (w, h) = SIZE;
     let pano = panorama();
-    let case = Case {
-        name: "turn",
-        camera: CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
-        shake_dps: 100.0,
-        seed: 9,
-        format: PixelFormat::Rgb8,
-        max_median_frame_deg: 0.0,
-        max_final_deg: 0.0,
-        max_orientation_deg: 0.0,
-    };
+    let case = Case::unbarred(
+        "turn",
+        CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
+        100.0,
+        9,
+        PixelFormat::Rgb8,
+    );
     let shake = Shake::new(&ShakeParams {
         shake_dps: 100.0,
         band_hz: (12.0, 20.0),
@@ -563,16 +571,7 @@ fn zoom_none_keeps_the_fixed_margin() {
     let auto = Stabilizer::new(&cam, w, h, StabilizerParams::default()).unwrap();
     assert_eq!(auto.output_size(), (w, h), "auto keeps the input's size");
     let pano = panorama();
-    let case = Case {
-        name: "none",
-        camera: cam,
-        shake_dps: 100.0,
-        seed: 3,
-        format: PixelFormat::Rgb8,
-        max_median_frame_deg: 0.0,
-        max_final_deg: 0.0,
-        max_orientation_deg: 0.0,
-    };
+    let case = Case::unbarred("none", cam, 100.0, 3, PixelFormat::Rgb8);
     let (tel, _) = stabilize(&case, &pano, params);
     assert!(tel.iter().all(|t| (t.zoom - 1.0 / 0.75).abs() < 1e-12));
 }
@@ -608,16 +607,13 @@ fn lock_holds_every_axis_within_the_budget() {
     use amc_core::{Mode, Zoom};
     let (w, h) = SIZE;
     let pano = panorama();
-    let case = Case {
-        name: "lock",
-        camera: CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
-        shake_dps: 100.0,
-        seed: 11,
-        format: PixelFormat::Rgb8,
-        max_median_frame_deg: 0.0,
-        max_final_deg: 0.0,
-        max_orientation_deg: 0.0,
-    };
+    let case = Case::unbarred(
+        "lock",
+        CameraModel::pinhole_hfov(w, h, 90.0).unwrap(),
+        100.0,
+        11,
+        PixelFormat::Rgb8,
+    );
     let rot = |v: [f64; 3]| so3::exp(&Tangent::from(v));
     let motion = |rs: &[Rot]| {
         let d: Vec<f64> = rs
@@ -751,16 +747,7 @@ fn rolling_shutter_estimate_matches_ground_truth() {
     let mut global: Vec<(String, Errors)> = Vec::new();
     for c in &cases {
         let shake = rs_shake(c.dps, 1);
-        let gs_case = Case {
-            name: c.name,
-            camera: c.camera.clone(),
-            shake_dps: c.dps,
-            seed: 1,
-            format: PixelFormat::Rgb8,
-            max_median_frame_deg: 0.0,
-            max_final_deg: 0.0,
-            max_orientation_deg: 0.0,
-        };
+        let gs_case = Case::unbarred(c.name, c.camera.clone(), c.dps, 1, PixelFormat::Rgb8);
         let motion = |t: f64| shake.orientation_at(t);
         // The same motion through a global shutter (once per camera and speed).
         let key = format!("{} {}", c.camera.is_pinhole(), c.dps);
@@ -884,16 +871,7 @@ fn rolling_shutter_follows_large_slower_shake() {
             ..ShakeParams::default()
         })
         .expect("valid shake");
-        let case = Case {
-            name: "slower shake",
-            camera: camera.clone(),
-            shake_dps: 300.0,
-            seed: 1,
-            format: PixelFormat::Rgb8,
-            max_median_frame_deg: 0.0,
-            max_final_deg: 0.0,
-            max_orientation_deg: 0.0,
-        };
+        let case = Case::unbarred("slower shake", camera.clone(), 300.0, 1, PixelFormat::Rgb8);
         let motion = |t: f64| shake.orientation_at(t);
         let gs = errors_of(
             &stabilize_motion(&case, &pano, StabilizerParams::default(), &motion),
@@ -1033,16 +1011,7 @@ fn rolling_shutter_saccade_holds_still() {
     let pano = panorama();
     let shake = rs_shake(100.0, 1);
     for (name, cam, bar) in cams {
-        let case = Case {
-            name,
-            camera: cam.clone(),
-            shake_dps: 100.0,
-            seed: 1,
-            format: PixelFormat::Rgb8,
-            max_median_frame_deg: 0.0,
-            max_final_deg: 0.0,
-            max_orientation_deg: 0.0,
-        };
+        let case = Case::unbarred(name, cam.clone(), 100.0, 1, PixelFormat::Rgb8);
         let flow = |readout_s: f64, readout_ms: f64| {
             let mut params = StabilizerParams::default();
             params.view.mode = amc_core::Mode::Saccade;
