@@ -1143,9 +1143,6 @@ impl Tracker {
             self.gauge_settled = true;
             self.frames_since_reset = 0;
         }
-        if self.rolling.is_none() {
-            return;
-        }
         // The template was rectified with `tpl_path`; its estimates since are
         // off by `gauge_tpl`, so its own path is `tpl_path - gauge_tpl`.
         let path = self.tpl_path.plus(&self.gauge_tpl, -1.0);

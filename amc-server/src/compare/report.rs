@@ -462,13 +462,6 @@ pub fn paper_table(c: &ClipResult) -> Option<String> {
         ("paper-saccade", "ours-matched-saccade"),
     ];
     let (pn, on) = (find(c, pairs[0].0)?, find(c, pairs[0].1)?);
-    let ratio = |v: f64, base: f64| {
-        if base > 0.0 {
-            format!("{:.3}", v / base)
-        } else {
-            "-".into()
-        }
-    };
     let mut s = String::new();
     s += "| mode | frame change: paper | ratio to none | ours matched | ratio to none | normal flow (px): paper | ratio to none | ours matched | ratio to none | frames/s: paper (its loop) | ours matched | peak MiB: paper | ours matched |\n";
     s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
@@ -508,7 +501,7 @@ pub fn paper_table(c: &ClipResult) -> Option<String> {
          decimates its 2x downsampling, sharpness {:.4} against {:.4}, so its frame change is {:.2}x ours):\n",
         pn.measured.paper.sharpness,
         on.measured.paper.sharpness,
-        pn.measured.paper.rms_change / on.measured.paper.rms_change.max(f64::MIN_POSITIVE),
+        pn.measured.paper.rms_change / base_of(on.measured.paper.rms_change),
     );
     s += "| mode | frame change: paper | ours matched | normal flow: paper | ours matched | sharpness: paper | ours matched |\n";
     s += "|---|---|---|---|---|---|---|\n";
@@ -565,13 +558,6 @@ fn fed_table(c: &ClipResult, base: &amc_core::metrics::ClipMetrics, mode: &str) 
             .find(|m| m.fed() == fed && m.is_matched() == matched)
     };
     find(c, of(Some(Fed::Ours), false)?.label())?;
-    let ratio = |v: f64, b: f64| {
-        if b > 0.0 {
-            format!("{:.3}", v / b)
-        } else {
-            "-".into()
-        }
-    };
     let mut s = format!(
         "\nThe paper's {mode} mode fed other orientations than its tracker's (its view filter, \
          renderer and average unchanged), against the same baseline: its own row against the row \
@@ -641,6 +627,15 @@ fn fed_table(c: &ClipResult, base: &amc_core::metrics::ClipMetrics, mode: &str) 
 /// A baseline to divide by (never zero).
 fn base_of(v: f64) -> f64 {
     v.max(f64::MIN_POSITIVE)
+}
+
+/// `v / base` for the paper's tables, three decimals; `-` without a baseline.
+fn ratio(v: f64, base: f64) -> String {
+    if base > 0.0 {
+        format!("{:.3}", v / base)
+    } else {
+        "-".into()
+    }
 }
 
 /// The report's line on the paper's code (none when it was not asked for).

@@ -417,8 +417,10 @@ fn compare_clip(
     };
     let mut methods = Vec::new();
     let mut paper_skipped = None;
-    // Our matched runs' orientations (by mode), which the paper's renderer is fed next.
+    // Our matched runs' orientations (by mode), which the paper's renderer is
+    // fed next, and the true ones (written for the first method fed them).
     let mut ours_orientations: Vec<(&str, PathBuf)> = Vec::new();
+    let mut truth_orientations: Option<PathBuf> = None;
     let extra: &[Method] = match paper_status {
         PaperStatus::Ready(_) => &Method::PAPER,
         _ => &[],
@@ -444,14 +446,16 @@ fn compare_clip(
                 }
             },
             // Only where the truth is known (the synthetic clips).
-            Some(Fed::Truth) => match &clip.gt {
-                Some(gt) => {
+            Some(Fed::Truth) => match (&truth_orientations, &clip.gt) {
+                (Some(path), _) => Some(path.clone()),
+                (None, Some(gt)) => {
                     let path = dir.join("truth.orientations.csv");
                     std::fs::write(&path, gt::orientations_csv(&input.times, gt))
                         .map_err(|e| CompareError::io(&path, e))?;
+                    truth_orientations = Some(path.clone());
                     Some(path)
                 }
-                None => continue,
+                (None, None) => continue,
             },
             None => None,
         };
