@@ -577,6 +577,9 @@ pub struct Tracker {
     handover: Option<Handover>,
     /// The handover's [`WarmStart`] (the outgoing template's points).
     handover_warm: WarmStart,
+    /// Rolling shutter: the frame being tracked is tried with the whole
+    /// readout path free, before the pace is known ([`START_PATH_GAIN`]).
+    start_path_free: bool,
 }
 
 /// The outgoing template's orientation and gauge, kept for one frame after a
@@ -698,6 +701,18 @@ const PACE_SWITCH: f64 = 0.3;
 const MIN_BEND_PX: f64 = 0.5;
 /// Weight of one frame in the moving averages of [`PACE_SWITCH`].
 const PACE_GAIN: f64 = 0.05;
+/// Until the pace is known (the first two frame pairs), a rolling-shutter
+/// frame counts as slow, so only `phi` is estimated; it is tracked with the
+/// whole path free as well, and that is kept where its residual is below this
+/// share of the slow model's. At 300 deg/s through 20 ms the first frames'
+/// paths bend by pixels and `phi` alone left residuals of 0.10-0.12 (0.01 once
+/// tracking), two frames 2.8-3.7 deg off and 0.14 deg of orientation error
+/// for good; the whole path leaves 0.02 and 0.044 deg (fisheye: 0.061 ->
+/// 0.049 deg). On slow footage it gains little and is not kept: cc9 (a phone
+/// in a car) 0.105 -> 0.092 and 0.126 -> 0.112 (kept, its gyro agreement
+/// fell from 0.058 to 0.100 deg per frame, the higher terms fitting the
+/// street's parallax).
+const START_PATH_GAIN: f32 = 0.5;
 
 /// The gauge of the readout motion.
 ///
@@ -745,6 +760,7 @@ impl Tracker {
         }
         let n_levels = Pyramid::level_count(camera.width, camera.height, params.pyramid_levels);
         Ok(Self {
+            start_path_free: false,
             base: Intrinsics::from_camera(camera),
             width: camera.width,
             height: camera.height,
@@ -924,6 +940,18 @@ impl Tracker {
 
         let mut warm_start = std::mem::take(&mut self.warm_start);
         let (mut pose, mut info) = self.coarse_to_fine(pyr, start, dt, &mut warm_start);
+        if self.rolling.is_some() && self.pace.1 == 0.0 {
+            // The pace is not known yet (the first two frame pairs): the
+            // whole path too, kept where the slow model leaves far more.
+            self.start_path_free = true;
+            let (free, free_info) = self.coarse_to_fine(pyr, start, dt, &mut warm_start);
+            self.start_path_free = false;
+            let spent = info.iterations + free_info.iterations;
+            if free_info.rms_residual < START_PATH_GAIN * info.rms_residual {
+                (pose, info) = (free, free_info);
+            }
+            info.iterations = spent;
+        }
         if suspect(&info, self.typical_residual) {
             let (p2, info2) = self.recover(pyr, pose, dt, &mut warm_start);
             if info2.rms_residual < info.rms_residual {
@@ -1041,8 +1069,12 @@ impl Tracker {
     /// Whether the motion is fast for the readout path's model: it turns
     /// within a few frames ([`PACE_SWITCH`]), or its path bends visibly within
     /// a readout however slow its pace ([`MIN_BEND_PX`]); slow until two
-    /// rates are known.
+    /// rates are known, but for the try with the whole path free then
+    /// ([`START_PATH_GAIN`]).
     fn fast_motion(&self) -> bool {
+        if self.start_path_free {
+            return true;
+        }
         self.readout_motion_px()
             .is_some_and(|px| px >= MIN_FAST_READOUT_PX)
             && (self.pace.0 < PACE_SWITCH * self.pace.1
