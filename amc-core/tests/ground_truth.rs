@@ -699,9 +699,9 @@ struct RollingCase {
 /// (1.35x) through 10 ms and 0.00213 (1.53x) through 20 ms, 300 deg/s 0.00162
 /// (1.59x) and 0.00223 (2.18x); fisheye 0.00248 (1.29x), 0.00263 (1.37x),
 /// 0.00241 (1.56x) and 0.00329 (2.13x). The handover made the rolling
-/// shutter's errors 0.8-1.0x what they were (0.00227, 0.00236, 0.00185,
+/// shutter's errors 0.82-1.03x what they were (0.00227, 0.00236, 0.00185,
 /// 0.00259, 0.00271, 0.00268, 0.00259, 0.00319: 1.34x-2.16x), and the global
-/// shutter's 0.78-0.97x, so the ratios moved both ways. At a fast pace each
+/// shutter's 0.82-0.97x, so the ratios moved both ways. At a fast pace each
 /// frame's pose is read off one trajectory through the recent frames, and
 /// each new template is rectified with its path's level as that trajectory
 /// finds it ([`amc_core::shutter::TrajectorySmoother`]); the frames the
