@@ -181,8 +181,12 @@ fn pipelined_outputs_equal_plain_outputs() {
 #[test]
 fn shared_renders_equal_one_stabilizers() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let cam = CameraModel::pinhole_hfov(160, 96, 90.0).unwrap();
-    let (rgb, yuv) = clips(&cam);
+    // A fisheye too: through a rolling shutter its frames' nodes come from
+    // their landing maps, which must not depend on which outputs came before.
+    let cams = [
+        CameraModel::pinhole_hfov(160, 96, 90.0).unwrap(),
+        CameraModel::fisheye_hfov(160, 96, 150.0, [0.05, -0.01, 0.002, -0.0005]).unwrap(),
+    ];
     let params = |mode: Mode, lookahead: usize, readout_ms: f64| {
         let mut params = StabilizerParams::default();
         params.track_width = 160;
@@ -191,65 +195,71 @@ fn shared_renders_equal_one_stabilizers() {
         params.shutter.readout_ms = readout_ms;
         params
     };
-    for clip in [&rgb, &yuv] {
-        for (mode, lookahead, readout_ms, count) in [
-            (Mode::Stabilize, 0, 0.0, 2),
-            (Mode::Stabilize, 5, 0.0, 3),
-            (Mode::Stabilize, 0, 10.0, 2),
-            (Mode::Lock, 0, 0.0, 2),
-            (Mode::None, 0, 0.0, 2),
-        ] {
-            let run = |share: Option<u32>| {
-                let mut stab =
-                    Stabilizer::new(&cam, 160, 96, params(mode, lookahead, readout_ms)).unwrap();
-                if let Some(index) = share {
-                    stab.set_render_share(count, index).unwrap();
-                }
-                let mut outs = Vec::new();
-                for j in 0..50 {
-                    if let Some(tel) = stab.push(clip[j % 40].as_ref(), j as f64 / 60.0).unwrap() {
+    for cam in &cams {
+        let (rgb, yuv) = clips(cam);
+        for clip in [&rgb, &yuv] {
+            for (mode, lookahead, readout_ms, count) in [
+                (Mode::Stabilize, 0, 0.0, 2),
+                (Mode::Stabilize, 5, 0.0, 3),
+                (Mode::Stabilize, 0, 10.0, 2),
+                (Mode::Lock, 0, 0.0, 2),
+                (Mode::None, 0, 0.0, 2),
+            ] {
+                let run = |share: Option<u32>| {
+                    let mut stab =
+                        Stabilizer::new(cam, 160, 96, params(mode, lookahead, readout_ms)).unwrap();
+                    if let Some(index) = share {
+                        stab.set_render_share(count, index).unwrap();
+                    }
+                    let mut outs = Vec::new();
+                    for j in 0..50 {
+                        if let Some(tel) =
+                            stab.push(clip[j % 40].as_ref(), j as f64 / 60.0).unwrap()
+                        {
+                            outs.push((tel, stab.output().data.to_vec()));
+                        }
+                    }
+                    while let Some(tel) = stab.finish() {
                         outs.push((tel, stab.output().data.to_vec()));
                     }
-                }
-                while let Some(tel) = stab.finish() {
-                    outs.push((tel, stab.output().data.to_vec()));
-                }
-                outs
-            };
-            let plain = run(None);
-            assert_eq!(plain.len(), 50);
-            let shares: Vec<_> = (0..count).map(|i| run(Some(i))).collect();
-            let what = format!(
-                "{mode} lookahead {lookahead} readout {readout_ms} ms {:?}",
-                clip[0].format
-            );
-            for (j, (tel, bytes)) in plain.iter().enumerate() {
-                for (i, share) in shares.iter().enumerate() {
-                    let (shared_tel, shared_bytes) = &share[j];
-                    if j % count as usize == i {
-                        assert!(shared_bytes == bytes, "{what}: output {j} of share {i}");
-                        assert_eq!(format!("{shared_tel:?}"), format!("{tel:?}"), "{what}");
-                    } else {
-                        assert_eq!((shared_tel.valid_fraction, shared_tel.uncovered), (0.0, 0));
-                        let mut unrendered = tel.clone();
-                        (unrendered.valid_fraction, unrendered.uncovered) = (0.0, 0);
-                        assert_eq!(
-                            format!("{shared_tel:?}"),
-                            format!("{unrendered:?}"),
-                            "{what}"
-                        );
+                    outs
+                };
+                let plain = run(None);
+                assert_eq!(plain.len(), 50);
+                let shares: Vec<_> = (0..count).map(|i| run(Some(i))).collect();
+                let what = format!(
+                    "{mode} lookahead {lookahead} readout {readout_ms} ms {:?}",
+                    clip[0].format
+                );
+                for (j, (tel, bytes)) in plain.iter().enumerate() {
+                    for (i, share) in shares.iter().enumerate() {
+                        let (shared_tel, shared_bytes) = &share[j];
+                        if j % count as usize == i {
+                            assert!(shared_bytes == bytes, "{what}: output {j} of share {i}");
+                            assert_eq!(format!("{shared_tel:?}"), format!("{tel:?}"), "{what}");
+                        } else {
+                            assert_eq!((shared_tel.valid_fraction, shared_tel.uncovered), (0.0, 0));
+                            let mut unrendered = tel.clone();
+                            (unrendered.valid_fraction, unrendered.uncovered) = (0.0, 0);
+                            assert_eq!(
+                                format!("{shared_tel:?}"),
+                                format!("{unrendered:?}"),
+                                "{what}"
+                            );
+                        }
                     }
                 }
             }
         }
     }
     // The shares a stabilizer refuses, naming what it takes.
-    let mut stab = Stabilizer::new(&cam, 160, 96, params(Mode::Stabilize, 0, 0.0)).unwrap();
+    let cam = &cams[0];
+    let mut stab = Stabilizer::new(cam, 160, 96, params(Mode::Stabilize, 0, 0.0)).unwrap();
     for (count, index, allowed) in [(0, 0, "1 to 16"), (17, 0, "1 to 16"), (2, 2, "count - 1")] {
         let e = stab.set_render_share(count, index).unwrap_err().to_string();
         assert!(e.contains(allowed), "{count} {index}: {e}");
     }
-    let mut saccade = Stabilizer::new(&cam, 160, 96, params(Mode::Saccade, 0, 0.0)).unwrap();
+    let mut saccade = Stabilizer::new(cam, 160, 96, params(Mode::Saccade, 0, 0.0)).unwrap();
     let e = saccade.set_render_share(2, 1).unwrap_err().to_string();
     assert!(e.contains("saccade"), "{e}");
     saccade.set_render_share(1, 0).unwrap();

@@ -30,7 +30,7 @@ use super::params::MAX_SUPERSAMPLE;
 use super::robust::{weighted_average, Deghost};
 use crate::camera::CameraModel;
 use crate::image::FrameRef;
-use crate::shutter::RollingProjector;
+use crate::shutter::{LandingGrid, RollingProjector};
 use nalgebra::{Matrix3, Vector2, Vector3};
 
 /// Grid spacing (output pixels) of the exact lens map for distorted sources.
@@ -155,6 +155,13 @@ pub struct Warper {
     /// Readout rotations of the frames of the next render, in the order of
     /// its rotations ([`Warper::set_readout_rows`]); empty for a global shutter.
     rows: Vec<RollingProjector>,
+    /// Each of those frames' tabulated landing map, for distorted sources
+    /// (see [`Warper::set_readout_rows`]; empty until its first map).
+    landing: Vec<LandingGrid>,
+    /// Frames of earlier calls and their landing maps, kept for their
+    /// memory (and in case they come back).
+    spare_rows: Vec<RollingProjector>,
+    spare_landing: Vec<LandingGrid>,
     /// The rotations `maps` were last prepared for, and whether the readout
     /// rows changed since: the U and V planes of a frame share one geometry,
     /// so the second plane reuses the first one's maps.
@@ -243,6 +250,9 @@ impl Warper {
             maps: Vec::new(),
             kernel: Kernel::detect(),
             rows: Vec::new(),
+            landing: Vec::new(),
+            spare_rows: Vec::new(),
+            spare_landing: Vec::new(),
             maps_for: Vec::new(),
             rows_changed: false,
             deghost: None,
@@ -304,16 +314,36 @@ impl Warper {
     /// [`crate::shutter::project_rolling`]; exact at the grid nodes, bilinear
     /// between them). Empty (the default) for a global shutter. Frames beyond
     /// the list, or with empty tables, are sampled as with a global shutter.
+    ///
+    /// A distorted source's frames each get a [`LandingGrid`] when they are
+    /// rendered averaged with others: their nodes then take one projection
+    /// through the lens and a lookup instead of two to three projections,
+    /// within 0.005 px of the fixed point. A frame passed again in a later call (the averaging window
+    /// moving on) keeps its grid; the frames not passed again are forgotten.
     pub fn set_readout_rows<'r>(&mut self, rows: impl IntoIterator<Item = &'r RollingProjector>) {
-        let mut n = 0;
+        // The frames of the last call are set aside: one passed again (the
+        // averaging window moving on) is found there with its landing map,
+        // and a new one takes the memory of one that left (a frame passed
+        // again after that is then mapped afresh).
+        self.spare_rows.append(&mut self.rows);
+        self.spare_landing.append(&mut self.landing);
         for src in rows {
-            if n == self.rows.len() {
-                self.rows.push(RollingProjector::default());
-            }
-            self.rows[n].clone_from(src);
-            n += 1;
+            let (rows, landing) = match self.spare_rows.iter().position(|r| r == src) {
+                Some(k) => (
+                    self.spare_rows.swap_remove(k),
+                    self.spare_landing.swap_remove(k),
+                ),
+                None => {
+                    let mut rows = self.spare_rows.pop().unwrap_or_default();
+                    let mut landing = self.spare_landing.pop().unwrap_or_default();
+                    rows.clone_from(src);
+                    landing.clear();
+                    (rows, landing)
+                }
+            };
+            self.rows.push(rows);
+            self.landing.push(landing);
         }
-        self.rows.truncate(n);
         self.rows_changed = true;
     }
 
@@ -323,8 +353,16 @@ impl Warper {
     }
 
     /// Prepares `map` for rotation `m` (output ray -> source ray) and the
-    /// frame's readout rotations `rows`.
-    fn prepare_map(&self, map: &mut RowMap, m: &Matrix3<f64>, rows: &RollingProjector) {
+    /// frame's readout rotations `rows`. A distorted source's rolling-shutter
+    /// nodes are looked up in the frame's `landing` map when it has one (one
+    /// plain projection a node instead of two to three).
+    fn prepare_map(
+        &self,
+        map: &mut RowMap,
+        m: &Matrix3<f64>,
+        rows: &RollingProjector,
+        landing: Option<&LandingGrid>,
+    ) {
         map.gridded = !self.src.is_pinhole() || !rows.is_global();
         if map.gridded {
             map.grid.clear();
@@ -342,7 +380,11 @@ impl Warper {
                     (Some(a), Some(b)) => Some(2.0 * b - a),
                     (_, b) => b,
                 };
-                let p = rows.project_within(&self.src, &(m * ray), guess, NODE_TOLERANCE_PX);
+                let z = m * ray;
+                let looked_up =
+                    landing.and_then(|grid| self.src.project(&z).and_then(|p0| grid.land(&p0)));
+                let p = looked_up
+                    .or_else(|| rows.project_within(&self.src, &z, guess, NODE_TOLERANCE_PX));
                 (prev, last) = (last, p.map(|p| p.y).filter(|y| y.is_finite()));
                 if last.is_none() {
                     prev = None;
@@ -370,10 +412,32 @@ impl Warper {
         self.maps_for.clear();
         self.maps_for.extend_from_slice(rotations);
         maps.resize_with(rotations.len(), RowMap::default);
+        // A distorted source's frames get their landing maps when they are
+        // averaged (a node of the table costs two to three projections, as
+        // one of a map, and the table has about as many nodes as a map of
+        // the frame at its own size; each of the frame's next maps, one per
+        // output it is averaged into, then takes one projection a node).
+        // Not for one frame alone, as in saccade mode's slots, where a frame
+        // is mapped once per held view and the table would double the work.
+        // Whether a map uses the table depends on its render alone, so the
+        // bytes of an output never depend on which outputs came before it
+        // (the shares of `Stabilizer::set_render_share`). A pinhole's
+        // projection is a division: nothing to save.
+        let mut landing = std::mem::take(&mut self.landing);
+        let tabulate = !self.src.is_pinhole() && rotations.len() > 1;
+        if tabulate {
+            for (grid, rows) in landing.iter_mut().zip(&self.rows) {
+                if grid.is_empty() && !rows.is_global() {
+                    grid.set(rows, &self.src);
+                }
+            }
+        }
         let global = RollingProjector::default();
         for (i, (map, m)) in maps.iter_mut().zip(rotations).enumerate() {
-            self.prepare_map(map, m, self.rows.get(i).unwrap_or(&global));
+            let grid = landing.get(i).filter(|g| tabulate && !g.is_empty());
+            self.prepare_map(map, m, self.rows.get(i).unwrap_or(&global), grid);
         }
+        self.landing = landing;
         maps
     }
 
@@ -995,7 +1059,7 @@ impl Warper {
         let (ow, oh) = (self.out.width, self.out.height);
         let mut map = RowMap::default();
         let global = RollingProjector::default();
-        self.prepare_map(&mut map, m, self.rows.first().unwrap_or(&global));
+        self.prepare_map(&mut map, m, self.rows.first().unwrap_or(&global), None);
         let (mut xs, mut ys) = (vec![0f32; ow], vec![0f32; ow]);
         for v in 0..oh {
             self.fill_row(&map, v, &mut xs, &mut ys);
@@ -1565,7 +1629,7 @@ mod tests {
             // A turn that takes part of the view out of the frame.
             let m: Matrix3<f64> = *so3::exp(&Tangent::new(0.1, 0.5, 0.2)).matrix();
             let mut map = RowMap::default();
-            warper.prepare_map(&mut map, &m, &rows);
+            warper.prepare_map(&mut map, &m, &rows, None);
             assert!(map.gridded);
             let (mut inside, mut outside) = (0, 0);
             for (ray, node) in warper.grid_rays.iter().zip(&map.grid) {
@@ -1596,6 +1660,75 @@ mod tests {
                 inside > 100 && outside >= lost,
                 "{inside} nodes on the sensor, {outside} not"
             );
+            // Looked up in the frame's landing map instead: the same nodes
+            // within the map's interpolation error wherever they land on
+            // the sensor (0.01 px for this 8.7 deg turn across the readout,
+            // more than 300 deg/s turns through 20 ms), and none made up
+            // where the lens sees nothing.
+            let mut landing = LandingGrid::default();
+            landing.set(&rows, src);
+            let mut looked_up = RowMap::default();
+            warper.prepare_map(&mut looked_up, &m, &rows, Some(&landing));
+            let on_sensor = |p: &[f32; 2]| {
+                (0.0..=(src.width - 1) as f32).contains(&p[0])
+                    && (0.0..=(src.height - 1) as f32).contains(&p[1])
+            };
+            let mut compared = 0;
+            for (exact, node) in map.grid.iter().zip(&looked_up.grid) {
+                assert_eq!(exact[0].is_nan(), node[0].is_nan());
+                if on_sensor(exact) {
+                    let d = (exact[0] - node[0]).hypot(exact[1] - node[1]);
+                    assert!(d < 1e-2, "looked up {node:?} vs {exact:?}");
+                    compared += 1;
+                }
+            }
+            assert_eq!(compared, inside);
         }
+    }
+
+    /// A frame keeps its landing map while it stays in the averaging window
+    /// (found again one place further on), gets one at its first averaged
+    /// map, and a frame that arrives starts without one.
+    #[test]
+    fn landing_maps_follow_their_frames() {
+        let src =
+            CameraModel::fisheye_hfov(320, 180, 150.0, [0.05, -0.01, 0.002, -0.0005]).unwrap();
+        let frames: Vec<RollingProjector> = (0..4)
+            .map(|k| {
+                let intra = IntraFrame {
+                    phi: Tangent::new(0.02 * (k + 1) as f64, -0.01, 0.005),
+                    ..IntraFrame::default()
+                };
+                let mut rows = RollingProjector::default();
+                rows.set(&intra, src.height);
+                rows
+            })
+            .collect();
+        let identity = [Matrix3::identity(); 3];
+        let out = CameraModel::pinhole_hfov(160, 90, 70.0).unwrap();
+        let mut warper = Warper::new(&src, &out);
+        let built = |w: &Warper| w.landing.iter().map(|g| !g.is_empty()).collect::<Vec<_>>();
+        warper.set_readout_rows(&frames[..3]);
+        assert_eq!(built(&warper), [false; 3]);
+        warper.prepare_maps(&identity);
+        assert_eq!(built(&warper), [true; 3]);
+        let first = warper.landing[1].clone();
+        // The window moves on by one frame: the two that stay keep theirs,
+        // the new one has none until it is mapped.
+        warper.set_readout_rows(&frames[1..4]);
+        assert_eq!(warper.readout_rows(), &frames[1..4]);
+        assert_eq!(built(&warper), [true, true, false]);
+        let p = Vector2::new(150.0, 80.0);
+        assert_eq!(warper.landing[0].land(&p), first.land(&p));
+        warper.prepare_maps(&identity);
+        assert_eq!(built(&warper), [true; 3]);
+        // One frame alone (a saccade slot) gets none.
+        warper.set_readout_rows(&frames[..1]);
+        warper.prepare_maps(&identity[..1]);
+        assert_eq!(built(&warper), [false]);
+        // Nor do a global shutter's frames.
+        warper.set_readout_rows(&[RollingProjector::default(), RollingProjector::default()]);
+        warper.prepare_maps(&identity[..2]);
+        assert_eq!(built(&warper), [false, false]);
     }
 }

@@ -26,12 +26,14 @@
 //! s^2 psi + s^3 chi + s^4 xi`, from
 //! the mid-readout camera; which row it lands on depends on that rotation, so
 //! projection is a fixed point, solved from the mid-readout guess
-//! ([`project_rolling`]).
+//! ([`project_rolling`]). A frame rendered into several outputs has that
+//! landing tabulated once, over its mid-readout pixels ([`LandingGrid`]).
 //!
 //! The readout time itself is given (`readout_ms`, [`ShutterParams`]) or
 //! estimated from the footage (`crate::readout`, above the stabilizer).
 
 mod ease;
+mod landing;
 mod motion;
 mod params;
 mod project;
@@ -41,6 +43,7 @@ mod tests;
 mod trajectory;
 
 pub use ease::{GaugeEase, EASE_FRAMES};
+pub use landing::{LandingGrid, LANDING_GRID_STEP};
 pub use motion::{row_fraction, IntraFrame, INTRA_TERMS};
 pub use params::{ShutterParams, MAX_READOUT_MS};
 pub use project::{project_rolling, RollingProjector, FIXED_POINT_STEPS, FIXED_POINT_TOLERANCE_PX};

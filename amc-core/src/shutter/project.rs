@@ -51,7 +51,7 @@ pub fn project_rolling(
 /// linearly between rows: the rotation changes by `|phi| / H` per row, so
 /// the interpolation's error is that squared over eight, about 1e-9 rad for
 /// a 10 deg turn over 180 rows), instead of three exponentials per ray.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct RollingProjector {
     /// `exp(-a(s(y)))` for sensor rows `y = 0..=H` (empty: global shutter).
     rows: Vec<Matrix3<f64>>,
@@ -61,6 +61,15 @@ impl RollingProjector {
     /// True when the table is empty (a global shutter).
     pub fn is_global(&self) -> bool {
         self.rows.is_empty()
+    }
+
+    /// The largest readout rotation of any row, radians (0 for a global
+    /// shutter): how far a ray can turn from its mid-readout direction.
+    pub fn max_angle(&self) -> f64 {
+        self.rows
+            .iter()
+            .map(|r| ((r.trace() - 1.0) * 0.5).clamp(-1.0, 1.0).acos())
+            .fold(0.0, f64::max)
     }
 
     /// Tabulates `intra` for a sensor `height` rows high (nothing when it is
@@ -108,9 +117,15 @@ impl RollingProjector {
         let offset = 0.5 * (scale - 1.0);
         // `exp(-a(s(y))) z`: the two nearest rows' rotations applied to `z`
         // and blended (a third of the work of blending the matrices first).
+        // Past the first and last rows the blend goes on linearly, at the
+        // path's slope there (up to a frame's height out), so that where a
+        // ray lands is smooth across the frame's edges: a ray that lands out
+        // there is not sampled either way, but a tabulated landing map
+        // ([`super::LandingGrid`]) interpolates across the edges, and a path
+        // held at its end rows would put a kink in it there.
         let turned = |y: f64| {
-            let y = (y * scale + offset).clamp(0.0, last);
-            let i = (y as usize).min(self.rows.len().saturating_sub(2));
+            let y = (y * scale + offset).clamp(-last, 2.0 * last);
+            let i = (y.max(0.0) as usize).min(self.rows.len().saturating_sub(2));
             let a = y - i as f64;
             (self.rows[i] * z) * (1.0 - a) + (self.rows[i + 1] * z) * a
         };
