@@ -318,8 +318,9 @@ impl Warper {
     /// A distorted source's frames each get a [`LandingGrid`] when they are
     /// rendered averaged with others: their nodes then take one projection
     /// through the lens and a lookup instead of two to three projections,
-    /// within 0.005 px of the fixed point. A frame passed again in a later call (the averaging window
-    /// moving on) keeps its grid; the frames not passed again are forgotten.
+    /// within 0.005 px of the fixed point. A frame passed again in a later
+    /// call (the averaging window moving on) keeps its grid; the frames not
+    /// passed again are forgotten.
     pub fn set_readout_rows<'r>(&mut self, rows: impl IntoIterator<Item = &'r RollingProjector>) {
         // The frames of the last call are set aside: one passed again (the
         // averaging window moving on) is found there with its landing map,
