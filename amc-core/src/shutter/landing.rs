@@ -20,7 +20,7 @@
 
 use super::project::RollingProjector;
 use crate::camera::CameraModel;
-use nalgebra::{Vector2, Vector3};
+use nalgebra::Vector2;
 
 /// Grid spacing of a [`LandingGrid`], source pixels. Between the nodes the
 /// displacement is interpolated with a Catmull-Rom cubic, whose error falls
@@ -91,11 +91,10 @@ impl LandingGrid {
             let mut guess = None;
             for gx in 0..self.width {
                 let p0 = self.origin + Vector2::new(gx as f64, gy as f64) * step;
+                // (Both return finite values or `None`.)
                 let landed = cam
                     .unproject(&p0)
-                    .filter(|z: &Vector3<f64>| z.iter().all(|v| v.is_finite()))
-                    .and_then(|z| rows.project_within(cam, &z, guess, NODE_TOLERANCE_PX))
-                    .filter(|p| p.x.is_finite() && p.y.is_finite());
+                    .and_then(|z| rows.project_within(cam, &z, guess, NODE_TOLERANCE_PX));
                 guess = landed.map(|p| p.y);
                 self.nodes
                     .push(landed.map_or([f64::NAN; 2], |p| [p.x - p0.x, p.y - p0.y]));
@@ -187,8 +186,7 @@ mod tests {
                     (Some(p), Some(q)) => {
                         // Only landings in the frame are ever sampled.
                         if (0.0..=w - 1.0).contains(&q.x) && (0.0..=h - 1.0).contains(&q.y) {
-                            let e = (p - q).norm();
-                            worst = worst.max(e);
+                            worst = worst.max((p - q).norm());
                         }
                         answered += 1;
                     }
