@@ -17,6 +17,7 @@
 use amc_core::camera::CameraModel;
 use amc_core::frontend::TrackingFrontend;
 use amc_core::pyramid::Pyramid;
+use amc_core::render::Interpolation;
 use amc_core::shutter::{IntraFrame, RowTime, TrajectorySmoother, TRAJECTORY_FRAMES};
 use amc_core::so3::Rot;
 use amc_core::synth::{EquirectRenderer, Shake, ShakeParams};
@@ -232,6 +233,7 @@ fn bench_stabilize(c: &mut Criterion) {
         // in the README; `-zoom-auto` is the default framing (the input's
         // size, a zoom and its coverage test per frame).
         // `-deghost`: the ghost-free average (`deghost` 6) instead of the plain one.
+        // `-bicubic`: frames sampled bicubically (`interpolation` bicubic).
         // `-rolling`: the same motion through a rolling shutter, its readout
         // given (`readout_ms` 15): tracking with the readout motion, every
         // source row rendered at its own orientation.
@@ -245,6 +247,12 @@ fn bench_stabilize(c: &mut Criterion) {
             ),
             (
                 format!("{w}x{h}-yuv420p-deghost"),
+                Mode::Stabilize,
+                Zoom::None,
+                &yuv,
+            ),
+            (
+                format!("{w}x{h}-yuv420p-bicubic"),
                 Mode::Stabilize,
                 Zoom::None,
                 &yuv,
@@ -285,6 +293,9 @@ fn bench_stabilize(c: &mut Criterion) {
                 }
                 if name.ends_with("-rolling") {
                     params.shutter.readout_ms = READOUT_S * 1000.0;
+                }
+                if name.ends_with("-bicubic") {
+                    params.render.interpolation = Interpolation::Bicubic;
                 }
                 let mut stab = Stabilizer::new(&cam, w, h, params).expect("stabilizer");
                 let mut j = 0usize;
@@ -331,10 +342,19 @@ fn bench_render(c: &mut Criterion) {
         // Every kernel at the default output size (one sample per pixel), and
         // with the detected kernel an output half as wide (`-half`: 2 source
         // pixels per output pixel) plainly and with `antialias` (2x2 samples).
-        let mut cases: Vec<(String, CameraModel, usize, Kernel)> = Kernel::available()
-            .into_iter()
-            .map(|k| (format!("{w}x{h}-yuv420p-{k:?}"), out.clone(), 1, k))
-            .collect();
+        // `-bicubic-*`: every kernel sampling bicubically.
+        let mut cases: Vec<(String, CameraModel, usize, Kernel, Interpolation)> = [
+            ("", Interpolation::Bilinear),
+            ("bicubic-", Interpolation::Bicubic),
+        ]
+        .into_iter()
+        .flat_map(|(tag, interp)| {
+            Kernel::available()
+                .into_iter()
+                .map(move |k| (format!("{w}x{h}-yuv420p-{tag}{k:?}"), k, interp))
+        })
+        .map(|(name, k, interp)| (name, out.clone(), 1, k, interp))
+        .collect();
         if w == 1280 {
             let params = RenderParams {
                 output_width: Some(out.width / 2),
@@ -346,13 +366,21 @@ fn bench_render(c: &mut Criterion) {
             let s = params.supersample(&cam, &half);
             for (name, s) in [("off", 1), ("antialias", s)] {
                 let name = format!("{w}x{h}-yuv420p-half-{name}");
-                cases.push((name, half.clone(), s, Kernel::detect()));
+                cases.push((
+                    name,
+                    half.clone(),
+                    s,
+                    Kernel::detect(),
+                    Interpolation::Bilinear,
+                ));
             }
         }
-        for (name, out, s, kernel) in cases {
+        for (name, out, s, kernel, interpolation) in cases {
             let (ow, oh) = (out.width, out.height);
             let mut luma = Warper::supersampled(&cam, &out, s);
             let mut chroma = Warper::supersampled(&chroma_camera(&cam), &chroma_camera(&out), s);
+            luma.set_interpolation(interpolation);
+            chroma.set_interpolation(interpolation);
             if !(luma.set_kernel(kernel) && chroma.set_kernel(kernel)) {
                 continue;
             }

@@ -363,6 +363,8 @@ impl Stabilizer {
             Warper::supersampled(&chroma_camera(&cam), &chroma_camera(&out_cam), supersample);
         warper.set_deghost(params.render.deghost());
         chroma.set_deghost(params.render.deghost());
+        warper.set_interpolation(params.render.interpolation);
+        chroma.set_interpolation(params.render.interpolation);
         Ok(Self {
             width,
             height,

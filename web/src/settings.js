@@ -66,7 +66,10 @@ export function settings() {
         mode: $('mode').value, roll: $('roll').value,
         rate_a: values.rate_a, rate_b: values.rate_b, lookahead: values.lookahead,
       },
-      render: { n_avg: values.n_avg, margin: values.margin, deghost: values.deghost },
+      render: {
+        n_avg: values.n_avg, margin: values.margin, deghost: values.deghost,
+        interpolation: $('interpolation').value,
+      },
       framing: { zoom: $('zoom').value, max_crop: values.max_crop },
       ...(typeof values.readout_ms === 'number' ? { shutter: { readout_ms: values.readout_ms } } : {}),
     },
@@ -143,6 +146,9 @@ export function serverQuery(s) {
   // Sent only when not the default (older servers do not know it).
   const deghost = s.params.render.deghost;
   if (deghost != null && deghost !== def.deghost) q.set('deghost', deghost);
+  // Sent only when not the default (older servers do not know it).
+  const interpolation = s.params.render.interpolation;
+  if (interpolation && interpolation !== 'bilinear') q.set('interpolation', interpolation);
   // Sent only when set (empty: the lens file's readout, else 0; older servers do not know it).
   if (s.readout != null) q.set('readout_ms', s.readout);
   return q;

@@ -423,6 +423,17 @@ test("the page's form ranges are the core's, and the server query sends smoothin
   const ghostFree = s(2, 20);
   ghostFree.params.render.deghost = 6;
   assert.equal(serverQuery(ghostFree).get('deghost'), '6');
+  // interpolation: sent only when not the default (bilinear); the core takes both words.
+  assert.equal(serverQuery(s(2, 20)).has('interpolation'), false);
+  const sharp = s(2, 20);
+  sharp.params.render.interpolation = 'bicubic';
+  assert.equal(serverQuery(sharp).get('interpolation'), 'bicubic');
+  for (const word of ['bilinear', 'bicubic']) {
+    const st = new Stabilizer(64, 48, JSON.stringify({ render: { interpolation: word } }), 70);
+    assert.equal(JSON.parse(st.paramsJson()).render.interpolation, word);
+    st.free();
+  }
+  throwsMsg(() => new Stabilizer(64, 48, JSON.stringify({ render: { interpolation: 'lanczos' } }), 70), /interpolation|unknown variant/);
   assert.equal(serverQuery(s(2, 80)).get('rate_b'), '80');
   assert.equal(serverQuery({ ...s(2, 20), lensFile: {} }).has('fov'), false);
   const locked = s(2, 20);

@@ -7,7 +7,8 @@
 //! x_i = R_hat_{0,i}^T R^view_{0,j} x_out = M x_out
 //! ```
 //! and is sampled at `project_i(x_i)` through the source lens, straight from the
-//! original full-resolution frame (one bilinear sample: no intermediate images).
+//! original full-resolution frame (one bilinear or bicubic sample, [`Interpolation`]:
+//! no intermediate images).
 //! For a pinhole source the map is the homography `K_i M K_out^-1`, evaluated
 //! exactly and incrementally along each row. For distorted lenses the exact map
 //! is evaluated on a grid every [`GRID_STEP`] pixels and interpolated bilinearly
@@ -37,8 +38,8 @@ mod warper;
 
 pub use accumulator::{Accumulator, WarpedFrame};
 pub use params::{
-    footprint, Antialias, RenderParams, DEFAULT_DEGHOST, MAX_SUPERSAMPLE, SUGGESTED_DEGHOST,
-    SUPERSAMPLE_ABOVE,
+    footprint, Antialias, Interpolation, RenderParams, DEFAULT_DEGHOST, MAX_SUPERSAMPLE,
+    SUGGESTED_DEGHOST, SUPERSAMPLE_ABOVE,
 };
 pub use robust::{Deghost, MAX_DEGHOST};
 pub use warper::{chroma_camera, Warper, GRID_STEP};

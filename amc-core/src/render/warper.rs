@@ -26,7 +26,7 @@ use super::grid;
 use super::kernels::{
     average, merge_row_gray_scalar, merge_row_scalar, Geometry, Kernel, RowCoords, FRAME_PADDING,
 };
-use super::params::MAX_SUPERSAMPLE;
+use super::params::{Interpolation, MAX_SUPERSAMPLE};
 use super::robust::{weighted_average, Deghost};
 use crate::camera::CameraModel;
 use crate::image::FrameRef;
@@ -169,6 +169,8 @@ pub struct Warper {
     rows_changed: bool,
     /// Ghost-free averaging ([`Warper::set_deghost`]); `None`: the plain average.
     deghost: Option<Deghost>,
+    /// How frames are sampled between pixels ([`Warper::set_interpolation`]).
+    interpolation: Interpolation,
     /// Row buffers of the sequential path.
     scratch: RowScratch,
     /// Row buffers of the bands of the parallel path (one per band, kept so
@@ -256,6 +258,7 @@ impl Warper {
             maps_for: Vec::new(),
             rows_changed: false,
             deghost: None,
+            interpolation: Interpolation::Bilinear,
             scratch: RowScratch::default(),
             band_scratch: Vec::new(),
             pair_rows: Vec::new(),
@@ -289,6 +292,22 @@ impl Warper {
     /// The ghost-free averaging set by [`Warper::set_deghost`]; `None`: the plain average.
     pub fn deghost(&self) -> Option<Deghost> {
         self.deghost
+    }
+
+    /// Samples frames between their pixels bilinearly (the default) or
+    /// bicubically (see [`Interpolation`]); every render and warp after it.
+    pub fn set_interpolation(&mut self, interpolation: Interpolation) {
+        self.interpolation = interpolation;
+    }
+
+    /// The interpolation set by [`Warper::set_interpolation`].
+    pub fn interpolation(&self) -> Interpolation {
+        self.interpolation
+    }
+
+    /// Whether frames are sampled bicubically.
+    fn cubic(&self) -> bool {
+        self.interpolation == Interpolation::Bicubic
     }
 
     /// Output size.
@@ -786,7 +805,7 @@ impl Warper {
         let pass = self.pass(
             &maps[..n_frames],
             &datas[..n_frames],
-            Geometry::of(&first),
+            Geometry::of(&first).with_cubic(self.cubic()),
             first.height,
         );
         let merged = self.deghost.filter(|_| n_frames > 1);
@@ -876,7 +895,7 @@ impl Warper {
         let pass = self.pass(
             &maps[..n_frames],
             &datas[..n_frames],
-            Geometry::plane(width, height, 1),
+            Geometry::plane(width, height, 1).with_cubic(self.cubic()),
             height,
         );
         let merged = self.deghost.filter(|_| n_frames > 1);
@@ -1008,7 +1027,7 @@ impl Warper {
         coverage.resize(ow * oh, 0);
         let maps = self.prepare_maps(rotations);
         let full = rotations.len() as u8;
-        let geom = Geometry::plane(width, height, 1);
+        let geom = Geometry::plane(width, height, 1).with_cubic(self.cubic());
         let pass_a = self.pass(&maps[..n_frames], &datas[0][..n_frames], geom, height);
         let pass_b = self.pass(&maps[..n_frames], &datas[1][..n_frames], geom, height);
         // The pair's rows side by side in one buffer, so that the rows can be
@@ -1056,7 +1075,7 @@ impl Warper {
         if frame.width < 2 || frame.height < 2 {
             return;
         }
-        let geom = Geometry::of(frame);
+        let geom = Geometry::of(frame).with_cubic(self.cubic());
         let (ow, oh) = (self.out.width, self.out.height);
         let mut map = RowMap::default();
         let global = RollingProjector::default();
@@ -1122,7 +1141,12 @@ impl Warper {
         slot.covered.resize(ow * oh, 0);
         let maps = self.prepare_maps(std::slice::from_ref(m));
         let datas = [frame.data];
-        let pass = self.pass(&maps, &datas, Geometry::of(frame), frame.height);
+        let pass = self.pass(
+            &maps,
+            &datas,
+            Geometry::of(frame).with_cubic(self.cubic()),
+            frame.height,
+        );
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.fit(1, ow, pass.tables, false);
         for v in 0..oh {
@@ -1208,7 +1232,12 @@ impl Warper {
         let ow = self.out.width;
         let maps = self.prepare_maps(std::slice::from_ref(m));
         let datas = [plane];
-        let pass = self.pass(&maps, &datas, Geometry::plane(width, height, 1), height);
+        let pass = self.pass(
+            &maps,
+            &datas,
+            Geometry::plane(width, height, 1).with_cubic(self.cubic()),
+            height,
+        );
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.fit(1, ow, pass.tables, false);
         for (v, (vals, cov)) in values

@@ -5,7 +5,10 @@
 //! 32-bit gathers (one dword holds a pixel's R, G, B), and the 8.8 fixed-point
 //! interpolation is done per channel in integer lanes, bit-exact with the
 //! scalar reference in `scalar.rs`. Lanes whose coordinate falls outside the
-//! frame are masked off and contribute nothing.
+//! frame are masked off and contribute nothing. Planes sampled bicubically
+//! take four gathers a pixel, one per tap row (`sample_cubic_gray8`);
+//! interleaved frames sampled bicubically run the scalar reference (the
+//! dispatcher's choice).
 
 use super::common::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
 use crate::render::robust::{Deghost, FULL_WEIGHT};
@@ -134,8 +137,114 @@ unsafe fn sample_gray8(
     coord: &RowCoords<'_>,
     u: usize,
 ) -> Option<(__m256i, __m256i)> {
-    let t = PlaneTaps8::of(g, taps8(g, row_coords8(coord, u))?);
+    let t = taps8(g, row_coords8(coord, u))?;
+    if g.cubic {
+        return Some(sample_cubic_gray8(data, g, coord, u, &t));
+    }
+    let t = PlaneTaps8::of(g, t);
     Some((t.sample(data), t.mask))
+}
+
+/// The bicubic samples of eight output pixels `u..u + 8` of one plane, whose
+/// bilinear footprints are `t` (see `common::cubic_weights`): each lane's four
+/// rows of four taps are four dword gathers, their bytes spread to 16-bit
+/// pairs and weighted with `madd`, the rows then weighted in 32-bit lanes;
+/// exact integers throughout, rounded and clamped as the reference does. A
+/// chunk with a lane whose taps would cross the plane's edge (`x0` or `y0` on
+/// the first or last tap) is left to the scalar reference, which repeats the
+/// edge pixel: those lie in a band one pixel wide around the plane.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn sample_cubic_gray8(
+    data: &[u8],
+    g: &KernelGeometry,
+    coord: &RowCoords<'_>,
+    u: usize,
+    t: &Taps8,
+) -> (__m256i, __m256i) {
+    let (zero, one) = (_mm256_setzero_si256(), _mm256_set1_epi32(1));
+    let inside = |p0: __m256i, max0: i32| {
+        _mm256_and_si256(
+            _mm256_cmpgt_epi32(p0, zero),
+            _mm256_cmpgt_epi32(_mm256_set1_epi32(max0), p0),
+        )
+    };
+    let interior = _mm256_and_si256(inside(t.x0, g.max_x0), inside(t.y0, g.max_y0));
+    if _mm256_testc_si256(interior, t.mask) == 0 {
+        // Some lane inside the plane is at its edge: the reference, lane by lane.
+        let geom = g.scalar();
+        let (mut v, mut m) = ([0u32; 8], [0i32; 8]);
+        for l in 0..8 {
+            let (sx, sy) = coord.at(u + l);
+            if let Some(s) = geom.sample_gray(data, sx, sy) {
+                (v[l], m[l]) = (s, -1);
+            }
+        }
+        return (
+            _mm256_loadu_si256(v.as_ptr() as *const __m256i),
+            _mm256_loadu_si256(m.as_ptr() as *const __m256i),
+        );
+    }
+    let (wx, wy) = (cubic_weights8(t.ax), cubic_weights8(t.ay));
+    let low16 = _mm256_set1_epi32(0xFFFF);
+    let pair = |lo: __m256i, hi: __m256i| {
+        _mm256_or_si256(_mm256_and_si256(lo, low16), _mm256_slli_epi32::<16>(hi))
+    };
+    let (wx01, wx23) = (pair(wx[0], wx[1]), pair(wx[2], wx[3]));
+    let stride = _mm256_set1_epi32(g.stride);
+    // Tap (x0 - 1, y0 - 1) of every lane.
+    let mut at = _mm256_add_epi32(
+        _mm256_mullo_epi32(_mm256_sub_epi32(t.y0, one), stride),
+        _mm256_sub_epi32(t.x0, one),
+    );
+    let base = data.as_ptr() as *const i32;
+    let (byte, hi_byte) = (_mm256_set1_epi32(0xFF), _mm256_set1_epi32(0xFF_0000));
+    let mut acc = _mm256_set1_epi32(128);
+    for w_row in wy {
+        let p = _mm256_mask_i32gather_epi32::<1>(zero, base, at, t.mask);
+        // Bytes 0, 1 and 2, 3 of each dword as 16-bit pairs.
+        let p01 = _mm256_or_si256(
+            _mm256_and_si256(p, byte),
+            _mm256_and_si256(_mm256_slli_epi32::<8>(p), hi_byte),
+        );
+        let p23 = _mm256_or_si256(
+            _mm256_and_si256(_mm256_srli_epi32::<16>(p), byte),
+            _mm256_and_si256(_mm256_srli_epi32::<8>(p), hi_byte),
+        );
+        let along = _mm256_add_epi32(_mm256_madd_epi16(p01, wx01), _mm256_madd_epi16(p23, wx23));
+        acc = _mm256_add_epi32(acc, _mm256_mullo_epi32(along, w_row));
+        at = _mm256_add_epi32(at, stride);
+    }
+    let v = _mm256_min_epi32(
+        _mm256_max_epi32(_mm256_srai_epi32::<8>(acc), zero),
+        _mm256_set1_epi32(255 * 256),
+    );
+    (_mm256_and_si256(v, t.mask), t.mask)
+}
+
+/// `common::cubic_weights` of eight 8-bit fractions, lane by lane.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn cubic_weights8(a: __m256i) -> [__m256i; 4] {
+    let mul = |x: __m256i, k: i32| _mm256_mullo_epi32(x, _mm256_set1_epi32(k));
+    let (a2, half) = (_mm256_mullo_epi32(a, a), _mm256_set1_epi32(1 << 16));
+    let a3 = _mm256_mullo_epi32(a2, a);
+    let sum = |terms: [__m256i; 3]| {
+        let s = _mm256_add_epi32(_mm256_add_epi32(terms[0], terms[1]), terms[2]);
+        _mm256_srai_epi32::<17>(_mm256_add_epi32(s, half))
+    };
+    let w0 = sum([
+        _mm256_sub_epi32(_mm256_setzero_si256(), a3),
+        mul(a2, 512),
+        mul(a, -65536),
+    ]);
+    let w2 = sum([mul(a3, -3), mul(a2, 1024), mul(a, 65536)]);
+    let w3 = sum([a3, mul(a2, -256), _mm256_setzero_si256()]);
+    let w1 = _mm256_sub_epi32(
+        _mm256_set1_epi32(256),
+        _mm256_add_epi32(_mm256_add_epi32(w0, w2), w3),
+    );
+    [w0, w1, w2, w3]
 }
 
 /// [`Taps8`] as a plane's kernel uses them: where each lane's taps start in

@@ -1,5 +1,5 @@
-//! Row kernels: bilinear sampling of several frames along one output row, summed
-//! in 8.8 fixed point.
+//! Row kernels: bilinear or bicubic sampling of several frames along one output
+//! row, summed in 8.8 fixed point.
 //!
 //! Two operations, each in a plain and a ghost-free form: the sum of the
 //! frames' samples (`accumulate_row`), and their sum weighted by agreement with
@@ -10,7 +10,9 @@
 //! byte permutes instead of gathers) and `simd128.rs` (wasm32, chosen at
 //! compile time with the `simd128` target feature) are bit-exact with it.
 //! [`Kernel`] is the one dispatcher: [`Kernel::detect`] picks the kernel, its
-//! methods run it.
+//! methods run it. Bicubic sampling (a geometry's `cubic`) has a vector form for
+//! planes in AVX2 only: AVX-512 CPUs run that one, wasm32 builds and
+//! interleaved frames the scalar reference.
 //!
 //! Layers: this dispatcher uses the kernels, and they all use `common.rs` (the
 //! constants, row coordinates, frame geometry and reference sampler they share);
@@ -26,6 +28,8 @@ mod scalar;
 mod simd128;
 
 use crate::render::robust::Deghost;
+#[cfg(test)]
+pub(crate) use common::cubic_weights;
 pub(crate) use common::{average, Geometry, RowCoords};
 pub use common::{EDGE_TOLERANCE, FRAME_PADDING};
 pub(crate) use scalar::{merge_row as merge_row_scalar, merge_row_gray as merge_row_gray_scalar};
@@ -130,6 +134,36 @@ impl Kernel {
         !matches!(self, Kernel::Scalar)
     }
 
+    /// The kernel that samples the rows of planes of `geom`: this one, but
+    /// for bicubic planes, which AVX-512 CPUs sample with the AVX2 kernel and
+    /// wasm32 builds with the scalar reference (neither has a bicubic form).
+    #[inline]
+    fn for_planes(self, geom: &Geometry) -> Self {
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx512 if geom.cubic => Kernel::Avx2,
+            #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+            Kernel::Simd128 if geom.cubic => Kernel::Scalar,
+            _ => {
+                let _ = geom;
+                self
+            }
+        }
+    }
+
+    /// The kernel that samples the rows of interleaved frames of `geom`: the
+    /// scalar reference for bicubic sampling (interleaved frames are image
+    /// folders and the page's RGBA input; video runs through the planes),
+    /// else this one.
+    #[inline]
+    fn for_interleaved(self, geom: &Geometry) -> Self {
+        if geom.cubic {
+            Kernel::Scalar
+        } else {
+            self
+        }
+    }
+
     /// Accumulates the samples of several frames along one output row: for
     /// `u in 0..n`, `acc_{r,g,b}[u] = sum_f sample_f(coords[f] at u)` (8.8 fixed
     /// point) and `count[u]` = frames whose coordinate lies inside the frame.
@@ -152,7 +186,7 @@ impl Kernel {
         acc_b: &mut [u32],
         count: &mut [u32],
     ) {
-        match self {
+        match self.for_interleaved(geom) {
             Kernel::Scalar => {
                 scalar::accumulate_row(datas, geom, coords, n, acc_r, acc_g, acc_b, count)
             }
@@ -199,7 +233,7 @@ impl Kernel {
         count: &mut [u32],
     ) {
         debug_assert_eq!(geom.channels, 1);
-        match self {
+        match self.for_planes(geom) {
             Kernel::Scalar => scalar::accumulate_row_gray(datas, geom, coords, n, acc, count),
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx2 => avx2::accumulate_row_gray(
@@ -258,6 +292,12 @@ impl Kernel {
             all(target_arch = "wasm32", target_feature = "simd128")
         ))]
         let g = common::KernelGeometry::of(geom);
+        if geom.cubic {
+            // Bicubic taps are found per plane: one plane, then the other.
+            self.accumulate_row_gray(a, geom, coords, n, acc_a, count);
+            self.accumulate_row_gray(b, geom, coords, n, acc_b, count);
+            return;
+        }
         match self {
             Kernel::Scalar => {
                 scalar::accumulate_row_gray(a, geom, coords, n, acc_a, count);
@@ -296,7 +336,7 @@ impl Kernel {
         weight: &mut [u32],
         count: &mut [u32],
     ) {
-        match self {
+        match self.for_interleaved(geom) {
             Kernel::Scalar => {
                 scalar::merge_row(datas, geom, coords, deghost, (0, n), sum, weight, count)
             }
@@ -343,7 +383,7 @@ impl Kernel {
         count: &mut [u32],
     ) {
         debug_assert_eq!(geom.channels, 1);
-        match self {
+        match self.for_planes(geom) {
             Kernel::Scalar => {
                 scalar::merge_row_gray(datas, geom, coords, deghost, (0, n), sum, weight, count)
             }
@@ -448,7 +488,8 @@ mod tests {
     use super::*;
 
     /// Every kernel this CPU runs and the scalar reference agree bit for bit, for
-    /// tables (with NaN and out-of-frame points) and homography rows, RGB and RGBA.
+    /// tables (with NaN and out-of-frame points) and homography rows, RGB and RGBA,
+    /// bilinear and bicubic.
     #[test]
     fn every_kernel_matches_scalar() {
         // 72 pixels: four 16-lane steps and a last one of eight.
@@ -460,7 +501,8 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             (s >> 40) as u32
         };
-        for channels in [3usize, 4] {
+        // Bilinear and bicubic sampling.
+        for (channels, cubic) in [(3usize, false), (4, false), (3, true), (4, true)] {
             let frames: Vec<Vec<u8>> = (0..4)
                 .map(|_| {
                     (0..w * h * channels + FRAME_PADDING)
@@ -476,6 +518,7 @@ mod tests {
                 max_y0: h - 2,
                 max_x: (w - 1) as f32,
                 max_y: (h - 1) as f32,
+                cubic,
             };
             let table = |r: &mut dyn FnMut() -> u32, size: usize| -> Vec<f32> {
                 (0..n)
@@ -536,7 +579,7 @@ mod tests {
             }
             // The same frames read as single-channel planes of `channels` times
             // the width: the gray kernel against its scalar reference.
-            let gray = Geometry::plane(w * channels, h, 1);
+            let gray = Geometry::plane(w * channels, h, 1).with_cubic(cubic);
             let run_gray = |kernel: Kernel| {
                 let (mut acc, mut count) = (vec![0u32; n], vec![0u32; n]);
                 // SAFETY: as above; each plane has FRAME_PADDING >= 2 bytes past it.
