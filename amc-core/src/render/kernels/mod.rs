@@ -11,8 +11,8 @@
 //! compile time with the `simd128` target feature) are bit-exact with it.
 //! [`Kernel`] is the one dispatcher: [`Kernel::detect`] picks the kernel, its
 //! methods run it. Bicubic sampling (a geometry's `cubic`) has a vector form for
-//! planes in AVX2 only: AVX-512 CPUs run that one, wasm32 builds and
-//! interleaved frames the scalar reference.
+//! planes in AVX2 (which AVX-512 CPUs run) and `simd128`; interleaved frames
+//! sample bicubically with the scalar reference.
 //!
 //! Layers: this dispatcher uses the kernels, and they all use `common.rs` (the
 //! constants, row coordinates, frame geometry and reference sampler they share);
@@ -135,15 +135,13 @@ impl Kernel {
     }
 
     /// The kernel that samples the rows of planes of `geom`: this one, but
-    /// for bicubic planes, which AVX-512 CPUs sample with the AVX2 kernel and
-    /// wasm32 builds with the scalar reference (neither has a bicubic form).
+    /// for bicubic planes on AVX-512 CPUs, which run the AVX2 kernel's bicubic
+    /// form (the AVX-512 kernel has none).
     #[inline]
     fn for_planes(self, geom: &Geometry) -> Self {
         match self {
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx512 if geom.cubic => Kernel::Avx2,
-            #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
-            Kernel::Simd128 if geom.cubic => Kernel::Scalar,
             _ => {
                 let _ = geom;
                 self

@@ -1,5 +1,8 @@
 //! The WebAssembly `simd128` row kernels and row finishers (used when the
-//! module is built with `+simd128`).
+//! module is built with `+simd128`). Planes sampled bicubically take four
+//! 32-bit lane loads a pixel, one per tap row (`sample_cubic_gray4`);
+//! interleaved frames sampled bicubically run the scalar reference (the
+//! dispatcher's choice).
 
 use super::common::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
 use crate::render::robust::{Deghost, FULL_WEIGHT};
@@ -496,8 +499,104 @@ unsafe fn sample_gray4(
     coord: &RowCoords<'_>,
     u: usize,
 ) -> Option<(v128, v128)> {
-    let t = PlaneTaps4::of(g, taps4(g, row_coords4(coord, u))?);
+    let t = taps4(g, row_coords4(coord, u))?;
+    if g.cubic {
+        return Some(sample_cubic_gray4(data, g, coord, u, &t));
+    }
+    let t = PlaneTaps4::of(g, t);
     Some((t.sample(data), t.valid))
+}
+
+/// The bicubic samples of four output pixels `u..u + 4` of one plane, whose
+/// bilinear footprints are `t` (see `common::cubic_weights`), as the AVX2
+/// kernel's `sample_cubic_gray8`: each lane's four tap rows are four 32-bit
+/// lane loads, their bytes spread to 16-bit pairs for `i32x4.dot_i16x8_s`,
+/// the rows weighted in 32-bit lanes; a chunk with a lane at the plane's edge
+/// goes to the scalar reference. Lanes outside the plane read its first bytes
+/// (offset 0 plus nothing: no tap row below it is read) with zero weights.
+#[inline(always)]
+unsafe fn sample_cubic_gray4(
+    data: &[u8],
+    g: &KernelGeometry,
+    coord: &RowCoords<'_>,
+    u: usize,
+    t: &Taps4,
+) -> (v128, v128) {
+    let (x0, y0) = (to_int(t.x0f), to_int(t.y0f));
+    let (zero, one) = (i32x4_splat(0), i32x4_splat(1));
+    let inside =
+        |p0: v128, max0: i32| v128_and(i32x4_gt(p0, zero), i32x4_lt(p0, i32x4_splat(max0)));
+    let interior = v128_and(inside(x0, g.max_x0), inside(y0, g.max_y0));
+    if v128_any_true(v128_andnot(t.valid, interior)) {
+        // Some lane inside the plane is at its edge: the reference, lane by lane.
+        let geom = g.scalar();
+        let (mut v, mut m) = ([0u32; 4], [0i32; 4]);
+        for l in 0..4 {
+            let (sx, sy) = coord.at(u + l);
+            if let Some(s) = geom.sample_gray(data, sx, sy) {
+                (v[l], m[l]) = (s, -1);
+            }
+        }
+        return (
+            v128_load(v.as_ptr() as *const v128),
+            v128_load(m.as_ptr() as *const v128),
+        );
+    }
+    let (wx, wy) = (cubic_weights4(t.ax), cubic_weights4(t.ay));
+    let low16 = i32x4_splat(0xFFFF);
+    let pair =
+        |lo: v128, hi: v128| v128_and(v128_or(v128_and(lo, low16), i32x4_shl(hi, 16)), t.valid);
+    let (wx01, wx23) = (pair(wx[0], wx[1]), pair(wx[2], wx[3]));
+    // Tap (x0 - 1, y0 - 1) of every lane inside the plane.
+    let at = i32x4_add(
+        i32x4_mul(i32x4_sub(y0, one), i32x4_splat(g.stride)),
+        i32x4_sub(x0, one),
+    );
+    let base = data.as_ptr();
+    let (byte, hi_byte) = (i32x4_splat(0xFF), i32x4_splat(0xFF_0000));
+    let mut acc = i32x4_splat(128);
+    for (r, w_row) in wy.into_iter().enumerate() {
+        let at = v128_and(i32x4_add(at, i32x4_splat(r as i32 * g.stride)), t.valid);
+        let mut p = zero;
+        macro_rules! row {
+            ($l:literal) => {{
+                let q = base.add(i32x4_extract_lane::<$l>(at) as usize) as *const u32;
+                p = v128_load32_lane::<$l>(p, q);
+            }};
+        }
+        row!(0);
+        row!(1);
+        row!(2);
+        row!(3);
+        // Bytes 0, 1 and 2, 3 of each lane as 16-bit pairs.
+        let p01 = v128_or(v128_and(p, byte), v128_and(i32x4_shl(p, 8), hi_byte));
+        let p23 = v128_or(
+            v128_and(u32x4_shr(p, 16), byte),
+            v128_and(u32x4_shr(p, 8), hi_byte),
+        );
+        let along = i32x4_add(i32x4_dot_i16x8(p01, wx01), i32x4_dot_i16x8(p23, wx23));
+        acc = i32x4_add(acc, i32x4_mul(along, w_row));
+    }
+    let v = i32x4_min(i32x4_max(i32x4_shr(acc, 8), zero), i32x4_splat(255 * 256));
+    (v128_and(v, t.valid), t.valid)
+}
+
+/// `common::cubic_weights` of four 8-bit fractions, lane by lane.
+#[inline(always)]
+fn cubic_weights4(a: v128) -> [v128; 4] {
+    let mul = |x: v128, k: i32| i32x4_mul(x, i32x4_splat(k));
+    let (a2, half) = (i32x4_mul(a, a), i32x4_splat(1 << 16));
+    let a3 = i32x4_mul(a2, a);
+    let sum = |terms: [v128; 3]| {
+        let s = i32x4_add(i32x4_add(terms[0], terms[1]), terms[2]);
+        i32x4_shr(i32x4_add(s, half), 17)
+    };
+    let zero = i32x4_splat(0);
+    let w0 = sum([i32x4_sub(zero, a3), mul(a2, 512), mul(a, -65536)]);
+    let w2 = sum([mul(a3, -3), mul(a2, 1024), mul(a, 65536)]);
+    let w3 = sum([a3, mul(a2, -256), zero]);
+    let w1 = i32x4_sub(i32x4_splat(256), i32x4_add(i32x4_add(w0, w2), w3));
+    [w0, w1, w2, w3]
 }
 
 /// [`Taps4`] as a plane's kernel uses them: where each lane's top-left tap
