@@ -11,7 +11,9 @@
 //! zoom-out, a steep roll, a window past the plane's end) takes two 16-lane
 //! gathers instead, as the AVX2 kernel does. Both fetch the same bytes, and
 //! the arithmetic after them is exact integer arithmetic equal to the
-//! reference's, so the choice never changes a result.
+//! reference's, so the choice never changes a result. Bicubic planes take
+//! each lane's four taps of four rows the same way, from windows of five
+//! rows (`sample_cubic16`).
 
 use super::common::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
 use std::arch::x86_64::*;
@@ -216,9 +218,166 @@ unsafe fn sample_gray16(
     lanes: __mmask16,
 ) -> Option<(__m512i, __mmask16)> {
     let t = taps16(g, row_coords16(coord, u, lanes), lanes)?;
+    if g.cubic {
+        return Some((sample_cubic16(data, g, coord, u, &t), t.mask));
+    }
     let (top, bot) =
         window_pairs(data, g, &t, falls(coord, u)).unwrap_or_else(|| gather_pairs(data, g, &t));
     Some((interpolate(&t, top, bot), t.mask))
+}
+
+/// The bicubic samples of output pixels `u..u + 16` of one plane, whose
+/// bilinear footprints are `t` (0 outside `t.mask`): each lane's four tap rows
+/// as four bytes in its 32-bit lane, from row windows by byte permutes
+/// ([`cubic_window`]) or else gathered ([`cubic_gather`]), then the AVX2
+/// kernel's arithmetic (`sample_cubic_gray8`), sixteen lanes wide. A chunk
+/// with a lane at the plane's edge (`x0` or `y0` on the first or last tap,
+/// where this kernel's `x0` may also be one past the reference's with
+/// `ax = 0`) is sampled lane by lane by the scalar reference.
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+#[inline]
+unsafe fn sample_cubic16(
+    data: &[u8],
+    g: &KernelGeometry,
+    coord: &RowCoords<'_>,
+    u: usize,
+    t: &Taps16,
+) -> __m512i {
+    let zero = _mm512_setzero_si512();
+    let inside = |m: __mmask16, p0: __m512i, max0: i32| {
+        let m = _mm512_mask_cmpgt_epi32_mask(m, p0, zero);
+        _mm512_mask_cmplt_epi32_mask(m, p0, _mm512_set1_epi32(max0))
+    };
+    let interior = inside(inside(t.mask, t.x0, g.max_x0), t.y0, g.max_y0);
+    if interior != t.mask {
+        // The reference, lane by lane (only lanes inside the plane: the
+        // others are 0, and past a last step of eight there is no coordinate).
+        let geom = g.scalar();
+        let mut v = [0u32; 16];
+        for (l, v) in v.iter_mut().enumerate() {
+            if t.mask & (1 << l) != 0 {
+                let (sx, sy) = coord.at(u + l);
+                *v = geom.sample_gray(data, sx, sy).unwrap_or(0);
+            }
+        }
+        return _mm512_loadu_si512(v.as_ptr() as *const _);
+    }
+    let (wx, wy) = (cubic_weights16(t.ax), cubic_weights16(t.ay));
+    let low16 = _mm512_set1_epi32(0xFFFF);
+    let pair = |lo: __m512i, hi: __m512i| {
+        _mm512_maskz_or_epi32(
+            t.mask,
+            _mm512_and_si512(lo, low16),
+            _mm512_slli_epi32::<16>(hi),
+        )
+    };
+    let (wx01, wx23) = (pair(wx[0], wx[1]), pair(wx[2], wx[3]));
+    let rows =
+        cubic_window(data, g, t, falls(coord, u)).unwrap_or_else(|| cubic_gather(data, g, t));
+    let (byte, hi_byte) = (_mm512_set1_epi32(0xFF), _mm512_set1_epi32(0xFF_0000));
+    let mut acc = _mm512_set1_epi32(128);
+    for (p, w_row) in rows.into_iter().zip(wy) {
+        // Bytes 0, 1 and 2, 3 of each lane as 16-bit pairs.
+        let p01 = _mm512_or_si512(
+            _mm512_and_si512(p, byte),
+            _mm512_and_si512(_mm512_slli_epi32::<8>(p), hi_byte),
+        );
+        let p23 = _mm512_or_si512(
+            _mm512_and_si512(_mm512_srli_epi32::<16>(p), byte),
+            _mm512_and_si512(_mm512_srli_epi32::<8>(p), hi_byte),
+        );
+        let along = _mm512_add_epi32(_mm512_madd_epi16(p01, wx01), _mm512_madd_epi16(p23, wx23));
+        acc = _mm512_add_epi32(acc, _mm512_mullo_epi32(along, w_row));
+    }
+    let v = _mm512_min_epi32(
+        _mm512_max_epi32(_mm512_srai_epi32::<8>(acc), zero),
+        _mm512_set1_epi32(255 * 256),
+    );
+    _mm512_maskz_mov_epi32(t.mask, v)
+}
+
+/// `common::cubic_weights` of sixteen 8-bit fractions, lane by lane.
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+#[inline]
+unsafe fn cubic_weights16(a: __m512i) -> [__m512i; 4] {
+    let mul = |x: __m512i, k: i32| _mm512_mullo_epi32(x, _mm512_set1_epi32(k));
+    let (a2, half) = (_mm512_mullo_epi32(a, a), _mm512_set1_epi32(1 << 16));
+    let a3 = _mm512_mullo_epi32(a2, a);
+    let sum = |terms: [__m512i; 3]| {
+        let s = _mm512_add_epi32(_mm512_add_epi32(terms[0], terms[1]), terms[2]);
+        _mm512_srai_epi32::<17>(_mm512_add_epi32(s, half))
+    };
+    let zero = _mm512_setzero_si512();
+    let w0 = sum([_mm512_sub_epi32(zero, a3), mul(a2, 512), mul(a, -65536)]);
+    let w2 = sum([mul(a3, -3), mul(a2, 1024), mul(a, 65536)]);
+    let w3 = sum([a3, mul(a2, -256), zero]);
+    let w1 = _mm512_sub_epi32(
+        _mm512_set1_epi32(256),
+        _mm512_add_epi32(_mm512_add_epi32(w0, w2), w3),
+    );
+    [w0, w1, w2, w3]
+}
+
+/// The four tap rows of interior taps `t` (each lane's bytes `x0 - 1 ..= x0 +
+/// 2` of rows `y0 - 1 ..= y0 + 2`) picked out of 64-byte windows of five
+/// rows, or `None` when they do not fit: as [`window`], with every lane's
+/// leftmost tap within 60 columns of the window's start and its top row on
+/// one of two neighbouring rows.
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+#[inline]
+unsafe fn cubic_window(
+    data: &[u8],
+    g: &KernelGeometry,
+    t: &Taps16,
+    falls: bool,
+) -> Option<[__m512i; 4]> {
+    let one = _mm512_set1_epi32(1);
+    let x_win = (_mm512_cvtsi512_si32(t.x0) - 1 - WINDOW_SLACK).max(0);
+    let y_win = (_mm512_cvtsi512_si32(t.y0) - 1 - falls as i32).max(0);
+    let off = _mm512_sub_epi32(_mm512_sub_epi32(t.x0, one), _mm512_set1_epi32(x_win));
+    let down = _mm512_sub_epi32(_mm512_sub_epi32(t.y0, one), _mm512_set1_epi32(y_win));
+    // Unsigned compares: a negative offset is out of the window too.
+    if _mm512_mask_cmpgt_epu32_mask(t.mask, off, _mm512_set1_epi32(60)) != 0
+        || _mm512_mask_cmpgt_epu32_mask(t.mask, down, one) != 0
+    {
+        return None;
+    }
+    let stride = g.stride as usize;
+    let start = y_win as usize * stride + x_win as usize;
+    if start + 4 * stride + 64 > data.len() {
+        return None;
+    }
+    // Bytes `off, off + 1, off + 2, off + 3` of the window into each lane.
+    let index = _mm512_add_epi32(
+        _mm512_mullo_epi32(off, _mm512_set1_epi32(0x0101_0101)),
+        _mm512_set1_epi32(0x0302_0100),
+    );
+    let lower = _mm512_mask_cmpneq_epi32_mask(t.mask, down, _mm512_setzero_si512());
+    let row = |r: usize| {
+        let bytes = _mm512_loadu_si512(data.as_ptr().add(start + r * stride) as *const _);
+        _mm512_permutexvar_epi8(index, bytes)
+    };
+    let q = [row(0), row(1), row(2), row(3), row(4)];
+    Some(std::array::from_fn(|r| {
+        _mm512_mask_blend_epi32(lower, q[r], q[r + 1])
+    }))
+}
+
+/// The four tap rows of interior taps `t`, gathered: one 32-bit load per lane
+/// and row, from the leftmost tap on.
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+#[inline]
+unsafe fn cubic_gather(data: &[u8], g: &KernelGeometry, t: &Taps16) -> [__m512i; 4] {
+    let (one, stride) = (_mm512_set1_epi32(1), _mm512_set1_epi32(g.stride));
+    let at = _mm512_add_epi32(
+        _mm512_mullo_epi32(_mm512_sub_epi32(t.y0, one), stride),
+        _mm512_sub_epi32(t.x0, one),
+    );
+    let base = data.as_ptr() as *const i32;
+    std::array::from_fn(|r| {
+        let at = _mm512_add_epi32(at, _mm512_set1_epi32(r as i32 * g.stride));
+        _mm512_mask_i32gather_epi32::<1>(_mm512_setzero_si512(), t.mask, at, base)
+    })
 }
 
 /// The bilinear value from the taps' 16-bit pairs `(left, right)` of the top

@@ -11,8 +11,8 @@
 //! compile time with the `simd128` target feature) are bit-exact with it.
 //! [`Kernel`] is the one dispatcher: [`Kernel::detect`] picks the kernel, its
 //! methods run it. Bicubic sampling (a geometry's `cubic`) has a vector form for
-//! planes in AVX2 (which AVX-512 CPUs run) and `simd128`; interleaved frames
-//! sample bicubically with the scalar reference.
+//! planes in every kernel; interleaved frames sample bicubically with the
+//! scalar reference.
 //!
 //! Layers: this dispatcher uses the kernels, and they all use `common.rs` (the
 //! constants, row coordinates, frame geometry and reference sampler they share);
@@ -134,21 +134,6 @@ impl Kernel {
         !matches!(self, Kernel::Scalar)
     }
 
-    /// The kernel that samples the rows of planes of `geom`: this one, but
-    /// for bicubic planes on AVX-512 CPUs, which run the AVX2 kernel's bicubic
-    /// form (the AVX-512 kernel has none).
-    #[inline]
-    fn for_planes(self, geom: &Geometry) -> Self {
-        match self {
-            #[cfg(target_arch = "x86_64")]
-            Kernel::Avx512 if geom.cubic => Kernel::Avx2,
-            _ => {
-                let _ = geom;
-                self
-            }
-        }
-    }
-
     /// The kernel that samples the rows of interleaved frames of `geom`: the
     /// scalar reference for bicubic sampling (interleaved frames are image
     /// folders and the page's RGBA input; video runs through the planes),
@@ -231,7 +216,7 @@ impl Kernel {
         count: &mut [u32],
     ) {
         debug_assert_eq!(geom.channels, 1);
-        match self.for_planes(geom) {
+        match self {
             Kernel::Scalar => scalar::accumulate_row_gray(datas, geom, coords, n, acc, count),
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx2 => avx2::accumulate_row_gray(
@@ -381,7 +366,7 @@ impl Kernel {
         count: &mut [u32],
     ) {
         debug_assert_eq!(geom.channels, 1);
-        match self.for_planes(geom) {
+        match self {
             Kernel::Scalar => {
                 scalar::merge_row_gray(datas, geom, coords, deghost, (0, n), sum, weight, count)
             }
