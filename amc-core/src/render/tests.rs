@@ -42,6 +42,24 @@ fn render(src: &CameraModel, vectorized: bool, format: PixelFormat) -> (Vec<u8>,
     render_rolling(src, vectorized, format, false, None)
 }
 
+/// Four frames' readout motions (a few degrees over the readout) for frames
+/// `height` rows high.
+fn readout_rows(height: usize) -> Vec<RollingProjector> {
+    (0..4)
+        .map(|i| {
+            let intra = IntraFrame {
+                phi: Tangent::new(0.03, -0.02 * i as f64, 0.01),
+                psi: Tangent::new(-0.01, 0.005, 0.002 * i as f64),
+                chi: Tangent::new(0.002, 0.0, -0.001),
+                xi: Tangent::new(0.0, -0.001, 0.0005),
+            };
+            let mut p = RollingProjector::default();
+            p.set(&intra, height);
+            p
+        })
+        .collect()
+}
+
 /// [`render`], with a rolling shutter's readout motion on every frame when
 /// `rolling`, averaged without ghosts with `deghost`.
 fn render_rolling(
@@ -56,20 +74,7 @@ fn render_rolling(
     warper.set_vectorized(vectorized);
     warper.set_deghost(deghost);
     if rolling {
-        let rows: Vec<RollingProjector> = (0..4)
-            .map(|i| {
-                let intra = IntraFrame {
-                    phi: Tangent::new(0.03, -0.02 * i as f64, 0.01),
-                    psi: Tangent::new(-0.01, 0.005, 0.002 * i as f64),
-                    chi: Tangent::new(0.002, 0.0, -0.001),
-                    xi: Tangent::new(0.0, -0.001, 0.0005),
-                };
-                let mut p = RollingProjector::default();
-                p.set(&intra, src.height);
-                p
-            })
-            .collect();
-        warper.set_readout_rows(&rows);
+        warper.set_readout_rows(&readout_rows(src.height));
     }
     let frames: Vec<Frame> = (0..4)
         .map(|i| noise_frame(src.width, src.height, format, i))
@@ -937,19 +942,7 @@ fn bicubic_keeps_the_detail_bilinear_blurs() {
 #[test]
 fn bicubic_kernels_match_scalar() {
     let (pinhole, fisheye) = pinhole_and_fisheye(211);
-    let rows: Vec<RollingProjector> = (0..4)
-        .map(|i| {
-            let intra = IntraFrame {
-                phi: Tangent::new(0.03, -0.02 * i as f64, 0.01),
-                psi: Tangent::new(-0.01, 0.005, 0.002 * i as f64),
-                chi: Tangent::new(0.002, 0.0, -0.001),
-                xi: Tangent::new(0.0, -0.001, 0.0005),
-            };
-            let mut p = RollingProjector::default();
-            p.set(&intra, pinhole.height);
-            p
-        })
-        .collect();
+    let rows = readout_rows(pinhole.height);
     let rots: Vec<Matrix3<f64>> = (0..4)
         .map(|i| *so3::exp(&Tangent::new(0.06 * i as f64, -0.1, 0.05 * i as f64)).matrix())
         .collect();
