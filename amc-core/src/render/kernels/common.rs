@@ -91,8 +91,8 @@ impl Geometry {
         Some((x0, y0, ax, ay))
     }
 
-    /// Bicubic 8.8 fixed-point sample of channel `ch` of pixels `channels`
-    /// bytes apart at `(sx, sy)`; `None` outside the frame. The taps are
+    /// Bicubic 8.8 fixed-point sample of the first `C` channels of pixels
+    /// `channels` bytes apart at `(sx, sy)`; `None` outside the frame. The taps are
     /// pixels `x0 - 1 ..= x0 + 2` and `y0 - 1 ..= y0 + 2` of the bilinear
     /// footprint, clamped onto the frame; the result, `sum wy (sum wx p)`
     /// (weights in 1/256) rounded to 1/256, is clamped to `0..=255 * 256`
