@@ -461,7 +461,8 @@ impl Warper {
         maps
     }
 
-    /// The pass over `datas` (frames or planes with geometry `geom`): the first
+    /// The pass over `datas` (frames or planes with geometry `geom`, sampled
+    /// with this warper's interpolation): the first
     /// `n8` pixels of a row (a multiple of 8) go to the vector kernel when it is
     /// available and every buffer carries the gathers' padding; the rest are
     /// scalar. The kernel evaluates pinhole homographies itself, so coordinate
@@ -485,7 +486,7 @@ impl Warper {
         Pass {
             maps,
             datas,
-            geom,
+            geom: geom.with_cubic(self.cubic()),
             n8,
             tables: Pass::any_grid(maps) || n8 < ow,
         }
@@ -805,7 +806,7 @@ impl Warper {
         let pass = self.pass(
             &maps[..n_frames],
             &datas[..n_frames],
-            Geometry::of(&first).with_cubic(self.cubic()),
+            Geometry::of(&first),
             first.height,
         );
         let merged = self.deghost.filter(|_| n_frames > 1);
@@ -895,7 +896,7 @@ impl Warper {
         let pass = self.pass(
             &maps[..n_frames],
             &datas[..n_frames],
-            Geometry::plane(width, height, 1).with_cubic(self.cubic()),
+            Geometry::plane(width, height, 1),
             height,
         );
         let merged = self.deghost.filter(|_| n_frames > 1);
@@ -1027,7 +1028,7 @@ impl Warper {
         coverage.resize(ow * oh, 0);
         let maps = self.prepare_maps(rotations);
         let full = rotations.len() as u8;
-        let geom = Geometry::plane(width, height, 1).with_cubic(self.cubic());
+        let geom = Geometry::plane(width, height, 1);
         let pass_a = self.pass(&maps[..n_frames], &datas[0][..n_frames], geom, height);
         let pass_b = self.pass(&maps[..n_frames], &datas[1][..n_frames], geom, height);
         // The pair's rows side by side in one buffer, so that the rows can be
@@ -1141,12 +1142,7 @@ impl Warper {
         slot.covered.resize(ow * oh, 0);
         let maps = self.prepare_maps(std::slice::from_ref(m));
         let datas = [frame.data];
-        let pass = self.pass(
-            &maps,
-            &datas,
-            Geometry::of(frame).with_cubic(self.cubic()),
-            frame.height,
-        );
+        let pass = self.pass(&maps, &datas, Geometry::of(frame), frame.height);
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.fit(1, ow, pass.tables, false);
         for v in 0..oh {
@@ -1232,12 +1228,7 @@ impl Warper {
         let ow = self.out.width;
         let maps = self.prepare_maps(std::slice::from_ref(m));
         let datas = [plane];
-        let pass = self.pass(
-            &maps,
-            &datas,
-            Geometry::plane(width, height, 1).with_cubic(self.cubic()),
-            height,
-        );
+        let pass = self.pass(&maps, &datas, Geometry::plane(width, height, 1), height);
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.fit(1, ow, pass.tables, false);
         for (v, (vals, cov)) in values
