@@ -233,12 +233,20 @@ fn bench_stabilize(c: &mut Criterion) {
         // in the README; `-zoom-auto` is the default framing (the input's
         // size, a zoom and its coverage test per frame).
         // `-deghost`: the ghost-free average (`deghost` 6) instead of the plain one.
-        // `-bicubic`: frames sampled bicubically (`interpolation` bicubic).
+        // `-bicubic`: frames sampled bicubically (`interpolation` bicubic;
+        // `-rgb-bicubic` the interleaved frames' kernels, as image folders and
+        // the page's RGBA input run).
         // `-rolling`: the same motion through a rolling shutter, its readout
         // given (`readout_ms` 15): tracking with the readout motion, every
         // source row rendered at its own orientation.
         let mut runs: Vec<(String, Mode, Zoom, &[Frame])> = vec![
             (format!("{w}x{h}-rgb"), Mode::Stabilize, Zoom::None, &rgb),
+            (
+                format!("{w}x{h}-rgb-bicubic"),
+                Mode::Stabilize,
+                Zoom::None,
+                &rgb,
+            ),
             (
                 format!("{w}x{h}-yuv420p"),
                 Mode::Stabilize,

@@ -952,6 +952,9 @@ fn bicubic_kernels_match_scalar() {
         let frames: Vec<Frame> = (0..4)
             .map(|i| noise_frame(cam.width, cam.height, PixelFormat::Rgb8, i + 20))
             .collect();
+        let rgba_frames: Vec<Frame> = (0..4)
+            .map(|i| noise_frame(cam.width, cam.height, PixelFormat::Rgba8, i + 30))
+            .collect();
         let n = cam.width * cam.height;
         let nc = sc.width * sc.height;
         for rolling in [false, true] {
@@ -997,7 +1000,28 @@ fn bicubic_kernels_match_scalar() {
                     let mut rgb_cov = Vec::new();
                     let vf =
                         luma.average_into(|i| frames[i].as_ref(), &rots, &mut rgb, 3, &mut rgb_cov);
-                    (y, u, v, cov, ccov, full, cfull, rgb, rgb_cov, vf)
+                    // The page's input: RGBA frames into an RGBA output.
+                    let mut rgba = vec![0u8; out.width * out.height * 4];
+                    let vf_rgba = luma.average_into(
+                        |i| rgba_frames[i].as_ref(),
+                        &rots,
+                        &mut rgba,
+                        4,
+                        &mut rgb_cov,
+                    );
+                    (
+                        y,
+                        u,
+                        v,
+                        cov,
+                        ccov,
+                        full,
+                        cfull,
+                        rgb,
+                        rgb_cov,
+                        (vf, vf_rgba),
+                        rgba,
+                    )
                 };
                 let reference = run(kernels::Kernel::Scalar, Interpolation::Bicubic);
                 assert!(reference.5 > 0 && reference.5 < reference.3.len());
@@ -1008,6 +1032,7 @@ fn bicubic_kernels_match_scalar() {
                 let bilinear = run(kernels::Kernel::Scalar, Interpolation::Bilinear);
                 assert_ne!(bilinear.0, reference.0);
                 assert_ne!(bilinear.7, reference.7);
+                assert_ne!(bilinear.10, reference.10);
                 // Coverage does not depend on the interpolation.
                 assert_eq!(bilinear.3, reference.3);
             }

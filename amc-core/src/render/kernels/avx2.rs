@@ -6,9 +6,8 @@
 //! interpolation is done per channel in integer lanes, bit-exact with the
 //! scalar reference in `scalar.rs`. Lanes whose coordinate falls outside the
 //! frame are masked off and contribute nothing. Planes sampled bicubically
-//! take four gathers a pixel, one per tap row (`sample_cubic_gray8`);
-//! interleaved frames sampled bicubically run the scalar reference (the
-//! dispatcher's choice).
+//! take four gathers a pixel, one per tap row (`sample_cubic_gray8`), and
+//! interleaved frames sixteen, one per tap (`sample_cubic_rgb8`).
 
 use super::common::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
 use crate::render::robust::{Deghost, FULL_WEIGHT};
@@ -81,6 +80,10 @@ unsafe fn sample_rgb8(
     // Byte 2 of each lane (bits 16..24): where the right-hand tap goes.
     let hi_byte = _mm256_set1_epi32(0xFF_0000);
     let base = data.as_ptr() as *const i32;
+    let t = taps8(g, row_coords8(coord, u))?;
+    if g.cubic {
+        return Some(sample_cubic_rgb8(data, g, coord, u, &t));
+    }
     let Taps8 {
         mask,
         x0,
@@ -89,7 +92,7 @@ unsafe fn sample_rgb8(
         ay,
         bx,
         by,
-    } = taps8(g, row_coords8(coord, u))?;
+    } = t;
     let i00 = _mm256_add_epi32(
         _mm256_mullo_epi32(y0, stride),
         _mm256_mullo_epi32(x0, chans),
@@ -163,14 +166,7 @@ unsafe fn sample_cubic_gray8(
     t: &Taps8,
 ) -> (__m256i, __m256i) {
     let (zero, one) = (_mm256_setzero_si256(), _mm256_set1_epi32(1));
-    let inside = |p0: __m256i, max0: i32| {
-        _mm256_and_si256(
-            _mm256_cmpgt_epi32(p0, zero),
-            _mm256_cmpgt_epi32(_mm256_set1_epi32(max0), p0),
-        )
-    };
-    let interior = _mm256_and_si256(inside(t.x0, g.max_x0), inside(t.y0, g.max_y0));
-    if _mm256_testc_si256(interior, t.mask) == 0 {
+    if !cubic_interior8(g, t) {
         // Some lane inside the plane is at its edge: the reference, lane by lane.
         let geom = g.scalar();
         let (mut v, mut m) = ([0u32; 8], [0i32; 8]);
@@ -220,6 +216,107 @@ unsafe fn sample_cubic_gray8(
         _mm256_set1_epi32(255 * 256),
     );
     (_mm256_and_si256(v, t.mask), t.mask)
+}
+
+/// The bicubic R, G, B samples of eight output pixels `u..u + 8` of one
+/// interleaved frame (3 or 4 bytes a pixel), whose bilinear footprints are
+/// `t`: each lane's four rows of four taps are sixteen dword gathers (a
+/// tap's dword holds its R, G, B), each channel's bytes paired to 16 bits and
+/// weighted with `madd` as [`sample_cubic_gray8`] does; the chunks at the
+/// frame's edge go to the scalar reference lane by lane.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn sample_cubic_rgb8(
+    data: &[u8],
+    g: &KernelGeometry,
+    coord: &RowCoords<'_>,
+    u: usize,
+    t: &Taps8,
+) -> ([__m256i; 3], __m256i) {
+    let (zero, one) = (_mm256_setzero_si256(), _mm256_set1_epi32(1));
+    if !cubic_interior8(g, t) {
+        // Some lane inside the frame is at its edge: the reference, lane by lane.
+        let geom = g.scalar();
+        let (mut v, mut m) = ([[0u32; 8]; 3], [0i32; 8]);
+        for l in 0..8 {
+            let (sx, sy) = coord.at(u + l);
+            if let Some(s) = geom.sample(data, sx, sy) {
+                (v[0][l], v[1][l], v[2][l], m[l]) = (s[0], s[1], s[2], -1);
+            }
+        }
+        let load = |a: &[u32; 8]| _mm256_loadu_si256(a.as_ptr() as *const __m256i);
+        return (
+            [load(&v[0]), load(&v[1]), load(&v[2])],
+            _mm256_loadu_si256(m.as_ptr() as *const __m256i),
+        );
+    }
+    let (wx, wy) = (cubic_weights8(t.ax), cubic_weights8(t.ay));
+    let low16 = _mm256_set1_epi32(0xFFFF);
+    let pair = |lo: __m256i, hi: __m256i| {
+        _mm256_or_si256(_mm256_and_si256(lo, low16), _mm256_slli_epi32::<16>(hi))
+    };
+    let (wx01, wx23) = (pair(wx[0], wx[1]), pair(wx[2], wx[3]));
+    let (stride, chans) = (_mm256_set1_epi32(g.stride), _mm256_set1_epi32(g.channels));
+    // Tap (x0 - 1, y0 - 1) of every lane.
+    let mut at = _mm256_add_epi32(
+        _mm256_mullo_epi32(_mm256_sub_epi32(t.y0, one), stride),
+        _mm256_mullo_epi32(_mm256_sub_epi32(t.x0, one), chans),
+    );
+    let base = data.as_ptr() as *const i32;
+    let (byte, hi_byte) = (_mm256_set1_epi32(0xFF), _mm256_set1_epi32(0xFF_0000));
+    let round = _mm256_set1_epi32(128);
+    let mut acc = [round; 3];
+    for w_row in wy {
+        let tap = |i: i32| {
+            let at = _mm256_add_epi32(at, _mm256_set1_epi32(i * g.channels));
+            _mm256_mask_i32gather_epi32::<1>(zero, base, at, t.mask)
+        };
+        let (p0, p1, p2, p3) = (tap(0), tap(1), tap(2), tap(3));
+        // Channel byte `shift / 8` of two taps as a 16-bit pair, the first
+        // tap's low: (p_a >> shift) & 0xFF | (p_b << up) & 0xFF0000.
+        macro_rules! channel {
+            ($c:expr, $shift:expr, $up:expr) => {{
+                let p01 = _mm256_or_si256(
+                    _mm256_and_si256(_mm256_srli_epi32::<$shift>(p0), byte),
+                    _mm256_and_si256(_mm256_slli_epi32::<$up>(p1), hi_byte),
+                );
+                let p23 = _mm256_or_si256(
+                    _mm256_and_si256(_mm256_srli_epi32::<$shift>(p2), byte),
+                    _mm256_and_si256(_mm256_slli_epi32::<$up>(p3), hi_byte),
+                );
+                let along =
+                    _mm256_add_epi32(_mm256_madd_epi16(p01, wx01), _mm256_madd_epi16(p23, wx23));
+                acc[$c] = _mm256_add_epi32(acc[$c], _mm256_mullo_epi32(along, w_row));
+            }};
+        }
+        channel!(0, 0, 16);
+        channel!(1, 8, 8);
+        channel!(2, 16, 0);
+        at = _mm256_add_epi32(at, stride);
+    }
+    let max = _mm256_set1_epi32(255 * 256);
+    let finish = |a: __m256i| {
+        let v = _mm256_min_epi32(_mm256_max_epi32(_mm256_srai_epi32::<8>(a), zero), max);
+        _mm256_and_si256(v, t.mask)
+    };
+    ([finish(acc[0]), finish(acc[1]), finish(acc[2])], t.mask)
+}
+
+/// Whether every lane of `t` inside the frame has all its bicubic taps inside
+/// it (`1 <= x0 < max_x0`, `1 <= y0 < max_y0`): the vector samplers' case;
+/// a chunk with a lane on the frame's one-pixel edge band takes the reference.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn cubic_interior8(g: &KernelGeometry, t: &Taps8) -> bool {
+    let zero = _mm256_setzero_si256();
+    let inside = |p0: __m256i, max0: i32| {
+        _mm256_and_si256(
+            _mm256_cmpgt_epi32(p0, zero),
+            _mm256_cmpgt_epi32(_mm256_set1_epi32(max0), p0),
+        )
+    };
+    let interior = _mm256_and_si256(inside(t.x0, g.max_x0), inside(t.y0, g.max_y0));
+    _mm256_testc_si256(interior, t.mask) != 0
 }
 
 /// `common::cubic_weights` of eight 8-bit fractions, lane by lane.

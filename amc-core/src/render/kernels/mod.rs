@@ -10,9 +10,9 @@
 //! byte permutes instead of gathers) and `simd128.rs` (wasm32, chosen at
 //! compile time with the `simd128` target feature) are bit-exact with it.
 //! [`Kernel`] is the one dispatcher: [`Kernel::detect`] picks the kernel, its
-//! methods run it. Bicubic sampling (a geometry's `cubic`) has a vector form for
-//! planes in every kernel; interleaved frames sample bicubically with the
-//! scalar reference.
+//! methods run it. Bicubic sampling (a geometry's `cubic`) has a vector form in
+//! every kernel, for planes and for interleaved frames (AVX-512 runs the
+//! AVX2 form of the interleaved ones, as it does for bilinear sampling).
 //!
 //! Layers: this dispatcher uses the kernels, and they all use `common.rs` (the
 //! constants, row coordinates, frame geometry and reference sampler they share);
@@ -134,19 +134,6 @@ impl Kernel {
         !matches!(self, Kernel::Scalar)
     }
 
-    /// The kernel that samples the rows of interleaved frames of `geom`: the
-    /// scalar reference for bicubic sampling (interleaved frames are image
-    /// folders and the page's RGBA input; video runs through the planes),
-    /// else this one.
-    #[inline]
-    fn for_interleaved(self, geom: &Geometry) -> Self {
-        if geom.cubic {
-            Kernel::Scalar
-        } else {
-            self
-        }
-    }
-
     /// Accumulates the samples of several frames along one output row: for
     /// `u in 0..n`, `acc_{r,g,b}[u] = sum_f sample_f(coords[f] at u)` (8.8 fixed
     /// point) and `count[u]` = frames whose coordinate lies inside the frame.
@@ -169,7 +156,7 @@ impl Kernel {
         acc_b: &mut [u32],
         count: &mut [u32],
     ) {
-        match self.for_interleaved(geom) {
+        match self {
             Kernel::Scalar => {
                 scalar::accumulate_row(datas, geom, coords, n, acc_r, acc_g, acc_b, count)
             }
@@ -319,7 +306,7 @@ impl Kernel {
         weight: &mut [u32],
         count: &mut [u32],
     ) {
-        match self.for_interleaved(geom) {
+        match self {
             Kernel::Scalar => {
                 scalar::merge_row(datas, geom, coords, deghost, (0, n), sum, weight, count)
             }

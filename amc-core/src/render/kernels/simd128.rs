@@ -1,8 +1,7 @@
 //! The WebAssembly `simd128` row kernels and row finishers (used when the
 //! module is built with `+simd128`). Planes sampled bicubically take four
-//! 32-bit lane loads a pixel, one per tap row (`sample_cubic_gray4`);
-//! interleaved frames sampled bicubically run the scalar reference (the
-//! dispatcher's choice).
+//! 32-bit lane loads a pixel, one per tap row (`sample_cubic_gray4`), and
+//! interleaved frames sixteen, one per tap (`sample_cubic_rgb4`).
 
 use super::common::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
 use crate::render::robust::{Deghost, FULL_WEIGHT};
@@ -85,6 +84,10 @@ unsafe fn sample_rgb4(
     let small_frame =
         (g.max_y0 as i64 * g.stride as i64 + g.max_x0 as i64 * g.channels as i64) < (1 << 23);
     let base = data.as_ptr();
+    let t = taps4(g, row_coords4(coord, u))?;
+    if g.cubic {
+        return Some(sample_cubic_rgb4(data, g, coord, u, &t));
+    }
     let Taps4 {
         valid,
         x0f,
@@ -93,7 +96,7 @@ unsafe fn sample_rgb4(
         ay,
         bx,
         by,
-    } = taps4(g, row_coords4(coord, u))?;
+    } = t;
     // Byte offsets: in f32 when every offset is below 2^23 (exact,
     // and no 32-bit multiplies), else in integers.
     let i00 = if small_frame {
@@ -524,10 +527,7 @@ unsafe fn sample_cubic_gray4(
 ) -> (v128, v128) {
     let (x0, y0) = (to_int(t.x0f), to_int(t.y0f));
     let (zero, one) = (i32x4_splat(0), i32x4_splat(1));
-    let inside =
-        |p0: v128, max0: i32| v128_and(i32x4_gt(p0, zero), i32x4_lt(p0, i32x4_splat(max0)));
-    let interior = v128_and(inside(x0, g.max_x0), inside(y0, g.max_y0));
-    if v128_any_true(v128_andnot(t.valid, interior)) {
+    if !cubic_interior4(g, t.valid, x0, y0) {
         // Some lane inside the plane is at its edge: the reference, lane by lane.
         let geom = g.scalar();
         let (mut v, mut m) = ([0u32; 4], [0i32; 4]);
@@ -579,6 +579,105 @@ unsafe fn sample_cubic_gray4(
     }
     let v = i32x4_min(i32x4_max(i32x4_shr(acc, 8), zero), i32x4_splat(255 * 256));
     (v128_and(v, t.valid), t.valid)
+}
+
+/// The bicubic R, G, B samples of four output pixels `u..u + 4` of one
+/// interleaved frame (3 or 4 bytes a pixel), whose bilinear footprints are
+/// `t`: each lane's four rows of four taps are 32-bit lane loads (a tap's
+/// R, G, B and one more byte), each channel's bytes paired to 16 bits and
+/// weighted with the 16-bit dot product as [`sample_cubic_gray4`] does; the
+/// chunks at the frame's edge go to the scalar reference lane by lane.
+#[inline(always)]
+unsafe fn sample_cubic_rgb4(
+    data: &[u8],
+    g: &KernelGeometry,
+    coord: &RowCoords<'_>,
+    u: usize,
+    t: &Taps4,
+) -> ([v128; 3], v128) {
+    let (x0, y0) = (to_int(t.x0f), to_int(t.y0f));
+    let (zero, one) = (i32x4_splat(0), i32x4_splat(1));
+    if !cubic_interior4(g, t.valid, x0, y0) {
+        // Some lane inside the frame is at its edge: the reference, lane by lane.
+        let geom = g.scalar();
+        let (mut v, mut m) = ([[0u32; 4]; 3], [0i32; 4]);
+        for l in 0..4 {
+            let (sx, sy) = coord.at(u + l);
+            if let Some(s) = geom.sample(data, sx, sy) {
+                (v[0][l], v[1][l], v[2][l], m[l]) = (s[0], s[1], s[2], -1);
+            }
+        }
+        let load = |a: &[u32; 4]| v128_load(a.as_ptr() as *const v128);
+        return (
+            [load(&v[0]), load(&v[1]), load(&v[2])],
+            v128_load(m.as_ptr() as *const v128),
+        );
+    }
+    let (wx, wy) = (cubic_weights4(t.ax), cubic_weights4(t.ay));
+    let low16 = i32x4_splat(0xFFFF);
+    let pair =
+        |lo: v128, hi: v128| v128_and(v128_or(v128_and(lo, low16), i32x4_shl(hi, 16)), t.valid);
+    let (wx01, wx23) = (pair(wx[0], wx[1]), pair(wx[2], wx[3]));
+    let c = g.channels as usize;
+    // Tap (x0 - 1, y0 - 1) of every lane inside the frame.
+    let at = i32x4_add(
+        i32x4_mul(i32x4_sub(y0, one), i32x4_splat(g.stride)),
+        i32x4_mul(i32x4_sub(x0, one), i32x4_splat(g.channels)),
+    );
+    let base = data.as_ptr();
+    let (byte, hi_byte) = (i32x4_splat(0xFF), i32x4_splat(0xFF_0000));
+    let mut acc = [i32x4_splat(128); 3];
+    for (r, w_row) in wy.into_iter().enumerate() {
+        let at = v128_and(i32x4_add(at, i32x4_splat(r as i32 * g.stride)), t.valid);
+        let mut p = [zero; 4];
+        macro_rules! taps {
+            ($l:literal) => {{
+                let q = base.add(i32x4_extract_lane::<$l>(at) as usize);
+                for (i, p) in p.iter_mut().enumerate() {
+                    *p = v128_load32_lane::<$l>(*p, q.add(i * c) as *const u32);
+                }
+            }};
+        }
+        taps!(0);
+        taps!(1);
+        taps!(2);
+        taps!(3);
+        // Channel byte `shift / 8` of two taps as a 16-bit pair, the first
+        // tap's low.
+        macro_rules! channel {
+            ($c:expr, $shift:expr, $up:expr) => {{
+                let p01 = v128_or(
+                    v128_and(u32x4_shr(p[0], $shift), byte),
+                    v128_and(i32x4_shl(p[1], $up), hi_byte),
+                );
+                let p23 = v128_or(
+                    v128_and(u32x4_shr(p[2], $shift), byte),
+                    v128_and(i32x4_shl(p[3], $up), hi_byte),
+                );
+                let along = i32x4_add(i32x4_dot_i16x8(p01, wx01), i32x4_dot_i16x8(p23, wx23));
+                acc[$c] = i32x4_add(acc[$c], i32x4_mul(along, w_row));
+            }};
+        }
+        channel!(0, 0, 16);
+        channel!(1, 8, 8);
+        channel!(2, 16, 0);
+    }
+    let max = i32x4_splat(255 * 256);
+    let finish = |a: v128| v128_and(i32x4_min(i32x4_max(i32x4_shr(a, 8), zero), max), t.valid);
+    ([finish(acc[0]), finish(acc[1]), finish(acc[2])], t.valid)
+}
+
+/// Whether every lane of `valid` (inside the frame) has all its bicubic taps
+/// inside it (`1 <= x0 < max_x0`, `1 <= y0 < max_y0`): the vector samplers'
+/// case; a chunk with a lane on the frame's one-pixel edge band takes the
+/// reference.
+#[inline(always)]
+fn cubic_interior4(g: &KernelGeometry, valid: v128, x0: v128, y0: v128) -> bool {
+    let zero = i32x4_splat(0);
+    let inside =
+        |p0: v128, max0: i32| v128_and(i32x4_gt(p0, zero), i32x4_lt(p0, i32x4_splat(max0)));
+    let interior = v128_and(inside(x0, g.max_x0), inside(y0, g.max_y0));
+    !v128_any_true(v128_andnot(valid, interior))
 }
 
 /// `common::cubic_weights` of four 8-bit fractions, lane by lane.
