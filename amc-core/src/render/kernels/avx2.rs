@@ -167,26 +167,13 @@ unsafe fn sample_cubic_gray8(
 ) -> (__m256i, __m256i) {
     let (zero, one) = (_mm256_setzero_si256(), _mm256_set1_epi32(1));
     if !cubic_interior8(g, t) {
-        // Some lane inside the plane is at its edge: the reference, lane by lane.
         let geom = g.scalar();
-        let (mut v, mut m) = ([0u32; 8], [0i32; 8]);
-        for l in 0..8 {
-            let (sx, sy) = coord.at(u + l);
-            if let Some(s) = geom.sample_gray(data, sx, sy) {
-                (v[l], m[l]) = (s, -1);
-            }
-        }
-        return (
-            _mm256_loadu_si256(v.as_ptr() as *const __m256i),
-            _mm256_loadu_si256(m.as_ptr() as *const __m256i),
-        );
+        let ([v], m) = cubic_reference8(coord, u, |sx, sy| {
+            geom.sample_gray(data, sx, sy).map(|v| [v])
+        });
+        return (v, m);
     }
-    let (wx, wy) = (cubic_weights8(t.ax), cubic_weights8(t.ay));
-    let low16 = _mm256_set1_epi32(0xFFFF);
-    let pair = |lo: __m256i, hi: __m256i| {
-        _mm256_or_si256(_mm256_and_si256(lo, low16), _mm256_slli_epi32::<16>(hi))
-    };
-    let (wx01, wx23) = (pair(wx[0], wx[1]), pair(wx[2], wx[3]));
+    let CubicWeights8 { wx01, wx23, wy } = CubicWeights8::of(t);
     let stride = _mm256_set1_epi32(g.stride);
     // Tap (x0 - 1, y0 - 1) of every lane.
     let mut at = _mm256_add_epi32(
@@ -207,15 +194,10 @@ unsafe fn sample_cubic_gray8(
             _mm256_and_si256(_mm256_srli_epi32::<16>(p), byte),
             _mm256_and_si256(_mm256_srli_epi32::<8>(p), hi_byte),
         );
-        let along = _mm256_add_epi32(_mm256_madd_epi16(p01, wx01), _mm256_madd_epi16(p23, wx23));
-        acc = _mm256_add_epi32(acc, _mm256_mullo_epi32(along, w_row));
+        acc = cubic_row8(acc, p01, p23, wx01, wx23, w_row);
         at = _mm256_add_epi32(at, stride);
     }
-    let v = _mm256_min_epi32(
-        _mm256_max_epi32(_mm256_srai_epi32::<8>(acc), zero),
-        _mm256_set1_epi32(255 * 256),
-    );
-    (_mm256_and_si256(v, t.mask), t.mask)
+    (cubic_finish8(acc, t.mask), t.mask)
 }
 
 /// The bicubic R, G, B samples of eight output pixels `u..u + 8` of one
@@ -235,27 +217,10 @@ unsafe fn sample_cubic_rgb8(
 ) -> ([__m256i; 3], __m256i) {
     let (zero, one) = (_mm256_setzero_si256(), _mm256_set1_epi32(1));
     if !cubic_interior8(g, t) {
-        // Some lane inside the frame is at its edge: the reference, lane by lane.
         let geom = g.scalar();
-        let (mut v, mut m) = ([[0u32; 8]; 3], [0i32; 8]);
-        for l in 0..8 {
-            let (sx, sy) = coord.at(u + l);
-            if let Some(s) = geom.sample(data, sx, sy) {
-                (v[0][l], v[1][l], v[2][l], m[l]) = (s[0], s[1], s[2], -1);
-            }
-        }
-        let load = |a: &[u32; 8]| _mm256_loadu_si256(a.as_ptr() as *const __m256i);
-        return (
-            [load(&v[0]), load(&v[1]), load(&v[2])],
-            _mm256_loadu_si256(m.as_ptr() as *const __m256i),
-        );
+        return cubic_reference8(coord, u, |sx, sy| geom.sample(data, sx, sy));
     }
-    let (wx, wy) = (cubic_weights8(t.ax), cubic_weights8(t.ay));
-    let low16 = _mm256_set1_epi32(0xFFFF);
-    let pair = |lo: __m256i, hi: __m256i| {
-        _mm256_or_si256(_mm256_and_si256(lo, low16), _mm256_slli_epi32::<16>(hi))
-    };
-    let (wx01, wx23) = (pair(wx[0], wx[1]), pair(wx[2], wx[3]));
+    let CubicWeights8 { wx01, wx23, wy } = CubicWeights8::of(t);
     let (stride, chans) = (_mm256_set1_epi32(g.stride), _mm256_set1_epi32(g.channels));
     // Tap (x0 - 1, y0 - 1) of every lane.
     let mut at = _mm256_add_epi32(
@@ -264,8 +229,7 @@ unsafe fn sample_cubic_rgb8(
     );
     let base = data.as_ptr() as *const i32;
     let (byte, hi_byte) = (_mm256_set1_epi32(0xFF), _mm256_set1_epi32(0xFF_0000));
-    let round = _mm256_set1_epi32(128);
-    let mut acc = [round; 3];
+    let mut acc = [_mm256_set1_epi32(128); 3];
     for w_row in wy {
         let tap = |i: i32| {
             let at = _mm256_add_epi32(at, _mm256_set1_epi32(i * g.channels));
@@ -284,9 +248,7 @@ unsafe fn sample_cubic_rgb8(
                     _mm256_and_si256(_mm256_srli_epi32::<$shift>(p2), byte),
                     _mm256_and_si256(_mm256_slli_epi32::<$up>(p3), hi_byte),
                 );
-                let along =
-                    _mm256_add_epi32(_mm256_madd_epi16(p01, wx01), _mm256_madd_epi16(p23, wx23));
-                acc[$c] = _mm256_add_epi32(acc[$c], _mm256_mullo_epi32(along, w_row));
+                acc[$c] = cubic_row8(acc[$c], p01, p23, wx01, wx23, w_row);
             }};
         }
         channel!(0, 0, 16);
@@ -294,12 +256,7 @@ unsafe fn sample_cubic_rgb8(
         channel!(2, 16, 0);
         at = _mm256_add_epi32(at, stride);
     }
-    let max = _mm256_set1_epi32(255 * 256);
-    let finish = |a: __m256i| {
-        let v = _mm256_min_epi32(_mm256_max_epi32(_mm256_srai_epi32::<8>(a), zero), max);
-        _mm256_and_si256(v, t.mask)
-    };
-    ([finish(acc[0]), finish(acc[1]), finish(acc[2])], t.mask)
+    (acc.map(|a| cubic_finish8(a, t.mask)), t.mask)
 }
 
 /// Whether every lane of `t` inside the frame has all its bicubic taps inside
@@ -317,6 +274,86 @@ unsafe fn cubic_interior8(g: &KernelGeometry, t: &Taps8) -> bool {
     };
     let interior = _mm256_and_si256(inside(t.x0, g.max_x0), inside(t.y0, g.max_y0));
     _mm256_testc_si256(interior, t.mask) != 0
+}
+
+/// The reference's samples of the eight points `u..u + 8` (`sample`: the
+/// scalar sampler of `C` channels) and the lanes inside the frame: a chunk
+/// the vector samplers leave (a lane on the frame's edge band).
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn cubic_reference8<const C: usize>(
+    coord: &RowCoords<'_>,
+    u: usize,
+    sample: impl Fn(f32, f32) -> Option<[u32; C]>,
+) -> ([__m256i; C], __m256i) {
+    let (mut v, mut m) = ([[0u32; 8]; C], [0i32; 8]);
+    for l in 0..8 {
+        let (sx, sy) = coord.at(u + l);
+        if let Some(s) = sample(sx, sy) {
+            for (plane, s) in v.iter_mut().zip(s) {
+                plane[l] = s;
+            }
+            m[l] = -1;
+        }
+    }
+    (
+        v.map(|plane| _mm256_loadu_si256(plane.as_ptr() as *const __m256i)),
+        _mm256_loadu_si256(m.as_ptr() as *const __m256i),
+    )
+}
+
+/// The bicubic weights of a chunk as the samplers use them: the horizontal
+/// ones as 16-bit pairs for `madd` (`(w0, w1)`, `(w2, w3)`), the vertical ones
+/// in 32-bit lanes.
+struct CubicWeights8 {
+    wx01: __m256i,
+    wx23: __m256i,
+    wy: [__m256i; 4],
+}
+
+impl CubicWeights8 {
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn of(t: &Taps8) -> Self {
+        let (wx, wy) = (cubic_weights8(t.ax), cubic_weights8(t.ay));
+        let low16 = _mm256_set1_epi32(0xFFFF);
+        let pair = |lo: __m256i, hi: __m256i| {
+            _mm256_or_si256(_mm256_and_si256(lo, low16), _mm256_slli_epi32::<16>(hi))
+        };
+        Self {
+            wx01: pair(wx[0], wx[1]),
+            wx23: pair(wx[2], wx[3]),
+            wy,
+        }
+    }
+}
+
+/// `acc + w_row (w0 p0 + w1 p1 + w2 p2 + w3 p3)` for one row of taps given
+/// as the 16-bit pairs `p01 = (p0, p1)`, `p23 = (p2, p3)`.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn cubic_row8(
+    acc: __m256i,
+    p01: __m256i,
+    p23: __m256i,
+    wx01: __m256i,
+    wx23: __m256i,
+    w_row: __m256i,
+) -> __m256i {
+    let along = _mm256_add_epi32(_mm256_madd_epi16(p01, wx01), _mm256_madd_epi16(p23, wx23));
+    _mm256_add_epi32(acc, _mm256_mullo_epi32(along, w_row))
+}
+
+/// A bicubic sum (rounding included) to the reference's 8.8 sample: `>> 8`,
+/// clamped to `0..=255 * 256` (the cubic overshoots at edges), 0 outside `mask`.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn cubic_finish8(acc: __m256i, mask: __m256i) -> __m256i {
+    let v = _mm256_min_epi32(
+        _mm256_max_epi32(_mm256_srai_epi32::<8>(acc), _mm256_setzero_si256()),
+        _mm256_set1_epi32(255 * 256),
+    );
+    _mm256_and_si256(v, mask)
 }
 
 /// `common::cubic_weights` of eight 8-bit fractions, lane by lane.

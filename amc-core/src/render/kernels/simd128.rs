@@ -528,25 +528,13 @@ unsafe fn sample_cubic_gray4(
     let (x0, y0) = (to_int(t.x0f), to_int(t.y0f));
     let (zero, one) = (i32x4_splat(0), i32x4_splat(1));
     if !cubic_interior4(g, t.valid, x0, y0) {
-        // Some lane inside the plane is at its edge: the reference, lane by lane.
         let geom = g.scalar();
-        let (mut v, mut m) = ([0u32; 4], [0i32; 4]);
-        for l in 0..4 {
-            let (sx, sy) = coord.at(u + l);
-            if let Some(s) = geom.sample_gray(data, sx, sy) {
-                (v[l], m[l]) = (s, -1);
-            }
-        }
-        return (
-            v128_load(v.as_ptr() as *const v128),
-            v128_load(m.as_ptr() as *const v128),
-        );
+        let ([v], m) = cubic_reference4(coord, u, |sx, sy| {
+            geom.sample_gray(data, sx, sy).map(|v| [v])
+        });
+        return (v, m);
     }
-    let (wx, wy) = (cubic_weights4(t.ax), cubic_weights4(t.ay));
-    let low16 = i32x4_splat(0xFFFF);
-    let pair =
-        |lo: v128, hi: v128| v128_and(v128_or(v128_and(lo, low16), i32x4_shl(hi, 16)), t.valid);
-    let (wx01, wx23) = (pair(wx[0], wx[1]), pair(wx[2], wx[3]));
+    let CubicWeights4 { wx01, wx23, wy } = CubicWeights4::of(t);
     // Tap (x0 - 1, y0 - 1) of every lane inside the plane.
     let at = i32x4_add(
         i32x4_mul(i32x4_sub(y0, one), i32x4_splat(g.stride)),
@@ -574,11 +562,9 @@ unsafe fn sample_cubic_gray4(
             v128_and(u32x4_shr(p, 16), byte),
             v128_and(u32x4_shr(p, 8), hi_byte),
         );
-        let along = i32x4_add(i32x4_dot_i16x8(p01, wx01), i32x4_dot_i16x8(p23, wx23));
-        acc = i32x4_add(acc, i32x4_mul(along, w_row));
+        acc = cubic_row4(acc, p01, p23, wx01, wx23, w_row);
     }
-    let v = i32x4_min(i32x4_max(i32x4_shr(acc, 8), zero), i32x4_splat(255 * 256));
-    (v128_and(v, t.valid), t.valid)
+    (cubic_finish4(acc, t.valid), t.valid)
 }
 
 /// The bicubic R, G, B samples of four output pixels `u..u + 4` of one
@@ -598,26 +584,10 @@ unsafe fn sample_cubic_rgb4(
     let (x0, y0) = (to_int(t.x0f), to_int(t.y0f));
     let (zero, one) = (i32x4_splat(0), i32x4_splat(1));
     if !cubic_interior4(g, t.valid, x0, y0) {
-        // Some lane inside the frame is at its edge: the reference, lane by lane.
         let geom = g.scalar();
-        let (mut v, mut m) = ([[0u32; 4]; 3], [0i32; 4]);
-        for l in 0..4 {
-            let (sx, sy) = coord.at(u + l);
-            if let Some(s) = geom.sample(data, sx, sy) {
-                (v[0][l], v[1][l], v[2][l], m[l]) = (s[0], s[1], s[2], -1);
-            }
-        }
-        let load = |a: &[u32; 4]| v128_load(a.as_ptr() as *const v128);
-        return (
-            [load(&v[0]), load(&v[1]), load(&v[2])],
-            v128_load(m.as_ptr() as *const v128),
-        );
+        return cubic_reference4(coord, u, |sx, sy| geom.sample(data, sx, sy));
     }
-    let (wx, wy) = (cubic_weights4(t.ax), cubic_weights4(t.ay));
-    let low16 = i32x4_splat(0xFFFF);
-    let pair =
-        |lo: v128, hi: v128| v128_and(v128_or(v128_and(lo, low16), i32x4_shl(hi, 16)), t.valid);
-    let (wx01, wx23) = (pair(wx[0], wx[1]), pair(wx[2], wx[3]));
+    let CubicWeights4 { wx01, wx23, wy } = CubicWeights4::of(t);
     let c = g.channels as usize;
     // Tap (x0 - 1, y0 - 1) of every lane inside the frame.
     let at = i32x4_add(
@@ -654,17 +624,14 @@ unsafe fn sample_cubic_rgb4(
                     v128_and(u32x4_shr(p[2], $shift), byte),
                     v128_and(i32x4_shl(p[3], $up), hi_byte),
                 );
-                let along = i32x4_add(i32x4_dot_i16x8(p01, wx01), i32x4_dot_i16x8(p23, wx23));
-                acc[$c] = i32x4_add(acc[$c], i32x4_mul(along, w_row));
+                acc[$c] = cubic_row4(acc[$c], p01, p23, wx01, wx23, w_row);
             }};
         }
         channel!(0, 0, 16);
         channel!(1, 8, 8);
         channel!(2, 16, 0);
     }
-    let max = i32x4_splat(255 * 256);
-    let finish = |a: v128| v128_and(i32x4_min(i32x4_max(i32x4_shr(a, 8), zero), max), t.valid);
-    ([finish(acc[0]), finish(acc[1]), finish(acc[2])], t.valid)
+    (acc.map(|a| cubic_finish4(a, t.valid)), t.valid)
 }
 
 /// Whether every lane of `valid` (inside the frame) has all its bicubic taps
@@ -678,6 +645,74 @@ fn cubic_interior4(g: &KernelGeometry, valid: v128, x0: v128, y0: v128) -> bool 
         |p0: v128, max0: i32| v128_and(i32x4_gt(p0, zero), i32x4_lt(p0, i32x4_splat(max0)));
     let interior = v128_and(inside(x0, g.max_x0), inside(y0, g.max_y0));
     !v128_any_true(v128_andnot(valid, interior))
+}
+
+/// The reference's samples of the four points `u..u + 4` (`sample`: the
+/// scalar sampler of `C` channels) and the lanes inside the frame: a chunk
+/// the vector samplers leave (a lane on the frame's edge band).
+#[inline(always)]
+unsafe fn cubic_reference4<const C: usize>(
+    coord: &RowCoords<'_>,
+    u: usize,
+    sample: impl Fn(f32, f32) -> Option<[u32; C]>,
+) -> ([v128; C], v128) {
+    let (mut v, mut m) = ([[0u32; 4]; C], [0i32; 4]);
+    for l in 0..4 {
+        let (sx, sy) = coord.at(u + l);
+        if let Some(s) = sample(sx, sy) {
+            for (plane, s) in v.iter_mut().zip(s) {
+                plane[l] = s;
+            }
+            m[l] = -1;
+        }
+    }
+    (
+        v.map(|plane| v128_load(plane.as_ptr() as *const v128)),
+        v128_load(m.as_ptr() as *const v128),
+    )
+}
+
+/// The bicubic weights of a chunk as the samplers use them: the horizontal
+/// ones as 16-bit pairs for the dot product (`(w0, w1)`, `(w2, w3)`; zero in
+/// lanes outside the frame), the vertical ones in 32-bit lanes.
+struct CubicWeights4 {
+    wx01: v128,
+    wx23: v128,
+    wy: [v128; 4],
+}
+
+impl CubicWeights4 {
+    #[inline(always)]
+    fn of(t: &Taps4) -> Self {
+        let (wx, wy) = (cubic_weights4(t.ax), cubic_weights4(t.ay));
+        let low16 = i32x4_splat(0xFFFF);
+        let pair =
+            |lo: v128, hi: v128| v128_and(v128_or(v128_and(lo, low16), i32x4_shl(hi, 16)), t.valid);
+        Self {
+            wx01: pair(wx[0], wx[1]),
+            wx23: pair(wx[2], wx[3]),
+            wy,
+        }
+    }
+}
+
+/// `acc + w_row (w0 p0 + w1 p1 + w2 p2 + w3 p3)` for one row of taps given
+/// as the 16-bit pairs `p01 = (p0, p1)`, `p23 = (p2, p3)`.
+#[inline(always)]
+fn cubic_row4(acc: v128, p01: v128, p23: v128, wx01: v128, wx23: v128, w_row: v128) -> v128 {
+    let along = i32x4_add(i32x4_dot_i16x8(p01, wx01), i32x4_dot_i16x8(p23, wx23));
+    i32x4_add(acc, i32x4_mul(along, w_row))
+}
+
+/// A bicubic sum (rounding included) to the reference's 8.8 sample: `>> 8`,
+/// clamped to `0..=255 * 256` (the cubic overshoots at edges), 0 outside `valid`.
+#[inline(always)]
+fn cubic_finish4(acc: v128, valid: v128) -> v128 {
+    let v = i32x4_min(
+        i32x4_max(i32x4_shr(acc, 8), i32x4_splat(0)),
+        i32x4_splat(255 * 256),
+    );
+    v128_and(v, valid)
 }
 
 /// `common::cubic_weights` of four 8-bit fractions, lane by lane.
