@@ -13,9 +13,11 @@
 //! the arithmetic after them is exact integer arithmetic equal to the
 //! reference's, so the choice never changes a result. Bicubic planes take
 //! each lane's four taps of four rows the same way, from windows of five
-//! rows (`sample_cubic16`).
+//! rows (`sample_cubic16`). The ghost-free average of planes
+//! (`merge_row_gray`) samples the same way.
 
 use super::common::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
+use crate::render::robust::{Deghost, FULL_WEIGHT};
 use std::arch::x86_64::*;
 
 /// Largest offset of a lane's left tap inside the 64-byte window: its right
@@ -138,6 +140,81 @@ pub(super) unsafe fn accumulate_row_gray_pair(
         _mm512_mask_storeu_epi32(count.as_mut_ptr().add(u) as *mut i32, lanes, sum_n);
         u += 16;
     }
+}
+
+/// The ghost-free twin of [`accumulate_row_gray`] (the contract of
+/// `scalar::merge_row_gray`): for `u in 0..n8`, the last frame's samples are
+/// taken first and every frame's then weighted by its agreement with them,
+/// in registers; `sum`, `weight` and `count` are stored once per chunk. The
+/// samples are [`accumulate_row_gray`]'s (windows or gathers, bilinear or
+/// bicubic), the weights the AVX2 kernel's (`weights8`), sixteen lanes wide.
+///
+/// # Safety
+/// As [`accumulate_row_gray`], and `datas` must not be empty.
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe fn merge_row_gray(
+    datas: &[&[u8]],
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    deghost: Deghost,
+    n8: usize,
+    sum: &mut [u32],
+    weight: &mut [u32],
+    count: &mut [u32],
+) {
+    debug_assert!(n8 & 7 == 0 && datas.len() == coords.len() && !datas.is_empty());
+    debug_assert!(sum.len() >= n8 && weight.len() >= n8 && count.len() >= n8);
+    let last = datas.len() - 1;
+    let (one, full) = (_mm512_set1_epi32(1), _mm512_set1_epi32(FULL_WEIGHT as i32));
+    let mut u = 0;
+    while u < n8 {
+        let lanes = step_lanes(n8, u);
+        let (v0, m0) = sample_gray16(datas[last], &g, &coords[last], u, lanes)
+            .unwrap_or((_mm512_setzero_si512(), 0));
+        let w0 = _mm512_maskz_mov_epi32(m0, full);
+        let mut acc = _mm512_mullo_epi32(w0, v0);
+        let (mut acc_w, mut acc_n) = (w0, _mm512_maskz_mov_epi32(m0, one));
+        for (data, coord) in datas[..last].iter().zip(coords) {
+            let Some((v, mask)) = sample_gray16(data, &g, coord, u, lanes) else {
+                continue;
+            };
+            let d = _mm512_abs_epi32(_mm512_sub_epi32(v, v0));
+            let w = weights16(deghost, d, m0, mask);
+            acc = _mm512_add_epi32(acc, _mm512_mullo_epi32(w, v));
+            acc_w = _mm512_add_epi32(acc_w, w);
+            acc_n = _mm512_mask_add_epi32(acc_n, mask, acc_n, one);
+        }
+        _mm512_mask_storeu_epi32(sum.as_mut_ptr().add(u) as *mut i32, lanes, acc);
+        _mm512_mask_storeu_epi32(weight.as_mut_ptr().add(u) as *mut i32, lanes, acc_w);
+        _mm512_mask_storeu_epi32(count.as_mut_ptr().add(u) as *mut i32, lanes, acc_n);
+        u += 16;
+    }
+}
+
+/// The ghost-free weights of sixteen samples differing by `d` from the
+/// reference's: `Deghost::weight` lane by lane (`d <= 65280`, so the scalar
+/// clamp to `2^16` never acts), full where the reference does not cover the
+/// pixel (`reference` clear), 0 where the frame does not (`mask` clear).
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+#[inline]
+unsafe fn weights16(
+    deghost: Deghost,
+    d: __m512i,
+    reference: __mmask16,
+    mask: __mmask16,
+) -> __m512i {
+    let (zero_at, slope) = deghost.constants();
+    let full = _mm512_set1_epi32(FULL_WEIGHT as i32);
+    let ramp = _mm512_max_epi32(
+        _mm512_sub_epi32(_mm512_set1_epi32(zero_at), d),
+        _mm512_setzero_si512(),
+    );
+    let w = _mm512_min_epi32(
+        _mm512_srli_epi32::<16>(_mm512_mullo_epi32(ramp, _mm512_set1_epi32(slope))),
+        full,
+    );
+    _mm512_maskz_mov_epi32(mask, _mm512_mask_blend_epi32(reference, full, w))
 }
 
 /// Finishes the first `n8` pixels (a multiple of 8) of a single-channel output

@@ -73,8 +73,8 @@ pub enum Kernel {
     #[cfg(target_arch = "x86_64")]
     Avx2,
     /// x86-64 AVX-512 (F, BW, VL, VBMI): the planes' rows sixteen pixels at a
-    /// time, their taps picked by byte permutes (`avx512.rs`); interleaved and
-    /// ghost-free rows run the AVX2 kernel, which every such CPU has.
+    /// time, their taps picked by byte permutes (`avx512.rs`), plain and
+    /// ghost-free; interleaved rows run the AVX2 kernel, which every such CPU has.
     #[cfg(target_arch = "x86_64")]
     Avx512,
     /// WebAssembly `simd128`, four pixels at a time (`simd128.rs`).
@@ -358,7 +358,18 @@ impl Kernel {
                 scalar::merge_row_gray(datas, geom, coords, deghost, (0, n), sum, weight, count)
             }
             #[cfg(target_arch = "x86_64")]
-            Kernel::Avx2 | Kernel::Avx512 => avx2::merge_row_gray(
+            Kernel::Avx512 => avx512::merge_row_gray(
+                datas,
+                common::KernelGeometry::of(geom),
+                coords,
+                deghost,
+                n,
+                sum,
+                weight,
+                count,
+            ),
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2 => avx2::merge_row_gray(
                 datas,
                 common::KernelGeometry::of(geom),
                 coords,
