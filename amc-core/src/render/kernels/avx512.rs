@@ -93,9 +93,9 @@ pub(super) unsafe fn accumulate_row_gray(
 
 /// [`accumulate_row_gray`] of two planes of one geometry at once (the U and
 /// V planes of 4:2:0 frames): `acc_a` and `acc_b` from `datas_a` and
-/// `datas_b`, one `count`. Each chunk's coordinates, taps and window are
-/// found once for both planes; only the loads and the arithmetic after them
-/// are done twice.
+/// `datas_b`, one `count`. Each chunk's coordinates, taps and window (and
+/// bicubic weights) are found once for both planes; only the loads and the
+/// arithmetic after them are done twice.
 ///
 /// # Safety
 /// As [`accumulate_row_gray`], for both planes' data.
@@ -126,13 +126,18 @@ pub(super) unsafe fn accumulate_row_gray_pair(
             let Some(t) = taps16(&g, row_coords16(coord, u, lanes), lanes) else {
                 continue;
             };
-            let ((top_a, bot_a), (top_b, bot_b)) =
-                match window(&g, &t, falls(coord, u), a.len().min(b.len())) {
-                    Some(w) => (window_fetch(a, &g, &w), window_fetch(b, &g, &w)),
-                    None => (gather_pairs(a, &g, &t), gather_pairs(b, &g, &t)),
-                };
-            sum_a = _mm512_add_epi32(sum_a, interpolate(&t, top_a, bot_a));
-            sum_b = _mm512_add_epi32(sum_b, interpolate(&t, top_b, bot_b));
+            let (va, vb) = if g.cubic {
+                sample_cubic16_pair((a, b), &g, coord, u, &t)
+            } else {
+                let ((top_a, bot_a), (top_b, bot_b)) =
+                    match window(&g, &t, falls(coord, u), a.len().min(b.len())) {
+                        Some(w) => (window_fetch(a, &g, &w), window_fetch(b, &g, &w)),
+                        None => (gather_pairs(a, &g, &t), gather_pairs(b, &g, &t)),
+                    };
+                (interpolate(&t, top_a, bot_a), interpolate(&t, top_b, bot_b))
+            };
+            sum_a = _mm512_add_epi32(sum_a, va);
+            sum_b = _mm512_add_epi32(sum_b, vb);
             sum_n = _mm512_mask_add_epi32(sum_n, t.mask, sum_n, one);
         }
         _mm512_mask_storeu_epi32(acc_a.as_mut_ptr().add(u) as *mut i32, lanes, sum_a);
@@ -320,40 +325,119 @@ unsafe fn sample_cubic16(
     u: usize,
     t: &Taps16,
 ) -> __m512i {
+    if !cubic_interior16(g, t) {
+        return cubic_reference16(data, g, coord, u, t);
+    }
+    let rows = match CubicWindow::of(g, t, falls(coord, u), data.len()) {
+        Some(w) => w.fetch(data),
+        None => cubic_gather(data, g, t),
+    };
+    cubic_sum16(rows, &CubicWeights16::of(t), t.mask)
+}
+
+/// [`sample_cubic16`] of two planes of one geometry (the U and V planes of
+/// 4:2:0 frames): the weights and the window are found once for both.
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+#[inline]
+unsafe fn sample_cubic16_pair(
+    (a, b): (&[u8], &[u8]),
+    g: &KernelGeometry,
+    coord: &RowCoords<'_>,
+    u: usize,
+    t: &Taps16,
+) -> (__m512i, __m512i) {
+    if !cubic_interior16(g, t) {
+        return (
+            cubic_reference16(a, g, coord, u, t),
+            cubic_reference16(b, g, coord, u, t),
+        );
+    }
+    let (rows_a, rows_b) = match CubicWindow::of(g, t, falls(coord, u), a.len().min(b.len())) {
+        Some(w) => (w.fetch(a), w.fetch(b)),
+        None => (cubic_gather(a, g, t), cubic_gather(b, g, t)),
+    };
+    let w = CubicWeights16::of(t);
+    (
+        cubic_sum16(rows_a, &w, t.mask),
+        cubic_sum16(rows_b, &w, t.mask),
+    )
+}
+
+/// Whether every lane of `t` inside the plane has all its bicubic taps inside
+/// it (`1 <= x0 < max_x0`, `1 <= y0 < max_y0`); a chunk with a lane on the
+/// plane's one-pixel edge band takes the reference ([`cubic_reference16`]).
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+#[inline]
+unsafe fn cubic_interior16(g: &KernelGeometry, t: &Taps16) -> bool {
     let zero = _mm512_setzero_si512();
     let inside = |m: __mmask16, p0: __m512i, max0: i32| {
         let m = _mm512_mask_cmpgt_epi32_mask(m, p0, zero);
         _mm512_mask_cmplt_epi32_mask(m, p0, _mm512_set1_epi32(max0))
     };
-    let interior = inside(inside(t.mask, t.x0, g.max_x0), t.y0, g.max_y0);
-    if interior != t.mask {
-        // The reference, lane by lane (only lanes inside the plane: the
-        // others are 0, and past a last step of eight there is no coordinate).
-        let geom = g.scalar();
-        let mut v = [0u32; 16];
-        for (l, v) in v.iter_mut().enumerate() {
-            if t.mask & (1 << l) != 0 {
-                let (sx, sy) = coord.at(u + l);
-                *v = geom.sample_gray(data, sx, sy).unwrap_or(0);
-            }
+    inside(inside(t.mask, t.x0, g.max_x0), t.y0, g.max_y0) == t.mask
+}
+
+/// The reference's samples of the lanes of `t` inside the plane, lane by lane
+/// (the others are 0, and past a last step of eight there is no coordinate).
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+#[inline]
+unsafe fn cubic_reference16(
+    data: &[u8],
+    g: &KernelGeometry,
+    coord: &RowCoords<'_>,
+    u: usize,
+    t: &Taps16,
+) -> __m512i {
+    let geom = g.scalar();
+    let mut v = [0u32; 16];
+    for (l, v) in v.iter_mut().enumerate() {
+        if t.mask & (1 << l) != 0 {
+            let (sx, sy) = coord.at(u + l);
+            *v = geom.sample_gray(data, sx, sy).unwrap_or(0);
         }
-        return _mm512_loadu_si512(v.as_ptr() as *const _);
     }
-    let (wx, wy) = (cubic_weights16(t.ax), cubic_weights16(t.ay));
-    let low16 = _mm512_set1_epi32(0xFFFF);
-    let pair = |lo: __m512i, hi: __m512i| {
-        _mm512_maskz_or_epi32(
-            t.mask,
-            _mm512_and_si512(lo, low16),
-            _mm512_slli_epi32::<16>(hi),
-        )
-    };
-    let (wx01, wx23) = (pair(wx[0], wx[1]), pair(wx[2], wx[3]));
-    let rows =
-        cubic_window(data, g, t, falls(coord, u)).unwrap_or_else(|| cubic_gather(data, g, t));
+    _mm512_loadu_si512(v.as_ptr() as *const _)
+}
+
+/// The bicubic weights of a chunk: the horizontal ones as 16-bit pairs for
+/// `madd` (`(w0, w1)`, `(w2, w3)`; zero outside the mask), the vertical ones
+/// in 32-bit lanes.
+struct CubicWeights16 {
+    wx01: __m512i,
+    wx23: __m512i,
+    wy: [__m512i; 4],
+}
+
+impl CubicWeights16 {
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+    #[inline]
+    unsafe fn of(t: &Taps16) -> Self {
+        let (wx, wy) = (cubic_weights16(t.ax), cubic_weights16(t.ay));
+        let low16 = _mm512_set1_epi32(0xFFFF);
+        let pair = |lo: __m512i, hi: __m512i| {
+            _mm512_maskz_or_epi32(
+                t.mask,
+                _mm512_and_si512(lo, low16),
+                _mm512_slli_epi32::<16>(hi),
+            )
+        };
+        Self {
+            wx01: pair(wx[0], wx[1]),
+            wx23: pair(wx[2], wx[3]),
+            wy,
+        }
+    }
+}
+
+/// The bicubic samples from the four tap rows of a chunk (each lane's four
+/// taps as the bytes of its 32-bit lane): the AVX2 kernel's arithmetic
+/// (`sample_cubic_gray8`), sixteen lanes wide; 0 outside `mask`.
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+#[inline]
+unsafe fn cubic_sum16(rows: [__m512i; 4], w: &CubicWeights16, mask: __mmask16) -> __m512i {
     let (byte, hi_byte) = (_mm512_set1_epi32(0xFF), _mm512_set1_epi32(0xFF_0000));
     let mut acc = _mm512_set1_epi32(128);
-    for (p, w_row) in rows.into_iter().zip(wy) {
+    for (p, w_row) in rows.into_iter().zip(w.wy) {
         // Bytes 0, 1 and 2, 3 of each lane as 16-bit pairs.
         let p01 = _mm512_or_si512(
             _mm512_and_si512(p, byte),
@@ -363,14 +447,17 @@ unsafe fn sample_cubic16(
             _mm512_and_si512(_mm512_srli_epi32::<16>(p), byte),
             _mm512_and_si512(_mm512_srli_epi32::<8>(p), hi_byte),
         );
-        let along = _mm512_add_epi32(_mm512_madd_epi16(p01, wx01), _mm512_madd_epi16(p23, wx23));
+        let along = _mm512_add_epi32(
+            _mm512_madd_epi16(p01, w.wx01),
+            _mm512_madd_epi16(p23, w.wx23),
+        );
         acc = _mm512_add_epi32(acc, _mm512_mullo_epi32(along, w_row));
     }
     let v = _mm512_min_epi32(
-        _mm512_max_epi32(_mm512_srai_epi32::<8>(acc), zero),
+        _mm512_max_epi32(_mm512_srai_epi32::<8>(acc), _mm512_setzero_si512()),
         _mm512_set1_epi32(255 * 256),
     );
-    _mm512_maskz_mov_epi32(t.mask, v)
+    _mm512_maskz_mov_epi32(mask, v)
 }
 
 /// `common::cubic_weights` of sixteen 8-bit fractions, lane by lane.
@@ -395,49 +482,66 @@ unsafe fn cubic_weights16(a: __m512i) -> [__m512i; 4] {
     [w0, w1, w2, w3]
 }
 
-/// The four tap rows of interior taps `t` (each lane's bytes `x0 - 1 ..= x0 +
-/// 2` of rows `y0 - 1 ..= y0 + 2`) picked out of 64-byte windows of five
-/// rows, or `None` when they do not fit: as [`window`], with every lane's
-/// leftmost tap within 60 columns of the window's start and its top row on
-/// one of two neighbouring rows.
-#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
-#[inline]
-unsafe fn cubic_window(
-    data: &[u8],
-    g: &KernelGeometry,
-    t: &Taps16,
-    falls: bool,
-) -> Option<[__m512i; 4]> {
-    let one = _mm512_set1_epi32(1);
-    let x_win = (_mm512_cvtsi512_si32(t.x0) - 1 - WINDOW_SLACK).max(0);
-    let y_win = (_mm512_cvtsi512_si32(t.y0) - 1 - falls as i32).max(0);
-    let off = _mm512_sub_epi32(_mm512_sub_epi32(t.x0, one), _mm512_set1_epi32(x_win));
-    let down = _mm512_sub_epi32(_mm512_sub_epi32(t.y0, one), _mm512_set1_epi32(y_win));
-    // Unsigned compares: a negative offset is out of the window too.
-    if _mm512_mask_cmpgt_epu32_mask(t.mask, off, _mm512_set1_epi32(60)) != 0
-        || _mm512_mask_cmpgt_epu32_mask(t.mask, down, one) != 0
-    {
-        return None;
+/// Where the four tap rows of interior taps `t` (each lane's bytes `x0 - 1
+/// ..= x0 + 2` of rows `y0 - 1 ..= y0 + 2`) lie in 64-byte windows of five
+/// rows of a plane `len` bytes long, or `None` when they do not fit: as
+/// [`window`], with every lane's leftmost tap within 60 columns of the
+/// window's start and its top row on one of two neighbouring rows. The same
+/// for every plane of one geometry ([`CubicWindow::fetch`] reads one).
+struct CubicWindow {
+    /// Byte offset of the window's first row.
+    start: usize,
+    stride: usize,
+    /// Bytes `off, off + 1, off + 2, off + 3` of a row window into each lane.
+    index: __m512i,
+    /// Lanes whose top tap row is the window's second row.
+    lower: __mmask16,
+}
+
+impl CubicWindow {
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+    #[inline]
+    unsafe fn of(g: &KernelGeometry, t: &Taps16, falls: bool, len: usize) -> Option<Self> {
+        let one = _mm512_set1_epi32(1);
+        let x_win = (_mm512_cvtsi512_si32(t.x0) - 1 - WINDOW_SLACK).max(0);
+        let y_win = (_mm512_cvtsi512_si32(t.y0) - 1 - falls as i32).max(0);
+        let off = _mm512_sub_epi32(_mm512_sub_epi32(t.x0, one), _mm512_set1_epi32(x_win));
+        let down = _mm512_sub_epi32(_mm512_sub_epi32(t.y0, one), _mm512_set1_epi32(y_win));
+        // Unsigned compares: a negative offset is out of the window too.
+        if _mm512_mask_cmpgt_epu32_mask(t.mask, off, _mm512_set1_epi32(60)) != 0
+            || _mm512_mask_cmpgt_epu32_mask(t.mask, down, one) != 0
+        {
+            return None;
+        }
+        let stride = g.stride as usize;
+        let start = y_win as usize * stride + x_win as usize;
+        if start + 4 * stride + 64 > len {
+            return None;
+        }
+        Some(Self {
+            start,
+            stride,
+            index: _mm512_add_epi32(
+                _mm512_mullo_epi32(off, _mm512_set1_epi32(0x0101_0101)),
+                _mm512_set1_epi32(0x0302_0100),
+            ),
+            lower: _mm512_mask_cmpneq_epi32_mask(t.mask, down, _mm512_setzero_si512()),
+        })
     }
-    let stride = g.stride as usize;
-    let start = y_win as usize * stride + x_win as usize;
-    if start + 4 * stride + 64 > data.len() {
-        return None;
+
+    /// The four tap rows of `data` (at least the `len` bytes the window was
+    /// found for).
+    #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+    #[inline]
+    unsafe fn fetch(&self, data: &[u8]) -> [__m512i; 4] {
+        let row = |r: usize| {
+            let bytes =
+                _mm512_loadu_si512(data.as_ptr().add(self.start + r * self.stride) as *const _);
+            _mm512_permutexvar_epi8(self.index, bytes)
+        };
+        let q = [row(0), row(1), row(2), row(3), row(4)];
+        std::array::from_fn(|r| _mm512_mask_blend_epi32(self.lower, q[r], q[r + 1]))
     }
-    // Bytes `off, off + 1, off + 2, off + 3` of the window into each lane.
-    let index = _mm512_add_epi32(
-        _mm512_mullo_epi32(off, _mm512_set1_epi32(0x0101_0101)),
-        _mm512_set1_epi32(0x0302_0100),
-    );
-    let lower = _mm512_mask_cmpneq_epi32_mask(t.mask, down, _mm512_setzero_si512());
-    let row = |r: usize| {
-        let bytes = _mm512_loadu_si512(data.as_ptr().add(start + r * stride) as *const _);
-        _mm512_permutexvar_epi8(index, bytes)
-    };
-    let q = [row(0), row(1), row(2), row(3), row(4)];
-    Some(std::array::from_fn(|r| {
-        _mm512_mask_blend_epi32(lower, q[r], q[r + 1])
-    }))
 }
 
 /// The four tap rows of interior taps `t`, gathered: one 32-bit load per lane

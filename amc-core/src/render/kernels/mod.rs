@@ -134,6 +134,20 @@ impl Kernel {
         !matches!(self, Kernel::Scalar)
     }
 
+    /// Whether this kernel samples a pair of planes bicubically in one pass
+    /// (AVX-512: one window and one set of weights for both); the others
+    /// sample one plane, then the other.
+    fn pairs_bicubic(self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            self == Kernel::Avx512
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            false
+        }
+    }
+
     /// Accumulates the samples of several frames along one output row: for
     /// `u in 0..n`, `acc_{r,g,b}[u] = sum_f sample_f(coords[f] at u)` (8.8 fixed
     /// point) and `count[u]` = frames whose coordinate lies inside the frame.
@@ -237,8 +251,9 @@ impl Kernel {
 
     /// [`Kernel::accumulate_row_gray`] of two planes of one geometry (the U
     /// and V planes of 4:2:0 frames) into `acc_a` and `acc_b`, one `count`.
-    /// The vector kernels find each chunk's taps once for both planes; the
-    /// scalar reference runs the plane kernel twice.
+    /// The vector kernels find each chunk's taps once for both planes (sampled
+    /// bicubically, AVX-512 only: see [`Kernel::pairs_bicubic`]); the scalar
+    /// reference runs the plane kernel twice.
     ///
     /// # Safety
     /// As [`Kernel::accumulate_row_gray`], for both planes' data.
@@ -262,7 +277,7 @@ impl Kernel {
             all(target_arch = "wasm32", target_feature = "simd128")
         ))]
         let g = common::KernelGeometry::of(geom);
-        if geom.cubic {
+        if geom.cubic && !matches!(self, Kernel::Scalar) && !self.pairs_bicubic() {
             // Bicubic taps are found per plane: one plane, then the other.
             self.accumulate_row_gray(a, geom, coords, n, acc_a, count);
             self.accumulate_row_gray(b, geom, coords, n, acc_b, count);
