@@ -311,7 +311,7 @@ unsafe fn sample_gray16(
 /// The bicubic samples of output pixels `u..u + 16` of one plane, whose
 /// bilinear footprints are `t` (0 outside `t.mask`): each lane's four tap rows
 /// as four bytes in its 32-bit lane, from row windows by byte permutes
-/// ([`cubic_window`]) or else gathered ([`cubic_gather`]), then the AVX2
+/// ([`CubicWindow`]) or else gathered ([`cubic_gather`]), then the AVX2
 /// kernel's arithmetic (`sample_cubic_gray8`), sixteen lanes wide. A chunk
 /// with a lane at the plane's edge (`x0` or `y0` on the first or last tap,
 /// where this kernel's `x0` may also be one past the reference's with
