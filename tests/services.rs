@@ -768,9 +768,13 @@ impl SeaweedS3 {
     }
 
     /// Ready: a signed `HEAD /BUCKET` answers 200, so the S3 API listens, knows the identity
-    /// and sees the bucket (created after the S3 API starts, on the first start).
+    /// and sees the bucket (created after the S3 API starts, on the first start), and the
+    /// master lists the volume server with every volume it holds on disk. The S3 API answers
+    /// before that on a start with data: until the volume server's first heartbeat reaches
+    /// the new master, reading an object fails with 500 "volume 1 not found" (seen in CI).
     fn wait_ready(&mut self) -> Result<(), String> {
         let t0 = Instant::now();
+        let volumes = volume_files(&self.data_dir());
         loop {
             if let Some(status) = self
                 .child
@@ -787,18 +791,43 @@ impl SeaweedS3 {
                 &self.secret_key,
                 Duration::from_secs(2),
             );
-            if status == 200 {
+            let listed = self.master_volumes();
+            if status == 200 && listed.is_some_and(|n| n >= volumes) {
                 return Ok(());
             }
             if t0.elapsed() > READY_WITHIN {
                 return Err(format!(
-                    "not ready within {} s (a signed HEAD /{} answers {status})",
+                    "not ready within {} s (a signed HEAD /{} answers {status}; the master \
+                     lists {} of the {volumes} volumes on disk)",
                     READY_WITHIN.as_secs(),
-                    self.bucket()
+                    self.bucket(),
+                    listed.map_or("none".to_string(), |n| n.to_string()),
                 ));
             }
             std::thread::sleep(Duration::from_millis(50));
         }
+    }
+
+    /// How many volumes the master lists for this server's volume server (its
+    /// `/dir/status` topology); `None` while it does not list the volume server.
+    fn master_volumes(&self) -> Option<usize> {
+        let url = format!("http://127.0.0.1:{}/dir/status", self.ports.master);
+        let (status, body) = http(agent(Duration::from_secs(2)).get(&url).call(), &url);
+        if status != 200 {
+            return None;
+        }
+        let status: serde_json::Value = serde_json::from_slice(&body).ok()?;
+        let ours = format!("127.0.0.1:{}", self.ports.volume);
+        let centres = status["Topology"]["DataCenters"].as_array()?;
+        let racks = centres
+            .iter()
+            .filter_map(|c| c["Racks"].as_array())
+            .flatten();
+        let nodes = racks.filter_map(|r| r["DataNodes"].as_array()).flatten();
+        nodes
+            .filter(|n| n["Url"] == ours.as_str())
+            .find_map(|n| n["Volumes"].as_u64())
+            .map(|n| n as usize)
     }
 
     /// SIGTERM to the process group, SIGKILL after `grace`; waits until the group is gone.
@@ -1045,6 +1074,24 @@ fn tail(text: &str) -> String {
 }
 
 /// An HTTP client that returns 4xx/5xx responses instead of errors.
+/// SeaweedFS volumes (`.dat` files) anywhere under `dir`.
+fn volume_files(dir: &Path) -> usize {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return 0;
+    };
+    entries
+        .flatten()
+        .map(|e| {
+            let path = e.path();
+            if path.is_dir() {
+                volume_files(&path)
+            } else {
+                usize::from(path.extension().is_some_and(|x| x == "dat"))
+            }
+        })
+        .sum()
+}
+
 fn agent(timeout: Duration) -> ureq::Agent {
     ureq::Agent::config_builder()
         .http_status_as_error(false)
