@@ -277,7 +277,7 @@ impl Kernel {
             all(target_arch = "wasm32", target_feature = "simd128")
         ))]
         let g = common::KernelGeometry::of(geom);
-        if geom.cubic && !matches!(self, Kernel::Scalar) && !self.pairs_bicubic() {
+        if geom.cubic && !self.pairs_bicubic() {
             // Bicubic taps are found per plane: one plane, then the other.
             self.accumulate_row_gray(a, geom, coords, n, acc_a, count);
             self.accumulate_row_gray(b, geom, coords, n, acc_b, count);
