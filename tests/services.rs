@@ -1073,7 +1073,6 @@ fn tail(text: &str) -> String {
     lines[lines.len().saturating_sub(40)..].join("\n")
 }
 
-/// An HTTP client that returns 4xx/5xx responses instead of errors.
 /// SeaweedFS volumes (`.dat` files) anywhere under `dir`.
 fn volume_files(dir: &Path) -> usize {
     let Ok(entries) = std::fs::read_dir(dir) else {
@@ -1092,6 +1091,7 @@ fn volume_files(dir: &Path) -> usize {
         .sum()
 }
 
+/// An HTTP client that returns 4xx/5xx responses instead of errors.
 fn agent(timeout: Duration) -> ureq::Agent {
     ureq::Agent::config_builder()
         .http_status_as_error(false)
