@@ -143,3 +143,75 @@ fn readout_from_the_lens_file_the_option_and_auto() {
         assert!((0.0..=100.0).contains(&readout), "{stderr}");
     }
 }
+
+/// An image folder with a lens file of its own (`amc synth` writes one beside
+/// the frames, `meta.json` and `gt.csv`): with neither `--lens` nor `--fov`
+/// given, `stabilize` uses it (and its readout) and says so; the result is
+/// the same as with `--lens DIR/lens.json`. A flag given wins over it, and a
+/// broken folder lens is a clear error, not a silent estimate.
+#[test]
+fn an_image_folders_own_lens_is_used_unless_one_is_given() {
+    let tmp = tempfile::tempdir().unwrap();
+    let clip = tmp.path().join("clip");
+    synth(
+        &clip,
+        &[
+            "--seconds",
+            "1",
+            "--width",
+            "160",
+            "--height",
+            "90",
+            "--fov",
+            "90",
+            "--rolling-shutter-ms",
+            "8",
+        ],
+    );
+    let lens = clip.join("lens.json");
+    let stabilize = |input: &std::path::Path, extra: &[&str]| {
+        let (out, tel) = (tmp.path().join("out.y4m"), tmp.path().join("t.csv"));
+        let mut a = vec![
+            "stabilize".to_string(),
+            s(input),
+            "-o".into(),
+            s(&out),
+            "--telemetry".into(),
+            s(&tel),
+        ];
+        a.extend(extra.iter().map(|x| x.to_string()));
+        let r = run_amc(&a);
+        let telemetry = std::fs::read_to_string(&tel).unwrap_or_default();
+        (r, telemetry)
+    };
+    let (own, own_tel) = stabilize(&clip, &[]);
+    assert!(own.success(), "{}", own.stderr);
+    assert!(
+        own.stderr.contains(&format!("lens: {}", lens.display()))
+            && own.stderr.contains("readout: 8 ms (from the lens file)"),
+        "{}",
+        own.stderr
+    );
+    let (given, given_tel) = stabilize(&clip, &["--lens", &s(&lens)]);
+    assert!(given.success(), "{}", given.stderr);
+    assert!(!own_tel.is_empty() && own_tel == given_tel);
+    // Before, the focal length was estimated (or fell back to 70 deg): what
+    // `--fov auto` still asks for.
+    for fov in ["90", "auto"] {
+        let (r, _) = stabilize(&clip, &["--fov", fov]);
+        assert!(r.success(), "{}", r.stderr);
+        assert!(
+            !r.stderr.contains("lens:") && !r.stderr.contains("readout:"),
+            "--fov {fov}: {}",
+            r.stderr
+        );
+    }
+    std::fs::write(&lens, "{not json").unwrap();
+    let (broken, _) = stabilize(&clip, &[]);
+    assert_eq!(broken.code, Some(1), "{}", broken.stderr);
+    assert!(
+        broken.stderr.contains("lens.json") && !broken.stderr.contains("panicked"),
+        "{}",
+        broken.stderr
+    );
+}

@@ -587,8 +587,7 @@ fn resolve_clip(path: &Path, args: &CompareConfig) -> Result<Clip, CompareError>
             .unwrap_or_else(|| "clip".into())
     };
     let timeout = Duration::from_secs(120);
-    if path.is_dir() && path.join("lens.json").is_file() {
-        let lens_path = path.join("lens.json");
+    if let Some(lens_path) = engine::folder_lens_file(path) {
         let text =
             std::fs::read_to_string(&lens_path).map_err(|e| CompareError::io(&lens_path, e))?;
         let lens_file =

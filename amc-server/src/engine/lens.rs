@@ -3,7 +3,7 @@
 use super::RunError;
 use amc_core::{selfcal, CameraModel, Frame, LensSpec, PixelFormat, StabilizerParams};
 use amc_video::{self as video, InputOptions};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// Horizontal field of view assumed when `--fov auto` cannot pin the focal
@@ -28,6 +28,15 @@ pub enum LensNote {
     /// `auto` could not pin the focal length down (translation, little
     /// rotation) and fell back to [`FALLBACK_FOV_DEG`].
     FellBack,
+}
+
+/// The lens file an image folder carries, `DIR/lens.json` (as `amc synth`
+/// writes beside its frames, `meta.json` and `gt.csv`), if `input` is such a
+/// folder. The command line uses it where neither `--lens` nor `--fov` is
+/// given, as it takes the folder's frame rate from its `meta.json`.
+pub fn folder_lens_file(input: &Path) -> Option<PathBuf> {
+    let path = input.join("lens.json");
+    (input.is_dir() && path.is_file()).then_some(path)
 }
 
 /// A camera for the input's frames, and how it was found.

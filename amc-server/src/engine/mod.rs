@@ -19,7 +19,8 @@ mod telemetry;
 pub use control::RunControl;
 pub use error::RunError;
 pub use lens::{
-    input_options, resolve_lens, LensNote, ResolvedLens, AUTO_FOV_FRAMES, FALLBACK_FOV_DEG,
+    folder_lens_file, input_options, resolve_lens, LensNote, ResolvedLens, AUTO_FOV_FRAMES,
+    FALLBACK_FOV_DEG,
 };
 pub use paths::check_distinct;
 pub use readout::{resolve, resolve_readout, ReadoutNote, Resolved, ResolvedReadout};

@@ -12,6 +12,7 @@ use amc_server::{compare, demo, eval, serve, synth};
 use args::{Cli, Command, StabilizeArgs};
 use clap::Parser;
 use error::CliError;
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
@@ -43,6 +44,25 @@ fn say_lens(note: &LensNote, quiet: bool) {
     }
 }
 
+/// An image folder's own lens file (`DIR/lens.json`, as `amc synth` writes),
+/// used where neither `--lens` nor `--fov` is given, as its `meta.json` gives
+/// its frame rate; says so. Estimating the focal length instead threw the
+/// calibration away (and its readout), and on a rolling-shutter clip, tracked
+/// as a global shutter, fell back to 70 deg for a 90 deg lens.
+fn folder_lens(run: &args::RunFlags, input: &std::path::Path, quiet: bool) -> Option<PathBuf> {
+    if run.lens.is_some() || run.stabilizer.has("fov") {
+        return None;
+    }
+    let path = engine::folder_lens_file(input)?;
+    if !quiet {
+        eprintln!(
+            "lens: {} (the folder's own; pass --lens or --fov to override it)",
+            path.display()
+        );
+    }
+    Some(path)
+}
+
 /// Warns when an image folder's frame rate was assumed.
 fn say_rate(input: &std::path::Path, fps: Option<f64>, timeout: Duration, quiet: bool) {
     if quiet || fps.is_some() || !input.is_dir() {
@@ -60,10 +80,11 @@ fn say_rate(input: &std::path::Path, fps: Option<f64>, timeout: Duration, quiet:
 }
 
 fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), CliError> {
-    let options = args
-        .run
-        .stabilizer
-        .options(amc_core::Mode::Stabilize, args.run.lens.as_ref())?;
+    let folder_lens = folder_lens(&args.run, &args.input, args.quiet);
+    let options = args.run.stabilizer.options(
+        amc_core::Mode::Stabilize,
+        args.run.lens.as_ref().or(folder_lens.as_ref()),
+    )?;
     let timeout = Duration::from_secs(args.run.input.timeout);
     let fps = args.run.input.fps;
     let mut paths = vec![
@@ -151,11 +172,12 @@ fn evaluate(a: args::EvalArgs) -> Result<(), CliError> {
     let quiet = a.quiet;
     let timeout = Duration::from_secs(a.run.input.timeout);
     say_rate(&a.input, a.run.input.fps, timeout, quiet);
+    let folder_lens = folder_lens(&a.run, &a.input, quiet);
     let cfg = eval::EvalConfig {
-        options: a
-            .run
-            .stabilizer
-            .options(amc_core::Mode::Stabilize, a.run.lens.as_ref())?,
+        options: a.run.stabilizer.options(
+            amc_core::Mode::Stabilize,
+            a.run.lens.as_ref().or(folder_lens.as_ref()),
+        )?,
         input: a.input,
         fps: a.run.input.fps,
         timeout,

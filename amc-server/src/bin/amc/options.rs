@@ -32,6 +32,13 @@ impl StabilizerFlags {
     }
 }
 
+impl StabilizerFlags {
+    /// Whether the option `name` (as in [`OPTIONS`]) was given.
+    pub fn has(&self, name: &str) -> bool {
+        self.values.iter().any(|(n, _)| *n == name)
+    }
+}
+
 impl FromArgMatches for StabilizerFlags {
     fn from_arg_matches(m: &ArgMatches) -> Result<Self, clap::Error> {
         let values = OPTIONS
