@@ -147,8 +147,9 @@ fn readout_from_the_lens_file_the_option_and_auto() {
 /// An image folder with a lens file of its own (`amc synth` writes one beside
 /// the frames, `meta.json` and `gt.csv`): with neither `--lens` nor `--fov`
 /// given, `stabilize` uses it (and its readout) and says so; the result is
-/// the same as with `--lens DIR/lens.json`. A flag given wins over it, and a
-/// broken folder lens is a clear error, not a silent estimate.
+/// the same as with `--lens DIR/lens.json`, and the same again with the images
+/// in `DIR/frames/`. A flag given wins over it, and a broken folder lens is a
+/// clear error, not a silent estimate.
 #[test]
 fn an_image_folders_own_lens_is_used_unless_one_is_given() {
     let tmp = tempfile::tempdir().unwrap();
@@ -195,6 +196,30 @@ fn an_image_folders_own_lens_is_used_unless_one_is_given() {
     let (given, given_tel) = stabilize(&clip, &["--lens", &s(&lens)]);
     assert!(given.success(), "{}", given.stderr);
     assert!(!own_tel.is_empty() && own_tel == given_tel);
+    // The same recording laid out with its images in `frames/` (as
+    // ../shared/data/cc9 is): its lens and its rate are the folder's.
+    let recording = tmp.path().join("recording");
+    let frames = recording.join("frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    for name in list_dir(&clip) {
+        let to = if name.ends_with(".png") {
+            frames.join(&name)
+        } else {
+            recording.join(&name)
+        };
+        std::fs::copy(clip.join(&name), to).unwrap();
+    }
+    let (laid_out, laid_out_tel) = stabilize(&recording, &[]);
+    assert!(laid_out.success(), "{}", laid_out.stderr);
+    assert!(
+        laid_out
+            .stderr
+            .contains(&format!("lens: {}", recording.join("lens.json").display()))
+            && !laid_out.stderr.contains("frame rate"),
+        "{}",
+        laid_out.stderr
+    );
+    assert!(laid_out_tel == own_tel);
     // Before, the focal length was estimated (or fell back to 70 deg): what
     // `--fov auto` still asks for.
     for fov in ["90", "auto"] {

@@ -61,13 +61,21 @@ pub enum VideoError {
     },
     /// An input directory without image files.
     #[error(
-        "{}: no image files ({}) in this directory",
+        "{}: no image files ({}) in this directory{}",
         path.display(),
-        IMAGE_EXTENSIONS.join(", ")
+        IMAGE_EXTENSIONS.join(", "),
+        subfolder.as_ref().map_or(String::new(), |(dir, n)| format!(
+            "; its subfolder {} holds {n}: pass that folder",
+            dir.display()
+        ))
     )]
     NoImages {
         /// The directory.
         path: PathBuf,
+        /// A subfolder that does hold image files, and how many (a recording
+        /// laid out as `frames/` beside its `lens.json`, as
+        /// `../shared/data/cc9` is).
+        subfolder: Option<(PathBuf, usize)>,
     },
     /// An image in an input directory that cannot be decoded, or a PNG that cannot be encoded.
     #[error("{}: {detail}", path.display())]

@@ -20,6 +20,33 @@ use std::path::{Path, PathBuf};
 /// The image files of `dir` (by extension, case-insensitive; hidden files
 /// skipped), in natural order (`frame-9` before `frame-10`).
 pub fn list_images(dir: &Path) -> Result<Vec<PathBuf>, VideoError> {
+    let files = image_files(dir)?;
+    if files.is_empty() {
+        return Err(VideoError::NoImages {
+            path: dir.to_path_buf(),
+            subfolder: subfolder_with_images(dir),
+        });
+    }
+    Ok(files)
+}
+
+/// The first subfolder of `dir` (in natural order) that holds image files,
+/// and how many, for the error that `dir` holds none.
+fn subfolder_with_images(dir: &Path) -> Option<(PathBuf, usize)> {
+    let mut subdirs: Vec<PathBuf> = std::fs::read_dir(dir)
+        .ok()?
+        .filter_map(|e| Some(e.ok()?.path()))
+        .filter(|p| p.is_dir())
+        .collect();
+    subdirs.sort_by(|a, b| natord::compare(&a.to_string_lossy(), &b.to_string_lossy()));
+    subdirs.into_iter().find_map(|d| {
+        let n = image_files(&d).ok()?.len();
+        (n > 0).then_some((d, n))
+    })
+}
+
+/// The image files of `dir` in natural order; empty when it has none.
+fn image_files(dir: &Path) -> Result<Vec<PathBuf>, VideoError> {
     let entries = std::fs::read_dir(dir).map_err(|e| VideoError::io(dir, "list", e))?;
     let mut files = Vec::new();
     for entry in entries {
@@ -31,11 +58,6 @@ pub fn list_images(dir: &Path) -> Result<Vec<PathBuf>, VideoError> {
         if is_image && !hidden && path.is_file() {
             files.push(path);
         }
-    }
-    if files.is_empty() {
-        return Err(VideoError::NoImages {
-            path: dir.to_path_buf(),
-        });
     }
     files.sort_by(|a, b| {
         let name = |p: &PathBuf| {

@@ -377,7 +377,31 @@ fn reports_bad_inputs() {
     let empty = d.join("empty");
     std::fs::create_dir(&empty).unwrap();
     std::fs::write(empty.join("readme.txt"), "x").unwrap();
-    assert!(matches!(open(&empty), VideoError::NoImages { .. }));
+    let e = open(&empty);
+    assert!(
+        matches!(
+            e,
+            VideoError::NoImages {
+                subfolder: None,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    // A recording laid out as `frames/` beside its lens file: the error
+    // points there.
+    let frames = empty.join("frames");
+    std::fs::create_dir(&frames).unwrap();
+    for name in ["f1.png", "f2.png"] {
+        image::RgbImage::new(8, 6).save(frames.join(name)).unwrap();
+    }
+    let e = open(&empty);
+    assert!(matches!(e, VideoError::NoImages { .. }), "{e}");
+    let text = e.to_string();
+    assert!(
+        text.contains(&format!("its subfolder {} holds 2", frames.display())),
+        "{text}"
+    );
 
     let mixed = d.join("mixed");
     std::fs::create_dir(&mixed).unwrap();

@@ -44,23 +44,52 @@ fn say_lens(note: &LensNote, quiet: bool) {
     }
 }
 
-/// An image folder's own lens file (`DIR/lens.json`, as `amc synth` writes),
-/// used where neither `--lens` nor `--fov` is given, as its `meta.json` gives
-/// its frame rate; says so. Estimating the focal length instead threw the
-/// calibration away (and its readout), and on a rolling-shutter clip, tracked
-/// as a global shutter, fell back to 70 deg for a 90 deg lens.
-fn folder_lens(run: &args::RunFlags, input: &std::path::Path, quiet: bool) -> Option<PathBuf> {
-    if run.lens.is_some() || run.stabilizer.has("fov") {
-        return None;
-    }
-    let path = engine::folder_lens_file(input)?;
-    if !quiet {
+/// Where an input's frames, lens and rate come from. An image folder may be
+/// a recording laid out as `amc compare` reads one: its own `lens.json` (as
+/// `amc synth` writes beside its frames, `meta.json` and `gt.csv`) with the
+/// images beside it or in `frames/` (as `../shared/data/cc9` is).
+struct Input {
+    /// The video, or the folder the images are read from.
+    frames: PathBuf,
+    /// The lens file given (`--lens`), else the folder's own where `--fov`
+    /// is not given either.
+    lens: Option<PathBuf>,
+    /// The frame rate given (`--fps`), else the one the recording states
+    /// when its images are in `frames/` (a folder of images read directly
+    /// states its own, `meta.json` or `gt.csv`, to the reader).
+    fps: Option<f64>,
+}
+
+/// Resolves `path` with the run's flags (see [`Input`]); says which lens file
+/// a folder brought. Without this, the folder's calibration was thrown away
+/// for an estimate of the focal length, which on a rolling-shutter clip
+/// tracked as a global shutter fell back to 70 deg for a 90 deg lens.
+fn input_of(path: &std::path::Path, run: &args::RunFlags, quiet: bool) -> Input {
+    let in_subfolder =
+        path.is_dir() && path.join("frames").is_dir() && amc_video::list_images(path).is_err();
+    let frames = if in_subfolder {
+        path.join("frames")
+    } else {
+        path.to_path_buf()
+    };
+    let folder_lens = (run.lens.is_none() && !run.stabilizer.has("fov"))
+        .then(|| engine::folder_lens_file(path))
+        .flatten();
+    if let (Some(lens), false) = (&folder_lens, quiet) {
         eprintln!(
             "lens: {} (the folder's own; pass --lens or --fov to override it)",
-            path.display()
+            lens.display()
         );
     }
-    Some(path)
+    let fps = run
+        .input
+        .fps
+        .or_else(|| in_subfolder.then(|| amc_video::folder_fps(path)).flatten());
+    Input {
+        frames,
+        lens: run.lens.clone().or(folder_lens),
+        fps,
+    }
 }
 
 /// Warns when an image folder's frame rate was assumed.
@@ -80,24 +109,24 @@ fn say_rate(input: &std::path::Path, fps: Option<f64>, timeout: Duration, quiet:
 }
 
 fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), CliError> {
-    let folder_lens = folder_lens(&args.run, &args.input, args.quiet);
-    let options = args.run.stabilizer.options(
-        amc_core::Mode::Stabilize,
-        args.run.lens.as_ref().or(folder_lens.as_ref()),
-    )?;
+    let input = input_of(&args.input, &args.run, args.quiet);
+    let options = args
+        .run
+        .stabilizer
+        .options(amc_core::Mode::Stabilize, input.lens.as_ref())?;
     let timeout = Duration::from_secs(args.run.input.timeout);
-    let fps = args.run.input.fps;
+    let fps = input.fps;
     let mut paths = vec![
-        ("input", args.input.as_path()),
+        ("input", input.frames.as_path()),
         ("output", args.output.as_path()),
     ];
     paths.extend(args.telemetry.iter().map(|p| ("telemetry", p.as_path())));
     paths.extend(args.metrics.iter().map(|p| ("metrics", p.as_path())));
     engine::check_distinct(&paths)?;
-    say_rate(&args.input, fps, timeout, args.quiet);
+    say_rate(&input.frames, fps, timeout, args.quiet);
     let resolved = engine::resolve(
         &options,
-        &args.input,
+        &input.frames,
         &engine::input_options(fps, timeout),
         None,
     )?;
@@ -110,7 +139,7 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
     let bar = progress::Bar::new("stabilize", !args.quiet);
     let report = |p| bar.update(p);
     let run = engine::run(&RunConfig {
-        input: &args.input,
+        input: &input.frames,
         output: Some(&args.output),
         params: resolved.params,
         lens: resolved.lens.camera,
@@ -171,15 +200,15 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
 fn evaluate(a: args::EvalArgs) -> Result<(), CliError> {
     let quiet = a.quiet;
     let timeout = Duration::from_secs(a.run.input.timeout);
-    say_rate(&a.input, a.run.input.fps, timeout, quiet);
-    let folder_lens = folder_lens(&a.run, &a.input, quiet);
+    let input = input_of(&a.input, &a.run, quiet);
+    say_rate(&input.frames, input.fps, timeout, quiet);
     let cfg = eval::EvalConfig {
-        options: a.run.stabilizer.options(
-            amc_core::Mode::Stabilize,
-            a.run.lens.as_ref().or(folder_lens.as_ref()),
-        )?,
-        input: a.input,
-        fps: a.run.input.fps,
+        options: a
+            .run
+            .stabilizer
+            .options(amc_core::Mode::Stabilize, input.lens.as_ref())?,
+        input: input.frames,
+        fps: input.fps,
         timeout,
         gt: a.gt,
         plot: a.plot.clone(),
