@@ -66,6 +66,23 @@ fn demo_writes_both_clips() {
     }
 }
 
+/// A one-second 160x90 synthetic clip read out in 8 ms, into `clip`, with
+/// `extra` arguments for `amc synth`.
+fn small_rolling_clip(clip: &std::path::Path, extra: &[&str]) {
+    let mut args = vec![
+        "--seconds",
+        "1",
+        "--width",
+        "160",
+        "--height",
+        "90",
+        "--rolling-shutter-ms",
+        "8",
+    ];
+    args.extend_from_slice(extra);
+    synth(clip, &args);
+}
+
 /// The readout: a synthetic rolling-shutter clip's `lens.json` states it and
 /// `stabilize --lens` uses it (and says so); `--readout-ms` overrides it;
 /// `auto` estimates it or falls back to 0 with a warning; the telemetry
@@ -74,19 +91,7 @@ fn demo_writes_both_clips() {
 fn readout_from_the_lens_file_the_option_and_auto() {
     let tmp = tempfile::tempdir().unwrap();
     let clip = tmp.path().join("clip");
-    synth(
-        &clip,
-        &[
-            "--seconds",
-            "1",
-            "--width",
-            "160",
-            "--height",
-            "90",
-            "--rolling-shutter-ms",
-            "8",
-        ],
-    );
+    small_rolling_clip(&clip, &[]);
     let lens = clip.join("lens.json");
     let text = std::fs::read_to_string(&lens).unwrap();
     assert!(text.contains("\"readout_ms\": 8"), "{text}");
@@ -154,21 +159,7 @@ fn readout_from_the_lens_file_the_option_and_auto() {
 fn an_image_folders_own_lens_is_used_unless_one_is_given() {
     let tmp = tempfile::tempdir().unwrap();
     let clip = tmp.path().join("clip");
-    synth(
-        &clip,
-        &[
-            "--seconds",
-            "1",
-            "--width",
-            "160",
-            "--height",
-            "90",
-            "--fov",
-            "90",
-            "--rolling-shutter-ms",
-            "8",
-        ],
-    );
+    small_rolling_clip(&clip, &["--fov", "90"]);
     let lens = clip.join("lens.json");
     let stabilize = |input: &std::path::Path, extra: &[&str]| {
         let (out, tel) = (tmp.path().join("out.y4m"), tmp.path().join("t.csv"));
