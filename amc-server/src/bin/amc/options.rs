@@ -30,9 +30,7 @@ impl StabilizerFlags {
         o.validate()?;
         Ok(o)
     }
-}
 
-impl StabilizerFlags {
     /// Whether the option `name` (as in [`OPTIONS`]) was given.
     pub fn has(&self, name: &str) -> bool {
         self.values.iter().any(|(n, _)| *n == name)
