@@ -1,6 +1,11 @@
 //! One pass over a level's template pixels: the robust loss and the
 //! IRLS-weighted Gauss-Newton sums, with a global shutter (here) or a rolling
 //! one (`rolling.rs`), compiled for the widest instruction set the CPU has.
+//!
+//! Robustness:
+//! * Huber loss `rho` with IRLS weights `w_p = min(1, c / |e_p|)`: moving objects,
+//!   the dashboard of a car, transmission glitches.
+//! * Only pixels valid in both images count (`NaN` marks invalid pixels).
 
 use super::irls::{irls_terms, outer_products, IrlsTerms, CHUNK};
 use super::residuals::residuals;

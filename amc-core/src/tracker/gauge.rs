@@ -63,9 +63,9 @@ impl Tracker {
     /// corrections keep the gauge, so the block check restarts (`Gauge`).
     ///
     /// The block check averages `phi - tau omega` over 8-64 frames and is
-    /// noisy and late: between its corrections the gauge wanders 0.04-0.13
-    /// deg, and a template rectified with a path off by `c` biases every frame
-    /// aligned to it by about `|a| |c| / 2` (see `Tracker::settle_gauge`).
+    /// noisy and late, and a template rectified with a path off by `c` biases
+    /// every frame aligned to it by about `|a| |c| / 2` (see
+    /// `Tracker::settle_gauge`; see `docs/core-history.md#tracker-regauge-template`).
     pub fn regauge_template(&mut self, error: &IntraFrame) {
         if self.frames_since_reset != 0 || self.tpl_path != self.intra || self.rolling.is_none() {
             return;
@@ -110,17 +110,16 @@ impl Tracker {
     /// Only differences of readout motion are seen to first order (see
     /// [`Gauge`]), but the rotations do not commute: a template rectified with
     /// a path off by `c` biases the rotation of every frame aligned to it by
-    /// about `|a| |c| / 2` (`a` the path; `exp(a - c) != exp(-c) exp(a)`).
-    /// The first template's path is wholly unknown, and that bias passed down
-    /// the chain of templates as a lasting orientation error: 0.07 deg (10
-    /// ms) and 0.13 deg (20 ms) within the first half second of 300 deg/s
-    /// shake through a fisheye, 3-5x the global shutter's drift over 4 s.
+    /// about `|a| |c| / 2` (`a` the path; `exp(a - c) != exp(-c) exp(a)`). The
+    /// first template's path is wholly unknown, and that bias passed down the
+    /// chain of templates as a lasting orientation error (see
+    /// `docs/core-history.md#tracker-settle-gauge`).
     pub(super) fn settle_gauge(&mut self) {
         if !self.fast_motion() {
             // At a slow pace the readout path is small and held near the rate's
-            // prediction (see [`ReadoutPrior`]): there is little to correct, and
-            // holding a template longer only lets parallax in (cc9: 0.057 ->
-            // 0.066 deg against its gyro).
+            // prediction (see [`ReadoutPrior`]): there is little to correct,
+            // and holding a template longer only lets parallax in (see
+            // `docs/core-history.md#tracker-settle-gauge-slow`).
             self.gauge_settled = true;
             return;
         }

@@ -1,4 +1,9 @@
-//! Template handover.
+//! Template handover: the frame after each template reset is tracked against
+//! the outgoing template too, and the new template's orientation is set so
+//! that the two agree on it ([`Tracker::hand_over`]). Every template carries
+//! its own small bias into all the frames aligned to it; handed over, that
+//! bias no longer steps the orientation at each reset, so it neither shows
+//! as a jump between two frames nor adds up, template after template.
 
 use super::recover::suspect;
 use super::step::Pose;
@@ -29,13 +34,10 @@ impl Tracker {
     /// turns every frame aligned to it by about `|a| |c| / 2`), with any
     /// shutter what its texture and sampling make of the rotation. Both are
     /// common to the template's frames and cancel between two of them, but
-    /// at a reset they change at once: the first frame after it had twice
-    /// the others' error (pinhole, 300 deg/s through 10 ms: 0.0042 against
-    /// 0.0014-0.0017 deg), and over 4 s the steps added up to 0.14 deg
-    /// (global shutter, 300 deg/s). Handed over, the new template continues
-    /// the outgoing one's orientation, measured on a frame both see: that
-    /// frame's error is the others' (0.0017 deg) and the drift after 4 s
-    /// falls to 0.004 deg. It costs one more frame's tracking per template.
+    /// at a reset they change at once: the first frame after it stepped, and
+    /// the steps added up. Handed over, the new template continues the
+    /// outgoing one's orientation, measured on a frame both see, for one more
+    /// frame's tracking per template (see `docs/core-history.md#tracker-handover`).
     pub(super) fn hand_over(&mut self, pyr: &Pyramid, pose: &Pose, dt: f64, old: Handover) -> u32 {
         // The start: this frame's pose and path, taken to the outgoing
         // template's orientation and gauge.

@@ -12,17 +12,13 @@ use crate::so3::{self, Tangent};
 pub(super) const INTRA_LEVELS: usize = 4;
 
 /// The same at a slow pace, where `phi` alone is estimated under a prior:
-/// the two finest levels. On all four, cc9 (a phone's sway through 33 ms)
-/// agreed with its gyro to 0.060 deg per frame instead of 0.057.
+/// the two finest levels (see `docs/core-history.md#tracker-slow-intra-levels`).
 pub(super) const SLOW_INTRA_LEVELS: usize = 2;
 
 /// Least typical fourth-order bend of the readout path (finest-level pixels,
 /// at the readout's ends, see [`Tracker::quartic_bend_px`]) at which its
-/// fourth term `xi` is estimated. Measured on 12-20 Hz shake at 60 frames/s
-/// (median per-frame error, ratio to a global shutter's): 100 deg/s through
-/// 20 ms, cubic 3.5x, quartic 1.75x; 300 deg/s through 20 ms, 14x and 3.2-4.3x;
-/// through 10 ms the cubic is better (1.56x and 2.25x against 1.70x and 2.5x:
-/// the extra terms cost precision where there is nothing for them to fit).
+/// fourth term `xi` is estimated: below it the extra term costs precision
+/// where there is nothing for it to fit (see `docs/core-history.md#tracker-quartic-min-px`).
 pub(super) const QUARTIC_MIN_PX: f64 = 0.05;
 
 /// Least typical rotation across a readout (finest-level pixels) at which
@@ -30,18 +26,18 @@ pub(super) const QUARTIC_MIN_PX: f64 = 0.05;
 /// path bending within a readout of less cannot be told from noise.
 pub(super) const MIN_FAST_READOUT_PX: f64 = 0.5;
 
-/// The readout path's model follows the motion's pace, measured by the
-/// lag-one autocorrelation of the pose-to-pose rates, `rho = <w_j . w_(j-1)> /
+/// The readout path's model follows the motion's pace, measured by the lag-one
+/// autocorrelation of the pose-to-pose rates, `rho = <w_j . w_(j-1)> /
 /// <|w_j|^2>` (moving averages), which is `cos(2 pi f dt)` for shake at `f` Hz.
-/// Below this value the motion is fast (it turns within five frames:
-/// flapping wings, a motor's vibration): the rate at the last frame predicts
-/// the current one poorly, and the readout path bends and twists within a
-/// readout, so `phi`, `psi` and `chi` are all estimated, freely. Above it the
-/// motion is slow (a hand's sway, a car's ride): only `phi` is estimated,
-/// under the [`ReadoutPrior`] (the last rate predicts it well), as the higher
-/// terms would mostly fit parallax and moving objects. Measured: -0.27..-0.10
-/// on 100-300 deg/s shake at 12-20 Hz and 60 frames/s; 0.55-0.71 on cc9 (a
-/// phone in a car, 30 frames/s).
+/// Below this value the motion is fast (it turns within five frames: flapping
+/// wings, a motor's vibration): the rate at the last frame predicts the current
+/// one poorly, and the readout path bends and twists within a readout, so
+/// `phi`, `psi` and `chi` are all estimated, freely. Above it the motion is
+/// slow (a hand's sway, a car's ride): only `phi` is estimated, under the
+/// [`ReadoutPrior`](super::shutter_prior::ReadoutPrior) (the last rate predicts
+/// it well), as the higher terms would mostly fit parallax and moving objects.
+/// The value separates fast shake from a phone's sway (see
+/// `docs/core-history.md#tracker-pace-switch`).
 pub(super) const PACE_SWITCH: f64 = 0.3;
 
 /// Least typical second-order bend of the readout path (finest-level pixels,
@@ -49,27 +45,18 @@ pub(super) const PACE_SWITCH: f64 = 0.3;
 /// motion counts as fast whatever its pace: large, slower shake (a legged
 /// robot's gait, a runner's hand) turns less from frame to frame than
 /// [`PACE_SWITCH`] asks, yet its path bends within a readout, which `phi`
-/// alone cannot follow. Measured at 300 deg/s through 20 ms at 60 frames/s
-/// (median per-frame error, ratio to a global shutter's): 6-10 Hz shake 140x
-/// -> 2.4x, 3-5 Hz 55x -> 3.8x (bends of about 2 and 1 px); 12-20 Hz shake
-/// was fast already and is unchanged. cc9 (a phone in a car, 33 ms: about
-/// 0.1 px) and slow drone flight stay slow.
+/// alone cannot follow (see `docs/core-history.md#tracker-min-bend-px`).
 pub(super) const MIN_BEND_PX: f64 = 0.5;
 
 /// Weight of one frame in the moving averages of [`PACE_SWITCH`].
 pub(super) const PACE_GAIN: f64 = 0.05;
 
-/// Until the pace is known (the first two frame pairs), a rolling-shutter
-/// frame counts as slow, so only `phi` is estimated; it is tracked with the
-/// whole path free as well, and that is kept where its residual is below this
-/// share of the slow model's. At 300 deg/s through 20 ms the first frames'
-/// paths bend by pixels and `phi` alone left residuals of 0.10-0.12 (0.01 once
-/// tracking), two frames 2.8-3.7 deg off and 0.14 deg of orientation error
-/// for good; the whole path leaves 0.02 and 0.044 deg (fisheye: 0.061 ->
-/// 0.049 deg). On slow footage it gains little and is not kept: cc9 (a phone
-/// in a car) 0.105 -> 0.092 and 0.126 -> 0.112 (kept, its gyro agreement
-/// fell from 0.058 to 0.100 deg per frame, the higher terms fitting the
-/// street's parallax).
+/// Until the pace is known (the first two frame pairs), a rolling-shutter frame
+/// counts as slow, so only `phi` is estimated; it is tracked with the whole
+/// path free as well, and that is kept where its residual is below this share
+/// of the slow model's: fast motion's first frames need the whole path, while
+/// on slow footage the higher terms fit parallax (see
+/// `docs/core-history.md#tracker-start-path-gain`).
 pub(super) const START_PATH_GAIN: f32 = 0.5;
 
 impl Tracker {
@@ -125,23 +112,11 @@ impl Tracker {
         }
     }
 
-    /// The terms of the readout path estimated at pyramid `level`: all of
-    /// [`Tracker::path_terms`] at the finest, all but the quartic `xi` on the
-    /// next, `phi` alone on the coarser ones (down to
-    /// [`Tracker::intra_levels`]; their rows barely see the bend and the
-    /// S-shape).
-    ///
     /// Each level hands the next its rotation, and the rotation absorbs what
-    /// the level leaves out of the path: held at the last frame's (at 12-20
-    /// Hz shake a poor guess) on the coarse levels and with only `phi` on the
-    /// second, the finest level's first step moved the rotation by 0.2-0.3 px
-    /// and the coarse levels crawled (Huber-weighted steps of 0.2 px, ten in a
-    /// row, at 300 deg/s through 20 ms). Measured against `phi` on the two
-    /// finest levels only, with [`MATRIX_REFRESH_PX`] (tracking bench clip,
-    /// 100 deg/s through 15 ms, and the 300 deg/s pinhole ground truth):
-    /// Gauss-Newton iterations per frame 8.5 -> 5.5, 15.2 -> 9.5 (10 ms) and
-    /// 28.8 -> 12.9 (20 ms), with median per-frame errors 0.00318 -> 0.00303,
-    /// 0.00296 -> 0.00279 and 0.00370 -> 0.00350 deg.
+    /// the level leaves out of the path: held at the last frame's on the coarse
+    /// levels, the finest level's first step moved the rotation and the coarse
+    /// levels crawled, hence the path's terms on every level at a fast pace
+    /// (see `docs/core-history.md#tracker-level-terms`).
     pub(super) fn level_terms(&self, level: usize) -> usize {
         match level {
             0 => self.path_terms(),
@@ -195,16 +170,14 @@ impl Tracker {
             .then(|| self.pace.1.sqrt() * self.readout_s * self.base.fx.max(self.base.fy) as f64)
     }
 
-    /// A fresh start for the readout path before the first level that
-    /// estimates it, under fast motion: `phi` from the rate between the last
-    /// frame and this frame's rotation as the coarse levels found it, and no
-    /// higher terms. At 12-20 Hz shake the last frame's path (the start
-    /// otherwise) is a poor guess, since the rates' lag-one autocorrelation is
-    /// negative there, while this rate is centred only half a frame earlier.
-    /// Measured on the tracking bench's clip: 4.0 -> 2.5 Gauss-Newton
-    /// iterations per frame on that level, 10.9 -> 9.4 on all levels, with the
-    /// same accuracy. `None`: keep the start (global shutter, slow motion, the
-    /// first frame pair).
+    /// A fresh start for the readout path before the first level that estimates
+    /// it, under fast motion: `phi` from the rate between the last frame and
+    /// this frame's rotation as the coarse levels found it, and no higher
+    /// terms. At 12-20 Hz shake the last frame's path (the start otherwise) is
+    /// a poor guess, since the rates' lag-one autocorrelation is negative
+    /// there, while this rate is centred only half a frame earlier (see
+    /// `docs/core-history.md#tracker-seed-intra`). `None`: keep the start
+    /// (global shutter, slow motion, the first frame pair).
     pub(super) fn seed_intra(&self, pose: &Pose, dt: f64) -> Option<IntraFrame> {
         let (_, r_prev) = self.last?;
         if self.rolling.is_none() || !self.fast_motion() || !(dt.is_finite() && dt > 0.0) {

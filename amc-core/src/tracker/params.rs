@@ -24,9 +24,9 @@ pub struct TrackerParams {
     pub convergence_px: f64,
     /// Try a constant angular-velocity prediction as a warm start.
     pub predict: bool,
-    /// Detect and ignore camera-fixed image regions (dashboards, overlays).
-    /// Off by default: on cc9 (dashboard in view) it changed the gyro agreement
-    /// by under 0.001 deg, so it is opt-in until footage shows a benefit.
+    /// Detect and ignore camera-fixed image regions (dashboards, overlays). Off
+    /// by default: opt-in until footage shows a benefit (see
+    /// `docs/core-history.md#tracker-reject-static`).
     pub reject_static: bool,
 }
 

@@ -1,4 +1,10 @@
-//! Recovery from a wrong local minimum.
+//! Recovery from a wrong local minimum: when a frame's final residual is far
+//! above the typical residual (a wrong local minimum, e.g. a 6 deg jerk), a
+//! grid of pan/tilt offsets is scored at the coarsest level, the best is
+//! refined coarse to fine, and the result with the lower residual is kept. A
+//! frame that still tracks badly never becomes the template (the reset waits
+//! for a good frame), so one bad frame cannot bake its error into every later
+//! estimate.
 
 use super::params::TrackInfo;
 use super::rolling::WarmStart;

@@ -1,5 +1,35 @@
 //! The evaluation through a rolling shutter: each template ray projected into
 //! the current frame at the time of the row it lands on.
+//!
+//! ## Rolling shutter With [`Tracker::set_rolling`], each frame's motion during
+//! its readout, `a(s) = s phi + s^2 psi + s^3 chi + s^4 xi`
+//! ([`IntraFrame`](crate::shutter::IntraFrame), `s` the readout fraction of a
+//! row), is estimated with its mid-readout rotation:
+//! * template rays are rectified into the template's mid-readout camera,
+//!   `y = exp(a_k(s_p)) x_p`;
+//! * a ray lands in the current frame at `pi(K exp(-a(s)) R^T y)`, `s` the
+//!   readout fraction of the landing row (a fixed point: two steps from the
+//!   mid-readout projection and an extrapolation; a level's later evaluations
+//!   take one step from the last landing, and keep its first Gauss-Newton
+//!   matrix until a step moves the points far, [`WarmStart`]); through a
+//!   distorted lens the landing row's readout fraction is sampled from a
+//!   table per level ([`RowTime::level_table`]);
+//! * the Gauss-Newton step has up to 15 parameters ([`Eval::pose_step`]): the
+//!   rotation's inverse-compositional step and additive steps of the terms,
+//!   whose Jacobians are the rotation's times `s^k` (turned into the current
+//!   camera), on the finest [`INTRA_LEVELS`](super::pace::INTRA_LEVELS) levels
+//!   at a fast pace (all terms on the finest, all but `xi` on the next, `phi`
+//!   on the coarser ones, [`Tracker::level_terms`]);
+//! * alignment sees only differences of readout motion between a frame and
+//!   its template: the absolute value is pinned by time ([`Gauge`](super::gauge::Gauge));
+//! * fast motion estimates `phi, psi, chi`, and `xi` where the path bends
+//!   enough to need it ([`QUARTIC_MIN_PX`](super::pace::QUARTIC_MIN_PX)); slow
+//!   motion estimates `phi` only, under a prior
+//!   ([`PACE_SWITCH`](super::pace::PACE_SWITCH)) that grows where the readout
+//!   motion is too small to see
+//!   ([`OBSERVABLE_READOUT_PX`](super::shutter_prior::OBSERVABLE_READOUT_PX));
+//!   there templates are rectified with the motion the rate predicts, so what
+//!   the estimate absorbs (looming) cannot add up template after template.
 
 use super::eval::Eval;
 use super::irls::{irls_terms, outer_products, IrlsTerms, CHUNK};
@@ -15,11 +45,7 @@ use crate::shutter::{RowTime, INTRA_TERMS};
 /// than this (pixels of the level) sums its Gauss-Newton matrix afresh
 /// instead of keeping the level's first ([`WarmStart`]): far from the optimum
 /// the landing rows and the robust weights the matrix is made of move with
-/// the pose. Measured (Gauss-Newton iterations per frame, always kept ->
-/// this): 6.6 -> 6.1 on the tracking bench's clip, 11.0 -> 10.0 and 19.3 ->
-/// 14.3 at 300 deg/s through 10 and 20 ms; refreshing after every step
-/// saved no more iterations (6.0, 9.8, 14.4) and costs the full sums each
-/// time.
+/// the pose (see `docs/core-history.md#tracker-matrix-refresh-px`).
 pub(super) const MATRIX_REFRESH_PX: f64 = 0.3;
 
 /// What a rolling-shutter evaluation after the first at one level starts
@@ -28,21 +54,19 @@ pub(super) const MATRIX_REFRESH_PX: f64 = 0.3;
 /// - Where each template point landed in the current frame at the level's
 ///   last evaluation, and how its fixed-point iteration converged there.
 ///   Between the evaluations of one level the pose moves by a Gauss-Newton
-///   step, so a point's landing moves by about that step (a pixel at first,
-///   hundredths of a pixel near the end). One fixed-point step from the last
-///   landing, extrapolated with the first evaluation's contraction, then leaves
-///   `~ |d kappa| / (1 - kappa)^2` of that move, where the first evaluation,
-///   starting from the mid-readout projection (up to 8 px off at 300 deg/s
-///   through 20 ms), needs two steps and the extrapolation: half the
-///   projections.
+///   step, so a point's landing moves by about that step. One fixed-point
+///   step from the last landing, extrapolated with the first evaluation's
+///   contraction, then leaves `~ |d kappa| / (1 - kappa)^2` of that move,
+///   where the first evaluation, starting from the mid-readout projection,
+///   needs two steps and the extrapolation: half the projections.
 /// - The level's first Gauss-Newton matrix (its moments up to `s^(2 terms)`,
 ///   two thirds of the evaluation's sums with a cubic path). The iteration's
 ///   fixed point is where the gradient vanishes whatever the matrix, and
 ///   near it the weights and rows the matrix is made of barely move; after a
 ///   step longer than [`MATRIX_REFRESH_PX`] the matrix is summed again.
 ///
-/// Measured on the tracking bench's clip (100 deg/s, 15 ms): the same
-/// evaluations per frame and the same accuracy on the ground-truth clips.
+/// The same evaluations per frame and the same accuracy (see
+/// `docs/core-history.md#tracker-warm-start`).
 #[derive(Clone, Debug, Default)]
 pub(super) struct WarmStart {
     /// Whether the fields hold the level's first evaluation.
@@ -169,11 +193,8 @@ impl Tracker {
             // geometrically, `p_n - p* ~ kappa^n (p_0 - p*)`, and from the last two moves
             // `kappa = dy_2 / dy_1` and `p* = p_2 + kappa / (1 - kappa) (p_2 - p_1)`
             // (both coordinates follow the row's time, so both extrapolate alike).
-            // 300 deg/s through 20 ms (a 6 deg turn across the readout, 90 deg camera):
-            // `kappa` ~0.1 and the guess up to 8 px off; two plain steps left 0.07 px at
-            // the readout's ends, a bias that doubled the per-frame error (7.2x the
-            // global shutter's against 3.2-3.6x with four steps or with the
-            // extrapolation, which costs no projection).
+            // Two plain steps leave a bias at fast motion; the extrapolation removes it
+            // without a projection (see `docs/core-history.md#tracker-landing-extrapolation`).
             let land = |s: f32, q: usize| land_at(&k, &path, s, [rx[q], ry[q], rz[q]]);
             match warm_start.as_deref_mut() {
                 Some(l) if warm => {

@@ -40,13 +40,11 @@ impl ReadoutPrior {
 /// [`OBSERVABLE_READOUT_PX`]).
 pub(super) const READOUT_PRIOR: f64 = 1e-3;
 
-/// Rotation across a readout (finest-level pixels, typical) from which the
-/// data pin `phi` down against what else they fit. Below it the prior grows:
-/// a drone flying forward slowly (karma.mp4, 5 deg/s, a 10 ms readout: 0.15
-/// px) shows far more looming than readout motion, and looming's vertical half
-/// is what `phi_x` does to the rows; estimated under the plain prior, `phi`
-/// absorbed it and grew to 13 deg (148 with the higher terms free). cc9
-/// (a phone in a car, 33 ms: ~0.9 px) keeps nearly the plain prior.
+/// Rotation across a readout (finest-level pixels, typical) from which the data
+/// pin `phi` down against what else they fit. Below it the prior grows: slow
+/// forward flight shows far more looming than readout motion, and looming's
+/// vertical half is what `phi_x` does to the rows (see
+/// `docs/core-history.md#tracker-observable-readout-px`).
 pub(super) const OBSERVABLE_READOUT_PX: f64 = 2.0;
 
 impl Tracker {

@@ -1,5 +1,11 @@
 //! The estimate of one frame: Gauss-Newton with backtracking at each level,
 //! coarse to fine.
+//!
+//! Robustness:
+//! * Backtracking line search on the mean robust loss: a step is halved until the
+//!   loss does not increase, so the estimate never gets worse.
+//! * Coarse-to-fine pyramid: a 2x2 box pyramid down to ~40 px wide gives a
+//!   basin of tens of pixels at full resolution (300 deg/s at 60 fps).
 
 use super::eval::Eval;
 use super::params::TrackInfo;

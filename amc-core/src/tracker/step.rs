@@ -1,4 +1,20 @@
-//! The Gauss-Newton step.
+//! The inverse-compositional Gauss-Newton step ([`Eval::pose_step`]).
+//!
+//! Warp the *template* by a small rotation `delta in so(3)`:
+//! `W(p; delta) = pi(K exp(delta) x)`. With `exp(delta) x ~ x - [x]x delta` and
+//! `u = fx x + s y + cx`, `v = fy y + cy` the Jacobian at `delta = 0` is
+//! ```text
+//! dx/d delta = (-x y, 1 + x^2, -y)        dy/d delta = (-(1 + y^2), x y, x)
+//! du/d delta = fx dx/d delta + s dy/d delta      dv/d delta = fy dy/d delta
+//! ```
+//! so the steepest-descent image `SD_p = grad T(p) . dW/d delta` and the
+//! Gauss-Newton Hessian `H = sum_p w_p SD_p SD_p^T` depend on the template only
+//! (precomputed at each template reset). With residual `e_p = I(W(p; R)) - T(p)`:
+//! ```text
+//! delta = H^-1 sum_p w_p SD_p e_p,        R <- exp(delta) R
+//! ```
+//! (`T(exp(delta) y) = I(R^T exp(-delta) y)` for all `y`, hence
+//! `R_new^T = R^T exp(-delta)`.)
 
 use super::eval::Eval;
 use super::shutter_prior::ReadoutPrior;
@@ -8,12 +24,9 @@ use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// Weight of the readout path's step in the convergence test: its terms
 /// converge more slowly than the rotation (the bend and the S-shape are weakly
-/// seen), and a move of the rows by `convergence_px / INTRA_TOLERANCE_SCALE`
-/// is still far below what the estimate can resolve. Measured against 0.25
-/// (tracking bench clip and the 300 deg/s pinhole ground truth): Gauss-Newton
-/// iterations per frame 5.6 -> 5.0, 9.6 -> 8.8 and 13.0 -> 12.0, the eight
-/// ground-truth clips' median per-frame errors within -2% to +4%; at 0.05
-/// the 300 deg/s clip through 10 ms lost 9%.
+/// seen), and a move of the rows by `convergence_px / INTRA_TOLERANCE_SCALE` is
+/// still far below what the estimate can resolve (see
+/// `docs/core-history.md#tracker-intra-tolerance-scale`).
 pub(super) const INTRA_TOLERANCE_SCALE: f64 = 0.1;
 
 /// A frame's pose relative to the template: the mid-readout rotation

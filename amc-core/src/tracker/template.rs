@@ -1,5 +1,9 @@
 //! Template building: per pyramid level, the strongest-gradient pixel of each
 //! block and its steepest-descent images.
+//!
+//! Per level, only the strongest-gradient pixel of each small block is used
+//! (at most `max_points`): low-gradient pixels carry almost no information
+//! about the rotation, and skipping them makes tracking several times faster.
 
 use super::intrinsics::Intrinsics;
 use super::rectify::rectify_template;

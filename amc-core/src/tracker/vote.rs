@@ -1,4 +1,12 @@
-//! Camera-fixed regions: the static-pixel vote.
+//! Camera-fixed regions: the static-pixel vote. Camera-fixed regions (a car's
+//! dashboard, an FPV on-screen display, propellers in view) agree with "no
+//! rotation" and pull a least-squares estimate toward zero. After each frame,
+//! every template pixel whose image moved by more than
+//! [`STATIC_MIN_DISPLACEMENT_PX`] votes: if the current frame at the *same*
+//! location explains it much better than at the rotated location (`|e_id| <
+//! |e_rot| / 2`), it is camera-fixed. Votes are averaged per image location
+//! with an exponential moving average, and locations whose average exceeds
+//! [`STATIC_THRESHOLD`] are left out of later templates.
 
 use super::Tracker;
 use crate::image::GrayImage;
