@@ -33,7 +33,7 @@ COPY . .
 # out of the cached target/ within the same step.
 RUN --mount=type=cache,target=/usr/local/cargo/registry \
     --mount=type=cache,target=/src/target \
-    cargo build --release -p amc-server --bin amc \
+    cargo build --release -p amc-cli --bin amc \
  && cp target/release/amc /usr/local/bin/amc \
  && bash web/build.sh
 

@@ -7,7 +7,7 @@
 # Clips are made from ../shared/data/karma/karma.mp4 (handheld footage) in a
 # temporary folder:
 # Every amc run uses the paper's framing (--zoom none: the central 75%, as the
-# README's table states the output sizes).
+# table in docs/speed.md states the output sizes).
 #   320   320x180 .y4m, looped to 1086 frames   -> .y4m  (paper's settings)
 #   720   1280x720 60 fps H.264, 10 s           -> .y4m, and vid.stab -> .y4m
 #   1080  1920x1080 30 fps H.264, 10 s          -> .mp4 at the default quality
@@ -29,7 +29,7 @@ while [ $# -gt 0 ]; do
 done
 src="$root/../shared/data/karma/karma.mp4"
 [ -f "$src" ] || { echo "missing $src (the project's shared data)" >&2; exit 1; }
-[ -x "$amc" ] || (cd "$root" && cargo build --release -p amc-server)
+[ -x "$amc" ] || (cd "$root" && cargo build --release -p amc-cli)
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 ff() { ffmpeg -v error -y "$@"; }

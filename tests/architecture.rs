@@ -456,6 +456,19 @@ fn target_cycles(root: &Path, label: &str, read: Read) -> Vec<String> {
     }
 }
 
+/// The workspace's member folders, from the `members` list of its `Cargo.toml`
+/// (every crate is checked, including crates added later).
+fn workspace_members(ws: &Path) -> Vec<String> {
+    let manifest = std::fs::read_to_string(ws.join("Cargo.toml")).expect("workspace Cargo.toml");
+    let start = manifest.find("members").expect("a members list");
+    let list = &manifest[start..];
+    let list = &list[list.find('[').unwrap() + 1..list.find(']').unwrap()];
+    list.split(',')
+        .map(|m| m.trim().trim_matches('"').to_string())
+        .filter(|m| !m.is_empty() && m != "tests")
+        .collect()
+}
+
 #[test]
 fn no_import_cycles_between_modules() {
     let ws = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
@@ -463,15 +476,15 @@ fn no_import_cycles_between_modules() {
     let read = |p: &Path| std::fs::read_to_string(ws.join(p)).ok();
     let mut found = Vec::new();
     let mut checked = 0;
-    for pkg in ["amc-core", "amc-video", "amc-server", "amc-wasm"] {
-        for root in targets(&ws.join(pkg)) {
+    for pkg in workspace_members(ws) {
+        for root in targets(&ws.join(&pkg)) {
             checked += 1;
             let root = root.strip_prefix(ws).unwrap();
             found.extend(target_cycles(root, &root.display().to_string(), &read));
         }
     }
     assert!(
-        checked >= 4,
+        checked >= 7,
         "found only {checked} crate targets under {}",
         ws.display()
     );
@@ -582,4 +595,105 @@ fn checker_sees_through_re_exports() {
         cycles,
         ["crate::shapes -> crate::shapes::circle -> crate::shapes"]
     );
+}
+
+// ------------------------------------------------------------------ crates by job
+
+/// The `amc-*` crates a member's `[dependencies]` names (dev-dependencies left out).
+fn amc_dependencies(ws: &Path, pkg: &str) -> Vec<String> {
+    let manifest = std::fs::read_to_string(ws.join(pkg).join("Cargo.toml")).unwrap();
+    let mut section = String::new();
+    let mut deps = Vec::new();
+    for line in manifest.lines().map(str::trim) {
+        if line.starts_with('[') {
+            section = line.to_string();
+        } else if section == "[dependencies]" && line.starts_with("amc-") {
+            deps.push(line.split([' ', '=', '.']).next().unwrap().to_string());
+        }
+    }
+    deps
+}
+
+#[test]
+fn crates_depend_one_way_by_job() {
+    let ws = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
+    // Each crate and the crates it may build on: the algorithm, then video I/O, the run
+    // engine, then evaluation and the service side by side, the command line last.
+    let allowed: &[(&str, &[&str])] = &[
+        ("amc-core", &[]),
+        ("amc-synth", &["amc-core"]),
+        ("amc-video", &["amc-core"]),
+        ("amc-engine", &["amc-core", "amc-video"]),
+        (
+            "amc-eval",
+            &["amc-core", "amc-video", "amc-engine", "amc-synth"],
+        ),
+        ("amc-server", &["amc-core", "amc-video", "amc-engine"]),
+        (
+            "amc-cli",
+            &[
+                "amc-core",
+                "amc-video",
+                "amc-engine",
+                "amc-eval",
+                "amc-server",
+            ],
+        ),
+        ("amc-wasm", &["amc-core"]),
+    ];
+    let members = workspace_members(ws);
+    let mut wrong = Vec::new();
+    for pkg in &members {
+        let Some((_, may)) = allowed.iter().find(|(name, _)| name == pkg) else {
+            wrong.push(format!(
+                "{pkg}: a new crate: give it its place in this test"
+            ));
+            continue;
+        };
+        for dep in amc_dependencies(ws, pkg) {
+            if !may.contains(&dep.as_str()) {
+                wrong.push(format!("{pkg} depends on {dep}"));
+            }
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "dependencies against the layering:\n  {}",
+        wrong.join("\n  ")
+    );
+}
+
+#[test]
+fn engine_and_service_leave_out_the_cli_and_plot_stacks() {
+    let ws = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let banned: &[(&str, &[&str])] = &[
+        (
+            "amc-core",
+            &["axum", "sqlx", "object_store", "clap", "plotters", "tokio"],
+        ),
+        (
+            "amc-engine",
+            &["axum", "sqlx", "object_store", "clap", "plotters"],
+        ),
+        ("amc-server", &["clap", "plotters"]),
+        ("amc-eval", &["axum", "sqlx", "object_store", "clap"]),
+    ];
+    for (pkg, names) in banned {
+        let out = std::process::Command::new(&cargo)
+            .args(["tree", "-p", pkg, "-e", "normal", "--prefix", "none"])
+            .current_dir(ws)
+            .output()
+            .expect("cargo tree runs");
+        assert!(
+            out.status.success(),
+            "cargo tree -p {pkg}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let tree = String::from_utf8_lossy(&out.stdout);
+        for name in *names {
+            let found = tree.lines().any(|l| l.split(' ').next() == Some(name));
+            assert!(!found, "{pkg}'s dependency tree holds {name}");
+        }
+    }
 }

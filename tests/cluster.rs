@@ -1,4 +1,4 @@
-//! The service on shared infrastructure (README, "Scaling out"): `amc serve
+//! The service on shared infrastructure (docs/service.md, "Scaling out"): `amc serve
 //! --queue --store` replicas and `amc worker`s over a real PostgreSQL and a
 //! real S3-compatible server (SeaweedFS), both started on loopback by the
 //! harness ([`amc_e2e::services`], [`amc_e2e::cluster`]). Where they are not installed the tests

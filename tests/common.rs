@@ -63,12 +63,12 @@ fn target_dir() -> PathBuf {
 static BUILD: Once = Once::new();
 
 /// Path of the release `amc` binary, built (once per process) with
-/// `cargo build --release -p amc-server --bin amc`.
+/// `cargo build --release -p amc-cli --bin amc`.
 pub fn amc() -> PathBuf {
     BUILD.call_once(|| {
         let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
         let mut build = Command::new(cargo);
-        build.args(["build", "--release", "-p", "amc-server", "--bin", "amc"]);
+        build.args(["build", "--release", "-p", "amc-cli", "--bin", "amc"]);
         // The variables the cargo running this test set for it (this
         // package's name, version, folder...): a build script that watches
         // them (ring's does) would otherwise see them change, and its crate

@@ -6,7 +6,7 @@
 //! fractional offsets of a moving view softens fine detail. `--deghost`
 //! takes the first away and `--interpolation bicubic` most of the second; with
 //! both, stabilize mode keeps cup, karma and cc9 within 8% of `none`'s
-//! sharpness (README, "Sharpness"; measured 0.993 / 0.931 / 1.001).
+//! sharpness (docs/accuracy.md, "Sharpness"; measured 0.993 / 0.931 / 1.001).
 //!
 //! A third thing is not blur but magnification: `--zoom auto` shows the
 //! crop at the input's size, and a gradient per output pixel falls by the

@@ -2,7 +2,9 @@
 //! it as one `error:` line and exits 1 (argument-syntax errors found by clap
 //! exit 2, as clap does; an interrupting signal exits 128 + its number).
 
-use amc_server::{compare, demo, engine, eval, gt, serve, synth};
+use amc_engine as engine;
+use amc_eval::{compare, demo, eval, gt, synth};
+use amc_server::serve;
 use thiserror::Error;
 
 /// Anything a command can fail with.

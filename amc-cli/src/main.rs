@@ -7,8 +7,9 @@ mod options;
 mod progress;
 mod signals;
 
-use amc_server::engine::{self, LensNote, RunConfig, FALLBACK_FOV_DEG};
-use amc_server::{compare, demo, eval, serve, synth};
+use amc_engine::{self as engine, LensNote, RunConfig, FALLBACK_FOV_DEG};
+use amc_eval::{compare, demo, eval, synth};
+use amc_server::serve;
 use args::{Cli, Command, StabilizeArgs};
 use clap::Parser;
 use error::CliError;

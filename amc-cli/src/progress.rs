@@ -1,7 +1,7 @@
 //! Progress on the terminal: a bar with frames, frames/s and the time left.
 //! Hidden when stderr is not a terminal (logs, pipes, tests).
 
-use amc_server::engine::Progress;
+use amc_engine::Progress;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::sync::Mutex;

@@ -7,7 +7,7 @@
 //! child still running is killed and every partial output removed by
 //! [`amc_video::cleanup::interrupt`], and the process exits.
 
-use amc_server::engine::RunControl;
+use amc_engine::RunControl;
 use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 use std::sync::atomic::{AtomicI32, Ordering};
 use std::sync::Arc;

@@ -2,12 +2,12 @@
 //! Jordan Pond panorama when present, else a built-in procedural scene),
 //! stabilizes it, and says where everything is and how accurate it was.
 
-use crate::engine::{self, RunConfig, RunError};
 use crate::gt::{self, GtError};
 use crate::synth::{self, SynthConfig, SynthError};
 use amc_core::so3::{self, Tangent};
 use amc_core::view::Mode;
 use amc_core::{Frame, PixelFormat, StabilizerParams};
+use amc_engine::{self as engine, RunConfig, RunError};
 use amc_video::{self as video, InputOptions, OutputSpec};
 use rand::{rngs::SmallRng, Rng, SeedableRng};
 use std::path::{Path, PathBuf};

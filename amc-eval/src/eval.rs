@@ -1,11 +1,11 @@
 //! `amc eval`: the paper's table for one clip: none / stabilize / saccade.
 
-use crate::engine::{self, Progress, Resolved, RunConfig, RunError, RunSummary};
 use crate::gt::{self, GtError, GtReport};
 use crate::plot::{self, ModeSeries, PlotError};
 use amc_core::so3::{self, Tangent};
 use amc_core::view::Mode;
 use amc_core::StabilizerOptions;
+use amc_engine::{self as engine, Progress, Resolved, RunConfig, RunError, RunSummary};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Duration;

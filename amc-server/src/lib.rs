@@ -1,19 +1,11 @@
-//! `amc_server`: everything behind the `amc` command line, as a library.
+//! `amc_server`: the HTTP service behind `amc serve` and `amc worker`.
 //!
-//! Layers, each depending only on those before it:
-//! `amc-core` (the algorithm) <- `amc-video` (video I/O) <- [`engine`] (one
-//! run over a clip) <- [`gt`], [`plot`], [`synth`] <- [`eval`], [`demo`],
-//! [`compare`], [`serve`] <- the `amc` binary (`src/bin/amc/`: clap, the
-//! command line's error type, progress bars, exit codes). See
+//! [`serve`] is the axum service (REST jobs, the live WebSocket feed, the
+//! page); [`worker`] runs queued jobs in cluster mode; [`cluster`] is the job
+//! store in PostgreSQL with videos in S3. Runs go through `amc-engine`; the
+//! command line (`amc-cli`) is the only place clap lives. See
 //! `docs/ARCHITECTURE.md`.
 
 pub mod cluster;
-pub mod compare;
-pub mod demo;
-pub mod engine;
-pub mod eval;
-pub mod gt;
-pub mod plot;
 pub mod serve;
-pub mod synth;
 pub mod worker;

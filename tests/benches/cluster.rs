@@ -1,5 +1,5 @@
 //! `cargo bench -p amc-e2e --bench cluster`: how jobs/hour scale with the
-//! number of `amc worker`s (README, "Scaling out").
+//! number of `amc worker`s (docs/service.md, "Scaling out").
 //!
 //! A real PostgreSQL and SeaweedFS on loopback (the tests' harness: both
 //! must be installed), one `amc serve --queue --store` replica, and N short

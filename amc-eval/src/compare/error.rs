@@ -1,11 +1,11 @@
 //! Errors of `amc compare`.
 
 use super::config::MAX_LOOKAHEAD;
-use crate::engine::RunError;
 use crate::gt::GtError;
 use crate::plot::PlotError;
 use crate::synth::SynthError;
 use amc_core::AmcError;
+use amc_engine::RunError;
 use amc_video::VideoError;
 use std::path::PathBuf;
 use thiserror::Error;

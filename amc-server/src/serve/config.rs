@@ -109,7 +109,7 @@ impl Default for Limits {
             job_ttl: Duration::from_secs(3600),
             max_disk_bytes: 20_000_000_000,
             ffmpeg_timeout: Duration::from_secs(60),
-            threads: crate::engine::default_threads(),
+            threads: amc_engine::default_threads(),
         }
     }
 }
@@ -205,7 +205,7 @@ impl ServeConfig {
             job_ttl: Duration::from_secs(self.job_ttl),
             max_disk_bytes: self.max_disk_mb * 1_000_000,
             ffmpeg_timeout: Duration::from_secs(self.ffmpeg_timeout),
-            threads: crate::engine::default_threads(),
+            threads: amc_engine::default_threads(),
         })
     }
 

@@ -10,7 +10,7 @@ use super::panics::PANICKED;
 use super::problem::ApiError;
 use super::state::AppState;
 use super::work::{self, WorkSpec};
-use crate::engine::{RunControl, RunSummary};
+use amc_engine::{RunControl, RunSummary};
 use axum::body::Body;
 use axum::extract::{Request, State};
 use axum::http::{header, HeaderMap, HeaderName, HeaderValue};

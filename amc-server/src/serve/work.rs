@@ -7,8 +7,10 @@ use super::config::Limits;
 use super::jobs::JobFile;
 use super::options::JobOptions;
 use super::problem::{count, ApiError};
-use crate::engine::{self, LensNote, ResolvedLens, RunConfig, RunControl, RunError, RunSummary};
 use amc_core::{AmcError, LensSpec};
+use amc_engine::{
+    self as engine, LensNote, ResolvedLens, RunConfig, RunControl, RunError, RunSummary,
+};
 use amc_video::{self as video, Inspection, VideoError};
 use std::path::{Path, PathBuf};
 

@@ -13,11 +13,11 @@
 
 use super::state::WorkerState;
 use crate::cluster::queue::{Claim, Outcome};
-use crate::engine::{RunControl, RunSummary};
 use crate::serve::jobs::{JobFile, JobMetrics, JobMotion};
 use crate::serve::options::JobOptions;
 use crate::serve::panics::PANICKED;
 use crate::serve::work::{self, WorkSpec};
+use amc_engine::{RunControl, RunSummary};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};

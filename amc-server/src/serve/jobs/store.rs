@@ -7,10 +7,10 @@
 
 use super::view::{progress, rfc3339, valid_id, JobPage, JobState, JobSummary, JobView};
 use super::view::{JobMetrics, JobMotion};
-use crate::engine::{RunControl, RunSummary};
 use crate::serve::options::OutputFormat;
 use crate::serve::problem::ApiError;
 use crate::serve::storage::Scratch;
+use amc_engine::{RunControl, RunSummary};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};

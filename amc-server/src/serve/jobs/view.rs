@@ -3,8 +3,8 @@
 //! job measured. The same shapes whether jobs live in this process or in
 //! the shared job table (`--queue`).
 
-use crate::engine::RunSummary;
 use crate::serve::options::OutputFormat;
+use amc_engine::RunSummary;
 use axum::body::Body;
 use axum::http::{header, HeaderValue};
 use axum::response::Response;

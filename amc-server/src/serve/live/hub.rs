@@ -8,7 +8,7 @@
 //! ```
 //! The JPEG of frame j is encoded while frame j + 1 is stabilized: on two
 //! cores the stabilizer's single-threaded parts (tracking, the view) and the
-//! encoder then overlap instead of taking turns (README, "Speed").
+//! encoder then overlap instead of taking turns (docs/speed.md).
 //! With no viewer the feed is paused: the source's ffmpeg child is stopped
 //! (and started again, from a file's beginning, for the first viewer) and
 //! a publisher's frames are dropped undecoded, so an unwatched feed costs
@@ -67,7 +67,7 @@ impl Default for LiveConfig {
             looped: false,
             params,
             lens: None,
-            fov_deg: crate::engine::FALLBACK_FOV_DEG,
+            fov_deg: amc_engine::FALLBACK_FOV_DEG,
             jpeg_quality: 80,
             ffmpeg_timeout: Duration::from_secs(20),
         }
@@ -396,7 +396,7 @@ impl LiveHub {
     fn process(self: Arc<Self>, rx: Receiver<Input>) {
         // Each frame's rows are rendered on every core (no pipelining: it
         // would add a frame of latency).
-        let pool = crate::engine::render_pool(crate::engine::default_threads())
+        let pool = amc_engine::render_pool(amc_engine::default_threads())
             .map_err(|e| tracing::warn!(error = %e, "live frames render on one thread"))
             .ok();
         let mut stab: Option<Stabilizer> = None;

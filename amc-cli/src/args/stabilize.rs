@@ -1,0 +1,31 @@
+//! `amc stabilize`'s flags.
+
+use super::RunFlags;
+use clap::Args;
+use std::path::PathBuf;
+
+/// `amc stabilize`.
+#[derive(Args, Debug)]
+pub struct StabilizeArgs {
+    /// Input: any video ffmpeg reads, a folder of images (natural order), or .y4m.
+    pub input: PathBuf,
+    /// Output: .mp4 (H.264) / .webm / .mkv (audio copied), .y4m, or a folder for PNGs.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// The lens, the stabilizer's options and how the input is read.
+    #[command(flatten)]
+    pub run: RunFlags,
+    /// Write per-frame telemetry (CSV: frame,t,rx,ry,rz,vx,vy,vz,...).
+    #[arg(long, value_name = "FILE.csv")]
+    pub telemetry: Option<PathBuf>,
+    /// Write the clip's metrics (JSON).
+    #[arg(long, value_name = "FILE.json")]
+    pub metrics: Option<PathBuf>,
+    /// Video quality: x264 CRF 0..=51 for .mp4/.mkv (default 20), VP9 CRF 0..=63
+    /// for .webm (default 32); lower is better and larger.
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..=63))]
+    pub crf: Option<u8>,
+    /// No progress bar or summary.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
