@@ -23,6 +23,7 @@ pub mod frontend;
 pub mod metrics;
 pub mod minimize;
 pub mod options;
+pub mod plan;
 pub mod pyramid;
 pub mod readout;
 pub mod render;
