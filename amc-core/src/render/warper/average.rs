@@ -1,6 +1,7 @@
 //! The average of several interleaved frames (RGB, RGBA) into the view.
 
 use super::finish::{finish_merged_rgb_row, finish_rgb_row};
+use super::supersample::Target;
 use super::{Warper, MAX_FRAMES};
 use crate::image::FrameRef;
 use crate::render::kernels::Geometry;
@@ -23,73 +24,65 @@ impl Warper {
         channels: usize,
         coverage: &mut Vec<u8>,
     ) -> f64 {
-        if self.supersample == 1 {
-            return self.render_average_into(frame_at, rotations, out, channels, coverage);
-        }
-        let (ow, oh) = (self.view_w, self.view_h);
-        let mut fine = std::mem::take(&mut self.fine);
-        fine.image
-            .resize(self.out.width * self.out.height * channels, 0);
-        self.render_average_into(
-            frame_at,
-            rotations,
-            &mut fine.image,
-            channels,
-            &mut fine.coverage,
-        );
         let full = rotations.len() as u8;
-        let complete = self.finish_fine(&fine.image, &fine.coverage, channels, full, out, coverage);
-        self.fine = fine;
-        complete as f64 / (ow * oh).max(1) as f64
-    }
-
-    /// [`Warper::average_into`] on the render grid.
-    pub(super) fn render_average_into<'a, F: Fn(usize) -> FrameRef<'a>>(
-        &mut self,
-        frame_at: F,
-        rotations: &[Matrix3<f64>],
-        out: &mut [u8],
-        channels: usize,
-        coverage: &mut Vec<u8>,
-    ) -> f64 {
-        let (ow, oh) = (self.out.width, self.out.height);
-        coverage.clear();
-        coverage.resize(ow * oh, 0);
-        let maps = self.prepare_maps(rotations);
-        let full = rotations.len() as u8;
-        let n_frames = rotations.len().min(MAX_FRAMES);
-        // Hoist each frame's pixels out of the per-pixel loop.
-        let mut datas: [&[u8]; MAX_FRAMES] = [&[]; MAX_FRAMES];
-        let first = frame_at(0);
-        for (f, d) in datas.iter_mut().enumerate().take(n_frames) {
-            let fr = frame_at(f);
-            if fr.width == first.width && fr.height == first.height && fr.format == first.format {
-                *d = fr.data;
-            }
-        }
-        let pass = self.pass(
-            &maps[..n_frames],
-            &datas[..n_frames],
-            Geometry::of(&first),
-            first.height,
-        );
-        let merged = self.deghost.filter(|_| n_frames > 1);
-        let complete = self.for_each_row(
-            out,
-            ow * channels,
-            coverage,
-            |w, scratch, v, out_row, cov_row| {
-                scratch.fit(n_frames, ow, pass.tables, merged.is_some());
-                if let Some(deghost) = merged {
-                    w.merge_row(&pass, v, scratch, false, deghost);
-                    finish_merged_rgb_row(w.kernel, scratch, out_row, cov_row, channels, full)
-                } else {
-                    w.accumulate_row(&pass, None, v, scratch, false);
-                    finish_rgb_row(w.kernel, &pass, scratch, out_row, cov_row, channels, full)
+        let fine_len = self.out.width * self.out.height * channels;
+        let complete = self.supersample_render(
+            (out, coverage),
+            |w, target| {
+                let (out, coverage) = match target {
+                    Target::Caller(buffers) => buffers,
+                    Target::Fine(fine) => fine.image(fine_len),
+                };
+                let (ow, oh) = (w.out.width, w.out.height);
+                coverage.clear();
+                coverage.resize(ow * oh, 0);
+                let maps = w.prepare_maps(rotations);
+                let n_frames = rotations.len().min(MAX_FRAMES);
+                // Hoist each frame's pixels out of the per-pixel loop.
+                let mut datas: [&[u8]; MAX_FRAMES] = [&[]; MAX_FRAMES];
+                let first = frame_at(0);
+                for (f, d) in datas.iter_mut().enumerate().take(n_frames) {
+                    let fr = frame_at(f);
+                    if fr.width == first.width
+                        && fr.height == first.height
+                        && fr.format == first.format
+                    {
+                        *d = fr.data;
+                    }
                 }
+                let pass = w.pass(
+                    &maps[..n_frames],
+                    &datas[..n_frames],
+                    Geometry::of(&first),
+                    first.height,
+                );
+                let merged = w.deghost.filter(|_| n_frames > 1);
+                let complete = w.for_each_row(
+                    out,
+                    ow * channels,
+                    coverage,
+                    |w, scratch, v, out_row, cov_row| {
+                        scratch.fit(n_frames, ow, pass.tables, merged.is_some());
+                        if let Some(deghost) = merged {
+                            w.merge_row(&pass, v, scratch, false, deghost);
+                            finish_merged_rgb_row(
+                                w.kernel, scratch, out_row, cov_row, channels, full,
+                            )
+                        } else {
+                            w.accumulate_row(&pass, None, v, scratch, false);
+                            finish_rgb_row(
+                                w.kernel, &pass, scratch, out_row, cov_row, channels, full,
+                            )
+                        }
+                    },
+                );
+                w.maps = maps;
+                complete
+            },
+            |w, fine, (out, coverage)| {
+                w.finish_fine(&fine.image, &fine.coverage, channels, full, out, coverage)
             },
         );
-        self.maps = maps;
-        complete as f64 / (ow * oh).max(1) as f64
+        complete as f64 / (self.view_w * self.view_h).max(1) as f64
     }
 }

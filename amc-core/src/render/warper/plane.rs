@@ -1,6 +1,7 @@
 //! The average of one plane, or a pair of planes, of several planar frames.
 
 use super::finish::{finish_gray_row, finish_merged_gray_row};
+use super::supersample::Target;
 use super::{Warper, MAX_FRAMES};
 use crate::render::kernels::{Geometry, FRAME_PADDING};
 use nalgebra::Matrix3;
@@ -25,70 +26,54 @@ impl Warper {
         coverage: &mut Vec<u8>,
         fill: u8,
     ) -> usize {
-        if self.supersample == 1 {
-            return self.render_plane_into(plane_at, width, height, rotations, out, coverage, fill);
-        }
-        let mut fine = std::mem::take(&mut self.fine);
-        fine.image.resize(self.out.width * self.out.height, 0);
-        self.render_plane_into(
-            plane_at,
-            width,
-            height,
-            rotations,
-            &mut fine.image,
-            &mut fine.coverage,
-            fill,
-        );
+        let fine_len = self.out.width * self.out.height;
         let full = rotations.len() as u8;
-        let complete = self.finish_fine(&fine.image, &fine.coverage, 1, full, out, coverage);
-        self.fine = fine;
-        complete
-    }
-
-    /// [`Warper::average_plane_into`] on the render grid.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn render_plane_into<'a, F: Fn(usize) -> &'a [u8]>(
-        &mut self,
-        plane_at: F,
-        width: usize,
-        height: usize,
-        rotations: &[Matrix3<f64>],
-        out: &mut [u8],
-        coverage: &mut Vec<u8>,
-        fill: u8,
-    ) -> usize {
-        let (ow, oh) = (self.out.width, self.out.height);
-        coverage.clear();
-        coverage.resize(ow * oh, 0);
-        let maps = self.prepare_maps(rotations);
-        let full = rotations.len() as u8;
-        let n_frames = rotations.len().min(MAX_FRAMES);
-        let mut datas: [&[u8]; MAX_FRAMES] = [&[]; MAX_FRAMES];
-        for (f, d) in datas.iter_mut().enumerate().take(n_frames) {
-            let p = plane_at(f);
-            if p.len() >= width * height {
-                *d = p;
-            }
-        }
-        let pass = self.pass(
-            &maps[..n_frames],
-            &datas[..n_frames],
-            Geometry::plane(width, height, 1),
-            height,
-        );
-        let merged = self.deghost.filter(|_| n_frames > 1);
-        let complete = self.for_each_row(out, ow, coverage, |w, scratch, v, out_row, cov_row| {
-            scratch.fit(n_frames, ow, pass.tables, merged.is_some());
-            if let Some(deghost) = merged {
-                w.merge_row(&pass, v, scratch, true, deghost);
-                finish_merged_gray_row(scratch, out_row, cov_row, full, fill)
-            } else {
-                w.accumulate_row(&pass, None, v, scratch, true);
-                finish_gray_row(w.kernel, &pass, scratch, 0, out_row, cov_row, full, fill)
-            }
-        });
-        self.maps = maps;
-        complete
+        self.supersample_render(
+            (out, coverage),
+            |w, target| {
+                let (out, coverage) = match target {
+                    Target::Caller(buffers) => buffers,
+                    Target::Fine(fine) => fine.image(fine_len),
+                };
+                let (ow, oh) = (w.out.width, w.out.height);
+                coverage.clear();
+                coverage.resize(ow * oh, 0);
+                let maps = w.prepare_maps(rotations);
+                let n_frames = rotations.len().min(MAX_FRAMES);
+                let mut datas: [&[u8]; MAX_FRAMES] = [&[]; MAX_FRAMES];
+                for (f, d) in datas.iter_mut().enumerate().take(n_frames) {
+                    let p = plane_at(f);
+                    if p.len() >= width * height {
+                        *d = p;
+                    }
+                }
+                let pass = w.pass(
+                    &maps[..n_frames],
+                    &datas[..n_frames],
+                    Geometry::plane(width, height, 1),
+                    height,
+                );
+                let merged = w.deghost.filter(|_| n_frames > 1);
+                let complete =
+                    w.for_each_row(out, ow, coverage, |w, scratch, v, out_row, cov_row| {
+                        scratch.fit(n_frames, ow, pass.tables, merged.is_some());
+                        if let Some(deghost) = merged {
+                            w.merge_row(&pass, v, scratch, true, deghost);
+                            finish_merged_gray_row(scratch, out_row, cov_row, full, fill)
+                        } else {
+                            w.accumulate_row(&pass, None, v, scratch, true);
+                            finish_gray_row(
+                                w.kernel, &pass, scratch, 0, out_row, cov_row, full, fill,
+                            )
+                        }
+                    });
+                w.maps = maps;
+                complete
+            },
+            |w, fine, (out, coverage)| {
+                w.finish_fine(&fine.image, &fine.coverage, 1, full, out, coverage)
+            },
+        )
     }
 
     /// [`Warper::average_plane_into`] of two planes of one size through the
@@ -111,46 +96,6 @@ impl Warper {
         coverage: &mut Vec<u8>,
         fill: u8,
     ) -> usize {
-        if self.supersample == 1 {
-            return self.render_plane_pair_into(
-                planes_at, width, height, rotations, out_a, out_b, coverage, fill,
-            );
-        }
-        let mut fine = std::mem::take(&mut self.fine);
-        let n = self.out.width * self.out.height;
-        fine.image.resize(n, 0);
-        fine.image_b.resize(n, 0);
-        self.render_plane_pair_into(
-            planes_at,
-            width,
-            height,
-            rotations,
-            &mut fine.image,
-            &mut fine.image_b,
-            &mut fine.coverage,
-            fill,
-        );
-        let full = rotations.len() as u8;
-        let complete = self.finish_fine(&fine.image, &fine.coverage, 1, full, out_a, coverage);
-        self.finish_fine(&fine.image_b, &fine.coverage, 1, full, out_b, coverage);
-        self.fine = fine;
-        complete
-    }
-
-    /// [`Warper::average_plane_pair_into`] on the render grid.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn render_plane_pair_into<'a, F: Fn(usize) -> (&'a [u8], &'a [u8])>(
-        &mut self,
-        planes_at: F,
-        width: usize,
-        height: usize,
-        rotations: &[Matrix3<f64>],
-        out_a: &mut [u8],
-        out_b: &mut [u8],
-        coverage: &mut Vec<u8>,
-        fill: u8,
-    ) -> usize {
-        let (ow, oh) = (self.out.width, self.out.height);
         let n_frames = rotations.len().min(MAX_FRAMES);
         let mut datas: [[&[u8]; MAX_FRAMES]; 2] = [[&[]; MAX_FRAMES]; 2];
         for f in 0..n_frames {
@@ -169,45 +114,62 @@ impl Warper {
         if !fused {
             let [a, b] = datas;
             let complete =
-                self.render_plane_into(|i| a[i], width, height, rotations, out_a, coverage, fill);
-            self.render_plane_into(|i| b[i], width, height, rotations, out_b, coverage, fill);
+                self.average_plane_into(|i| a[i], width, height, rotations, out_a, coverage, fill);
+            self.average_plane_into(|i| b[i], width, height, rotations, out_b, coverage, fill);
             return complete;
         }
-        coverage.clear();
-        coverage.resize(ow * oh, 0);
-        let maps = self.prepare_maps(rotations);
         let full = rotations.len() as u8;
-        let geom = Geometry::plane(width, height, 1);
-        let pass_a = self.pass(&maps[..n_frames], &datas[0][..n_frames], geom, height);
-        let pass_b = self.pass(&maps[..n_frames], &datas[1][..n_frames], geom, height);
-        // The pair's rows side by side in one buffer, so that the rows can be
-        // shared out among threads as one image; then copied to their planes.
-        let mut rows = std::mem::take(&mut self.pair_rows);
-        rows.resize(2 * ow * oh, 0);
-        let complete = self.for_each_row(
-            &mut rows,
-            2 * ow,
-            coverage,
-            |w, scratch, v, out_row, cov_row| {
-                scratch.fit(n_frames, ow, pass_a.tables, false);
-                w.accumulate_row(&pass_a, Some(&pass_b), v, scratch, true);
-                let (row_a, row_b) = out_row.split_at_mut(ow);
-                let complete =
-                    finish_gray_row(w.kernel, &pass_a, scratch, 0, row_a, cov_row, full, fill);
-                finish_gray_row(w.kernel, &pass_b, scratch, 1, row_b, cov_row, full, fill);
+        let fine_len = self.out.width * self.out.height;
+        self.supersample_render(
+            (out_a, out_b, coverage),
+            |w, target| {
+                let (out_a, out_b, coverage) = match target {
+                    Target::Caller(buffers) => buffers,
+                    Target::Fine(fine) => fine.pair(fine_len),
+                };
+                let (ow, oh) = (w.out.width, w.out.height);
+                coverage.clear();
+                coverage.resize(ow * oh, 0);
+                let maps = w.prepare_maps(rotations);
+                let geom = Geometry::plane(width, height, 1);
+                let pass_a = w.pass(&maps[..n_frames], &datas[0][..n_frames], geom, height);
+                let pass_b = w.pass(&maps[..n_frames], &datas[1][..n_frames], geom, height);
+                // The pair's rows side by side in one buffer, so that the rows can be
+                // shared out among threads as one image; then copied to their planes.
+                let mut rows = std::mem::take(&mut w.pair_rows);
+                rows.resize(2 * ow * oh, 0);
+                let complete = w.for_each_row(
+                    &mut rows,
+                    2 * ow,
+                    coverage,
+                    |w, scratch, v, out_row, cov_row| {
+                        scratch.fit(n_frames, ow, pass_a.tables, false);
+                        w.accumulate_row(&pass_a, Some(&pass_b), v, scratch, true);
+                        let (row_a, row_b) = out_row.split_at_mut(ow);
+                        let complete = finish_gray_row(
+                            w.kernel, &pass_a, scratch, 0, row_a, cov_row, full, fill,
+                        );
+                        finish_gray_row(w.kernel, &pass_b, scratch, 1, row_b, cov_row, full, fill);
+                        complete
+                    },
+                );
+                for ((pair, a), b) in rows
+                    .chunks_exact(2 * ow)
+                    .zip(out_a.chunks_exact_mut(ow))
+                    .zip(out_b.chunks_exact_mut(ow))
+                {
+                    a.copy_from_slice(&pair[..ow]);
+                    b.copy_from_slice(&pair[ow..]);
+                }
+                w.pair_rows = rows;
+                w.maps = maps;
                 complete
             },
-        );
-        for ((pair, a), b) in rows
-            .chunks_exact(2 * ow)
-            .zip(out_a.chunks_exact_mut(ow))
-            .zip(out_b.chunks_exact_mut(ow))
-        {
-            a.copy_from_slice(&pair[..ow]);
-            b.copy_from_slice(&pair[ow..]);
-        }
-        self.pair_rows = rows;
-        self.maps = maps;
-        complete
+            |w, fine, (out_a, out_b, coverage)| {
+                let complete = w.finish_fine(&fine.image, &fine.coverage, 1, full, out_a, coverage);
+                w.finish_fine(&fine.image_b, &fine.coverage, 1, full, out_b, coverage);
+                complete
+            },
+        )
     }
 }

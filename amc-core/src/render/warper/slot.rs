@@ -3,6 +3,7 @@
 
 use super::downsample::box_down_slot;
 use super::map::RowMap;
+use super::supersample::Target;
 use super::Warper;
 use crate::image::FrameRef;
 use crate::render::accumulator::WarpedFrame;
@@ -52,73 +53,60 @@ impl Warper {
         slot: &mut WarpedFrame,
         index: u64,
     ) {
-        if self.supersample == 1 {
-            return self.render_slot(frame, m, slot, index);
-        }
-        let (ow, oh) = (self.view_w, self.view_h);
-        let mut fine = std::mem::take(&mut self.fine);
-        self.render_slot(frame, m, &mut fine.slot, index);
-        slot.index = index;
-        slot.value.clear();
-        slot.value.resize(3 * ow * oh, 0);
-        slot.covered.clear();
-        slot.covered.resize(ow * oh, 0);
-        box_down_slot(
-            &fine.slot.value,
-            &fine.slot.covered,
-            self.supersample,
-            3,
-            (ow, oh),
-            &mut slot.value,
-            &mut slot.covered,
-        );
-        self.fine = fine;
-    }
-
-    /// [`Warper::warp_into_slot`] on the render grid.
-    pub(super) fn render_slot(
-        &mut self,
-        frame: &FrameRef<'_>,
-        m: &Matrix3<f64>,
-        slot: &mut WarpedFrame,
-        index: u64,
-    ) {
-        let (ow, oh) = (self.out.width, self.out.height);
-        slot.index = index;
-        slot.value.clear();
-        slot.value.resize(3 * ow * oh, 0);
-        slot.covered.clear();
-        slot.covered.resize(ow * oh, 0);
-        let maps = self.prepare_maps(std::slice::from_ref(m));
-        let datas = [frame.data];
-        let pass = self.pass(&maps, &datas, Geometry::of(frame), frame.height);
-        let mut scratch = std::mem::take(&mut self.scratch);
-        scratch.fit(1, ow, pass.tables, false);
-        for v in 0..oh {
-            self.accumulate_row(&pass, None, v, &mut scratch, false);
-            let vals = &mut slot.value[3 * v * ow..3 * (v + 1) * ow];
-            let cov = &mut slot.covered[v * ow..(v + 1) * ow];
-            let [r, g, b] = &scratch.sums;
-            for u in 0..pass.n8 {
-                vals[3 * u] = r[u] as u16;
-                vals[3 * u + 1] = g[u] as u16;
-                vals[3 * u + 2] = b[u] as u16;
-                cov[u] = scratch.count[u] as u8;
-            }
-            for u in pass.n8..ow {
-                if let Some(rgb) = pass
-                    .geom
-                    .sample(frame.data, scratch.xs[0][u], scratch.ys[0][u])
-                {
-                    vals[3 * u] = rgb[0] as u16;
-                    vals[3 * u + 1] = rgb[1] as u16;
-                    vals[3 * u + 2] = rgb[2] as u16;
-                    cov[u] = 1;
+        self.supersample_render(
+            slot,
+            |w, target| {
+                let slot = match target {
+                    Target::Caller(slot) => slot,
+                    Target::Fine(fine) => &mut fine.slot,
+                };
+                let (ow, oh) = (w.out.width, w.out.height);
+                slot.reset(index, ow * oh);
+                let maps = w.prepare_maps(std::slice::from_ref(m));
+                let datas = [frame.data];
+                let pass = w.pass(&maps, &datas, Geometry::of(frame), frame.height);
+                let mut scratch = std::mem::take(&mut w.scratch);
+                scratch.fit(1, ow, pass.tables, false);
+                for v in 0..oh {
+                    w.accumulate_row(&pass, None, v, &mut scratch, false);
+                    let vals = &mut slot.value[3 * v * ow..3 * (v + 1) * ow];
+                    let cov = &mut slot.covered[v * ow..(v + 1) * ow];
+                    let [r, g, b] = &scratch.sums;
+                    for u in 0..pass.n8 {
+                        vals[3 * u] = r[u] as u16;
+                        vals[3 * u + 1] = g[u] as u16;
+                        vals[3 * u + 2] = b[u] as u16;
+                        cov[u] = scratch.count[u] as u8;
+                    }
+                    for u in pass.n8..ow {
+                        if let Some(rgb) =
+                            pass.geom
+                                .sample(frame.data, scratch.xs[0][u], scratch.ys[0][u])
+                        {
+                            vals[3 * u] = rgb[0] as u16;
+                            vals[3 * u + 1] = rgb[1] as u16;
+                            vals[3 * u + 2] = rgb[2] as u16;
+                            cov[u] = 1;
+                        }
+                    }
                 }
-            }
-        }
-        self.scratch = scratch;
-        self.maps = maps;
+                w.scratch = scratch;
+                w.maps = maps;
+            },
+            |w, fine, slot| {
+                let view = (w.view_w, w.view_h);
+                slot.reset(index, view.0 * view.1);
+                box_down_slot(
+                    &fine.slot.value,
+                    &fine.slot.covered,
+                    w.supersample,
+                    3,
+                    view,
+                    &mut slot.value,
+                    &mut slot.covered,
+                );
+            },
+        )
     }
 
     /// Warps one plane (`width x height`, followed by padding as for
@@ -135,71 +123,53 @@ impl Warper {
         values: &mut [u16],
         covered: &mut [u8],
     ) {
-        if self.supersample == 1 {
-            return self.render_plane_slot(plane, width, height, m, values, covered);
-        }
-        let view = (self.view_w, self.view_h);
-        let mut fine = std::mem::take(&mut self.fine);
-        let n = self.out.width * self.out.height;
-        fine.slot.value.resize(n, 0);
-        fine.slot.covered.resize(n, 0);
-        self.render_plane_slot(
-            plane,
-            width,
-            height,
-            m,
-            &mut fine.slot.value[..n],
-            &mut fine.slot.covered[..n],
-        );
-        let s = self.supersample;
-        box_down_slot(
-            &fine.slot.value[..n],
-            &fine.slot.covered[..n],
-            s,
-            1,
-            view,
-            values,
-            covered,
-        );
-        self.fine = fine;
-    }
-
-    /// [`Warper::warp_plane_into`] on the render grid.
-    pub(super) fn render_plane_slot(
-        &mut self,
-        plane: &[u8],
-        width: usize,
-        height: usize,
-        m: &Matrix3<f64>,
-        values: &mut [u16],
-        covered: &mut [u8],
-    ) {
-        let ow = self.out.width;
-        let maps = self.prepare_maps(std::slice::from_ref(m));
-        let datas = [plane];
-        let pass = self.pass(&maps, &datas, Geometry::plane(width, height, 1), height);
-        let mut scratch = std::mem::take(&mut self.scratch);
-        scratch.fit(1, ow, pass.tables, false);
-        for (v, (vals, cov)) in values
-            .chunks_mut(ow)
-            .zip(covered.chunks_mut(ow))
-            .enumerate()
-        {
-            self.accumulate_row(&pass, None, v, &mut scratch, true);
-            for u in 0..pass.n8 {
-                vals[u] = scratch.sums[0][u] as u16;
-                cov[u] = scratch.count[u] as u8;
-            }
-            for u in pass.n8..ow {
-                let s = pass
-                    .geom
-                    .sample_gray(plane, scratch.xs[0][u], scratch.ys[0][u]);
-                vals[u] = s.unwrap_or(0) as u16;
-                cov[u] = s.is_some() as u8;
-            }
-        }
-        self.scratch = scratch;
-        self.maps = maps;
+        let fine_len = self.out.width * self.out.height;
+        self.supersample_render(
+            (values, covered),
+            |w, target| {
+                let (values, covered) = match target {
+                    Target::Caller(buffers) => buffers,
+                    Target::Fine(fine) => fine.plane_slot(fine_len),
+                };
+                let ow = w.out.width;
+                let maps = w.prepare_maps(std::slice::from_ref(m));
+                let datas = [plane];
+                let pass = w.pass(&maps, &datas, Geometry::plane(width, height, 1), height);
+                let mut scratch = std::mem::take(&mut w.scratch);
+                scratch.fit(1, ow, pass.tables, false);
+                for (v, (vals, cov)) in values
+                    .chunks_mut(ow)
+                    .zip(covered.chunks_mut(ow))
+                    .enumerate()
+                {
+                    w.accumulate_row(&pass, None, v, &mut scratch, true);
+                    for u in 0..pass.n8 {
+                        vals[u] = scratch.sums[0][u] as u16;
+                        cov[u] = scratch.count[u] as u8;
+                    }
+                    for u in pass.n8..ow {
+                        let s = pass
+                            .geom
+                            .sample_gray(plane, scratch.xs[0][u], scratch.ys[0][u]);
+                        vals[u] = s.unwrap_or(0) as u16;
+                        cov[u] = s.is_some() as u8;
+                    }
+                }
+                w.scratch = scratch;
+                w.maps = maps;
+            },
+            |w, fine, (values, covered)| {
+                box_down_slot(
+                    &fine.slot.value[..fine_len],
+                    &fine.slot.covered[..fine_len],
+                    w.supersample,
+                    1,
+                    (w.view_w, w.view_h),
+                    values,
+                    covered,
+                );
+            },
+        )
     }
 }
 
@@ -216,11 +186,7 @@ impl WarpedFrame {
         index: u64,
     ) {
         let (w, h) = warper.render_size();
-        self.index = index;
-        self.value.clear();
-        self.value.resize(3 * w * h, 0);
-        self.covered.clear();
-        self.covered.resize(w * h, 0);
+        self.reset(index, w * h);
         let (value, covered) = (&mut self.value, &mut self.covered);
         warper.warp(frame, m, |i, rgb| {
             value[3 * i] = rgb[0] as u16;
@@ -245,5 +211,15 @@ impl WarpedFrame {
             self.value = value;
             self.covered = covered;
         }
+    }
+
+    /// Makes this the slot of frame `index` with `pixels` pixels of three
+    /// samples, every one 0 and uncovered (reusing the buffers).
+    fn reset(&mut self, index: u64, pixels: usize) {
+        self.index = index;
+        self.value.clear();
+        self.value.resize(3 * pixels, 0);
+        self.covered.clear();
+        self.covered.resize(pixels, 0);
     }
 }
