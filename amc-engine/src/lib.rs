@@ -10,6 +10,7 @@ mod control;
 mod error;
 mod lens;
 mod measure;
+mod passes;
 mod paths;
 mod readout;
 mod run;

@@ -1,82 +1,17 @@
 //! Turning a [`ReadoutSpec`] (`--readout-ms MS`, `--readout-ms auto`, the
 //! lens file's readout) into the rolling-shutter readout time of a run, once
-//! the lens is known ([`resolve_readout`]); [`resolve`] does both.
+//! the lens is known ([`resolve_readout`]); [`resolve`] does both. The passes
+//! are the core's pass plan ([`amc_core::plan`]).
 
-use super::lens::{resolve_lens, LensNote, ResolvedLens};
+use super::lens::{lens_choice, ResolvedLens};
+use super::passes::{self, On};
 use super::RunError;
-use amc_core::readout::{ReadoutEstimate, ReadoutEstimator};
-use amc_core::{AmcError, Frame, PixelFormat, ReadoutSpec, StabilizerOptions, StabilizerParams};
-use amc_video::{self as video, InputOptions};
+use amc_core::plan::{LensChoice, PassPlan, PlanChoices};
+use amc_core::{ReadoutSpec, StabilizerOptions, StabilizerParams};
+use amc_video::InputOptions;
 use std::path::Path;
 
-/// Where a readout time came from, for the caller to tell the user.
-#[derive(Clone, Debug, PartialEq)]
-pub enum ReadoutNote {
-    /// Given by the option, or 0 by default (nothing to say).
-    Given,
-    /// Stated by the lens file (`readout_ms`, Gyroflow's `frame_readout_time`).
-    FromLens,
-    /// `auto` estimated it and trusts the estimate.
-    Estimated(ReadoutEstimate),
-    /// `auto` could not pin it down (too little motion, a fit that explains
-    /// too little, too short a clip): a global shutter is assumed.
-    FellBack {
-        /// The estimate that was not trusted (`None`: too few frames to fit).
-        estimate: Option<ReadoutEstimate>,
-    },
-}
-
-impl ReadoutNote {
-    /// The line to show the user, if any (`warning: ...` for a fallback).
-    pub fn message(&self, readout_ms: f64) -> Option<String> {
-        match self {
-            ReadoutNote::Given => None,
-            ReadoutNote::FromLens => Some(format!("readout: {readout_ms} ms (from the lens file)")),
-            ReadoutNote::Estimated(e) => Some(format!(
-                "readout: {:.1} ms (estimated from {} frames; pass --readout-ms to set it)",
-                e.readout_ms, e.frames
-            )),
-            ReadoutNote::FellBack { estimate } => {
-                let why = match estimate {
-                    Some(e) => format!(
-                        "the estimate of {:.1} ms from {} frames is not reliable: {:.3} deg of motion \
-                         across a readout, the fit explains {:.0}% of the motion within frames",
-                        e.readout_ms,
-                        e.frames,
-                        e.motion_deg,
-                        100.0 * e.explained
-                    ),
-                    None => "the clip is too short to estimate it".into(),
-                };
-                Some(format!(
-                    "warning: the footage does not pin down the rolling-shutter readout ({why}); \
-                     assuming a global shutter (0 ms): set readout_ms (--readout-ms MS) for best results"
-                ))
-            }
-        }
-    }
-
-    /// Whether this note is a warning (`auto` fell back to 0).
-    pub fn is_warning(&self) -> bool {
-        matches!(self, ReadoutNote::FellBack { .. })
-    }
-}
-
-/// A run's readout time and where it came from.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ResolvedReadout {
-    /// Milliseconds, `0..=100` (0 = global shutter).
-    pub readout_ms: f64,
-    /// Where it came from.
-    pub note: ReadoutNote,
-}
-
-impl ResolvedReadout {
-    /// The line to show the user, if any.
-    pub fn message(&self) -> Option<String> {
-        self.note.message(self.readout_ms)
-    }
-}
+pub use amc_core::plan::{ReadoutNote, Resolved, ResolvedReadout};
 
 /// Resolves `spec` against the lens (`lens.readout_ms`, the file's readout):
 /// the option's readout, else the lens file's, else 0; `auto` tracks up to
@@ -89,94 +24,43 @@ pub fn resolve_readout(
     params: &StabilizerParams,
     opts: &InputOptions,
 ) -> Result<ResolvedReadout, RunError> {
-    if let Some(readout_ms) = spec.given(lens.readout_ms) {
-        let from_lens = *spec == ReadoutSpec::FromLens && lens.readout_ms.is_some();
-        return Ok(ResolvedReadout {
-            readout_ms,
-            note: if from_lens {
-                ReadoutNote::FromLens
-            } else {
-                ReadoutNote::Given
-            },
-        });
-    }
-    let mut src = video::open_input(input, opts)?;
-    let mut buf = Frame::new(0, 0, PixelFormat::Rgb8);
-    let mut estimator: Option<ReadoutEstimator> = None;
-    while !estimator.as_ref().is_some_and(ReadoutEstimator::is_full) {
-        let Some(t) = src.next_frame(&mut buf)? else {
-            break;
-        };
-        let est = match &mut estimator {
-            Some(e) => e,
-            None => estimator.insert(ReadoutEstimator::new(
-                &lens.camera,
-                buf.width,
-                buf.height,
-                params,
-            )?),
-        };
-        est.push(buf.as_ref(), t)?;
-    }
-    let Some(estimator) = estimator else {
-        return Err(RunError::NoFrames {
-            path: input.to_path_buf(),
-        });
-    };
-    let fell_back = |estimate| ResolvedReadout {
-        readout_ms: 0.0,
-        note: ReadoutNote::FellBack { estimate },
-    };
-    match estimator.finish() {
-        Ok(e) if e.confident => Ok(ResolvedReadout {
-            readout_ms: e.readout_ms,
-            note: ReadoutNote::Estimated(e),
-        }),
-        Ok(e) => Ok(fell_back(Some(e))),
-        Err(AmcError::TooFewFrames { .. }) => Ok(fell_back(None)),
-        Err(e) => Err(e.into()),
-    }
+    let mut plan = PassPlan::new(PlanChoices {
+        lens: LensChoice::Known(lens.clone()),
+        readout: spec.clone(),
+        params: params.clone(),
+        static_zoom: false,
+        frame_size: None,
+    })?;
+    passes::make(&mut plan, input, opts, On::default())?;
+    Ok(plan.finish()?.readout)
 }
 
-/// The lens, the readout and the parameters of a run, from the user's options.
-#[derive(Clone, Debug)]
-pub struct Resolved {
-    /// The camera, and how it was found.
-    pub lens: ResolvedLens,
-    /// The readout, and where it came from.
-    pub readout: ResolvedReadout,
-    /// The options' parameters with the readout set (`shutter.readout_ms`).
-    pub params: StabilizerParams,
-}
-
-impl Resolved {
-    /// How the lens was found.
-    pub fn lens_note(&self) -> &LensNote {
-        &self.lens.note
-    }
-}
-
-/// Resolves the lens ([`resolve_lens`]), then the readout ([`resolve_readout`]).
+/// Resolves the lens ([`resolve_lens`](super::resolve_lens)), then the
+/// readout ([`resolve_readout`]), each pass reading `input` once. `zoom =
+/// static`'s pass is left to [`run`](super::run), which reads the frames in
+/// its own pixel format (so [`Resolved::static_zoom`] is `None`).
 pub fn resolve(
     options: &StabilizerOptions,
     input: &Path,
     opts: &InputOptions,
     size: Option<(usize, usize)>,
 ) -> Result<Resolved, RunError> {
-    let lens = resolve_lens(&options.lens, input, &options.params, opts, size)?;
-    let readout = resolve_readout(&options.readout, &lens, input, &options.params, opts)?;
-    let mut params = options.params.clone();
-    params.shutter.readout_ms = readout.readout_ms;
-    Ok(Resolved {
-        lens,
-        readout,
-        params,
-    })
+    let mut plan = PassPlan::new(PlanChoices {
+        lens: lens_choice(&options.lens)?,
+        readout: options.readout.clone(),
+        params: options.params.clone(),
+        static_zoom: false,
+        frame_size: size,
+    })?;
+    passes::make(&mut plan, input, opts, On::default())?;
+    Ok(plan.finish()?)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::LensNote;
+    use amc_core::readout::ReadoutEstimate;
     use amc_core::CameraModel;
 
     fn lens(readout_ms: Option<f64>) -> ResolvedLens {

@@ -5,11 +5,13 @@
 
 use super::control::RunControl;
 use super::measure::MetricsWorker;
+use super::passes::{self, On};
 use super::stages::{Reader, Writer};
 use super::{paths, telemetry, RunError};
 use amc_core::metrics::{ClipMetrics, FrameMetrics, MotionAccumulator, MotionSummary};
+use amc_core::plan::{LensChoice, LensNote, PassPlan, PlanChoices, ResolvedLens};
 use amc_core::{
-    CameraModel, Frame, Mode, PixelFormat, Stabilizer, StabilizerParams, Telemetry, Zoom,
+    CameraModel, Frame, PixelFormat, ReadoutSpec, Stabilizer, StabilizerParams, Telemetry,
 };
 use amc_video::{self as video, AtomicFile, FrameSource, InputOptions, OutputSpec};
 use serde::Serialize;
@@ -149,13 +151,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         ..super::input_options(cfg.fps, cfg.timeout)
     };
     let pool = render_pool(cfg.threads)?;
-    let static_zoom = if cfg.params.framing.zoom == Zoom::Static
-        && matches!(cfg.params.view.mode, Mode::Stabilize | Mode::Lock)
-    {
-        Some(static_zoom(cfg, &opts, &pool)?)
-    } else {
-        None
-    };
+    let static_zoom = static_zoom(cfg, &opts, &pool)?;
     let src: Box<dyn FrameSource> = video::open_input(cfg.input, &opts)?;
     let info = src.info().clone();
     let threaded = cfg.threads > 1;
@@ -285,26 +281,32 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
     })
 }
 
-/// `zoom = static`'s first pass: tracks and smooths the whole clip without
-/// rendering and returns the highest zoom any output needs (the second pass
-/// clamps it to the crop budget and pulls the view where it needs more).
+/// `zoom = static`'s first pass, when the parameters call for one (stabilize
+/// and lock modes): the core's pass plan with the run's lens and readout
+/// tracks and smooths the whole clip without rendering and returns the
+/// highest zoom any output needs (the second pass clamps it to the crop
+/// budget and pulls the view where it needs more). Frames are read as the
+/// main pass reads them (`opts`).
 fn static_zoom(
     cfg: &RunConfig<'_>,
     opts: &InputOptions,
     pool: &rayon::ThreadPool,
-) -> Result<f64, RunError> {
-    let mut src = video::open_input(cfg.input, opts)?;
-    let info = src.info().clone();
-    let mut stab = Stabilizer::new(&cfg.lens, info.width, info.height, cfg.params.clone())?;
-    stab.set_rendering(false);
-    let mut frame = Frame::new(info.width, info.height, opts.pixel_format);
-    let check = || cfg.control.map_or(Ok(()), RunControl::check);
-    while let Some(t) = src.next_frame(&mut frame)? {
-        check()?;
-        pool.install(|| stab.push(frame.as_ref(), t))?;
-    }
-    while pool.install(|| stab.finish()).is_some() {
-        check()?;
-    }
-    Ok(stab.max_zoom_need())
+) -> Result<Option<f64>, RunError> {
+    let mut plan = PassPlan::new(PlanChoices {
+        lens: LensChoice::Known(ResolvedLens {
+            camera: cfg.lens.clone(),
+            note: LensNote::Given,
+            readout_ms: None,
+        }),
+        readout: ReadoutSpec::Ms(cfg.params.shutter.readout_ms),
+        params: cfg.params.clone(),
+        static_zoom: true,
+        frame_size: None,
+    })?;
+    let on = On {
+        pool: Some(pool),
+        control: cfg.control,
+    };
+    passes::make(&mut plan, cfg.input, opts, on)?;
+    Ok(plan.static_zoom())
 }

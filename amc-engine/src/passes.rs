@@ -1,0 +1,68 @@
+//! Makes the first passes of a run ([`PassPlan`], `amc_core::plan`) over an
+//! input: each pass opens the input once and reads it from its start, only
+//! as many frames as the pass takes.
+
+use super::control::RunControl;
+use super::RunError;
+use amc_core::plan::PassPlan;
+use amc_core::Frame;
+use amc_video::{self as video, InputOptions};
+use std::path::Path;
+
+/// Where the passes run: the render pool to push frames on (none: the
+/// caller's thread) and the run's control, checked after every frame read.
+#[derive(Clone, Copy, Default)]
+pub(crate) struct On<'a> {
+    pub pool: Option<&'a rayon::ThreadPool>,
+    pub control: Option<&'a RunControl>,
+}
+
+impl On<'_> {
+    fn install<T: Send>(&self, f: impl FnOnce() -> T + Send) -> T {
+        match self.pool {
+            Some(pool) => pool.install(f),
+            None => f(),
+        }
+    }
+
+    fn check(&self) -> Result<(), RunError> {
+        self.control.map_or(Ok(()), RunControl::check)
+    }
+}
+
+/// Makes every pass `plan` has left over `input` (opened with `opts`),
+/// probing the frame size first where a field of view needs it. A pass that
+/// reads no frame is [`RunError::NoFrames`].
+pub(crate) fn make(
+    plan: &mut PassPlan,
+    input: &Path,
+    opts: &InputOptions,
+    on: On<'_>,
+) -> Result<(), RunError> {
+    if plan.needs_frame_size() {
+        let (w, h) = video::frame_size(input, opts)?;
+        plan.set_frame_size(w, h)?;
+    }
+    while plan.pass().is_some() {
+        let mut src = video::open_input(input, opts)?;
+        let info = src.info();
+        let mut frame = Frame::new(info.width, info.height, opts.pixel_format);
+        let mut read = 0usize;
+        while !plan.is_full() {
+            let Some(t) = src.next_frame(&mut frame)? else {
+                break;
+            };
+            on.check()?;
+            on.install(|| plan.push(frame.as_ref(), t))?;
+            read += 1;
+        }
+        if read == 0 {
+            return Err(RunError::NoFrames {
+                path: input.to_path_buf(),
+            });
+        }
+        on.install(|| plan.finish_pass())?;
+        on.check()?;
+    }
+    Ok(())
+}
