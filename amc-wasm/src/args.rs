@@ -5,7 +5,8 @@
 //! JavaScript `Error` with the same message.
 
 use amc_core::camera::CameraModel;
-use amc_core::{AmcError, PixelFormat, StabilizerParams};
+use amc_core::plan::{LensChoice, LensNote, PassPlan, PlanChoices, ResolvedLens};
+use amc_core::{AmcError, PixelFormat, ReadoutSpec, StabilizerParams};
 use thiserror::Error;
 
 /// Largest frame side accepted (the core's limit).
@@ -239,6 +240,10 @@ pub struct Checked {
     pub width: usize,
     pub height: usize,
     pub format: InputFormat,
+    /// The readout the lens file states (none for a field of view).
+    pub lens_readout_ms: Option<f64>,
+    /// Whether `paramsJson` sets the shutter (then the lens file's readout does not apply).
+    pub sets_shutter: bool,
 }
 
 /// Checks the arguments of a stabilizer or a readout estimator (see [`Checked`]).
@@ -255,7 +260,8 @@ pub fn check(
     let mut params = parse_params(params_json)?;
     check_memory(width, height, format, &params)?;
     let lens = parse_lens(lens, width, height)?;
-    if let (false, Some(ms)) = (sets_shutter(params_json), lens.readout_ms) {
+    let sets_shutter = sets_shutter(params_json);
+    if let (false, Some(ms)) = (sets_shutter, lens.readout_ms) {
         params.shutter.readout_ms = ms;
     }
     Ok(Checked {
@@ -264,6 +270,8 @@ pub fn check(
         width,
         height,
         format,
+        lens_readout_ms: lens.readout_ms,
+        sets_shutter,
     })
 }
 
@@ -278,6 +286,45 @@ impl Checked {
             height: self.height,
             format: self.format,
         })
+    }
+}
+
+/// The readout argument of a pass plan.
+#[derive(Clone, Copy, Debug)]
+pub enum ReadoutArg<'a> {
+    /// `undefined` or `null`: as the parameters say (their shutter, else the
+    /// lens file's readout, else 0).
+    Unset,
+    /// `"auto"` or milliseconds as text.
+    Text(&'a str),
+    /// Milliseconds.
+    Ms(f64),
+}
+
+impl Checked {
+    /// The pass plan of a clip with these arguments and the `readout`
+    /// argument (see [`ReadoutArg`]); `zoom: "static"` makes its pass.
+    pub fn plan(self, readout: ReadoutArg<'_>) -> Result<PassPlan, ArgError> {
+        let readout = match readout {
+            ReadoutArg::Unset if self.sets_shutter => {
+                ReadoutSpec::Ms(self.params.shutter.readout_ms)
+            }
+            ReadoutArg::Unset => ReadoutSpec::FromLens,
+            ReadoutArg::Text(text) => ReadoutSpec::parse(text)?,
+            ReadoutArg::Ms(ms) => ReadoutSpec::parse(&ms.to_string())?,
+        };
+        let lens = ResolvedLens {
+            camera: self.camera,
+            note: LensNote::Given,
+            readout_ms: self.lens_readout_ms,
+        };
+        Ok(PassPlan::new(PlanChoices {
+            lens: LensChoice::Known(lens),
+            readout,
+            params: self.params,
+            static_zoom: true,
+            frame_size: Some((self.width, self.height)),
+        })?)
     }
 }
 

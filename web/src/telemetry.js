@@ -3,7 +3,7 @@
 // here from the worker's telemetry objects; and the rows the clip plot draws,
 // from either source.
 
-/** amc-server/src/engine/telemetry.rs TELEMETRY_HEADER. */
+/** amc-engine/src/telemetry.rs TELEMETRY_HEADER. */
 export const TELEMETRY_HEADER = 'frame,t,rx,ry,rz,vx,vy,vz,est_speed_dps,view_speed_dps,valid_fraction,' +
   'frames_averaged,saccade,iterations,rms_residual,track_valid_fraction,lost,template_reset,zoom,uncovered,' +
   'readout_rx,readout_ry,readout_rz';

@@ -1,7 +1,7 @@
 // Stabilizes a clip off the main thread: demux (mediabunny), decode every frame
 // (WebCodecs), stabilize (amc-wasm), encode (WebCodecs) and mux (mediabunny),
 // copying the original's audio packets where the container allows.
-import init, { Stabilizer, ReadoutEstimator, simdEnabled } from './pkg/amc_wasm.js';
+import init, { Stabilizer, PassPlan, simdEnabled } from './pkg/amc_wasm.js';
 import { pixelPath, copyOptions, colorSpaceInit } from './pixels.js';
 import { RenderShare, helperCount } from './render-share.js';
 import {
@@ -38,25 +38,25 @@ async function pickVideoCodec(format, width, height) {
   throw new Error(`this browser cannot encode ${format === 'webm' ? 'VP9, VP8 or AV1' : 'H.264, VP9 or AV1'} video`);
 }
 
-/** Frames the readout estimate tracks (amc-core's READOUT_FRAMES). */
-const READOUT_FRAMES = 180;
+/** The progress message of each pass the plan makes (see amc-core's plan). */
+const PASS_PROGRESS = { readout: 'readout-pass', static_zoom: 'zoom-pass' };
 
 /**
- * A first pass over `video`'s frames into `pass` (a Stabilizer that does not
- * render, or a ReadoutEstimator): each frame decoded into its input buffer and
- * pushed, until the clip ends or `pass.isFull`; progress posted as `kind`.
+ * One pass of `plan` (a PassPlan) over `video`'s frames: each frame decoded
+ * into its input buffer and pushed, until the clip ends or `plan.isFull`;
+ * progress posted as `kind`.
  */
-async function firstPass(pass, video, copyOpts, total, kind) {
+async function firstPass(plan, video, copyOpts, total, kind) {
   let n = 0, lastT = -Infinity, lastPost = 0;
   for await (const sample of new VideoSampleSink(video).samples()) {
     if (cancelled) { sample.close(); throw new Error('cancelled'); }
-    if (pass.isFull) { sample.close(); break; }
+    if (plan.isFull) { sample.close(); break; }
     let t = sample.timestamp;
     if (!(t > lastT)) t = lastT + 1e-6; // as the main pass does
     lastT = t;
-    await sample.copyTo(pass.inputBuffer(), copyOpts);
+    await sample.copyTo(plan.inputBuffer(), copyOpts);
     sample.close();
-    pass.pushInput(t);
+    plan.pushInput(t);
     n++;
     const now = performance.now();
     if (now - lastPost > 100) {
@@ -67,42 +67,34 @@ async function firstPass(pass, video, copyOpts, total, kind) {
 }
 
 /**
- * zoom static's first pass: every frame of `video` through a stabilizer that
- * does not render; returns the largest zoom its outputs needed.
+ * The first passes the plan asks for (readout_ms auto: the clip's first
+ * frames tracked with the rolling-shutter model; zoom static: every frame
+ * through a stabilizer that does not render), each reading the clip from its
+ * start and only the frames it takes. Posts the readout found; returns
+ * `{ readoutResult, zoom }` (null where there was no such pass).
  */
-async function staticZoom(video, width, height, paramsJson, lens, path, copyOpts, total) {
-  const pre = new Stabilizer(width, height, paramsJson, lens, path);
-  try {
-    pre.setRendering(false);
-    await firstPass(pre, video, copyOpts, total, 'zoom-pass');
-    while (pre.finish()) { /* the outputs the lookahead held back */ }
-    return pre.maxZoomNeed();
-  } finally {
-    pre.free();
+async function makePasses(plan, video, copyOpts, total) {
+  let readoutResult = null, zoom = null;
+  while (plan.pass) {
+    const budget = plan.frameBudget;
+    const wanted = budget === undefined ? total : (total ? Math.min(total, budget) : budget);
+    await firstPass(plan, video, copyOpts, wanted, PASS_PROGRESS[plan.pass]);
+    const found = plan.finishPass();
+    if (found.pass === 'readout') {
+      readoutResult = { ...readoutNote(found), estimate: found.estimate };
+      post('readout', readoutResult);
+    } else if (found.pass === 'static_zoom') {
+      zoom = found.zoom;
+    }
   }
+  return { readoutResult, zoom };
 }
 
-/**
- * readout_ms auto's first pass: the clip's first READOUT_FRAMES frames
- * tracked with the rolling-shutter model; returns the estimate
- * `{ readout_ms, confident, explained, motion_deg, frames }`.
- */
-async function estimateReadout(video, width, height, paramsJson, lens, path, copyOpts, total) {
-  const est = new ReadoutEstimator(width, height, paramsJson, lens, path);
-  try {
-    const wanted = total ? Math.min(total, READOUT_FRAMES) : READOUT_FRAMES;
-    await firstPass(est, video, copyOpts, wanted, 'readout-pass');
-    return est.finish();
-  } finally {
-    est.free();
-  }
-}
-
-/** What the page says of an estimate: the readout used, and a warning when it fell back to 0. */
-function readoutNote(e) {
-  if (e.confident) return { readout_ms: e.readout_ms, note: `readout ${e.readout_ms.toFixed(1)} ms (estimated from ${e.frames} frames)` };
+/** What the page says of the readout pass: the readout used, and a warning when it fell back to 0. */
+function readoutNote({ readout_ms, note, estimate: e }) {
+  if (note === 'estimated') return { readout_ms, note: `readout ${readout_ms.toFixed(1)} ms (estimated from ${e.frames} frames)` };
   return {
-    readout_ms: 0,
+    readout_ms,
     warning: true,
     note: `warning: the clip does not pin down the rolling-shutter readout (estimate ${e.readout_ms.toFixed(1)} ms from ${e.frames} frames, ` +
       'not reliable); assuming a global shutter (0 ms): enter the readout in milliseconds for best results',
@@ -136,29 +128,23 @@ async function processClip({ file, params, lens, format, readout }) {
   const path = pixelPath(first.value);
   const outColorSpace = path === 'RGBA' ? undefined : colorSpaceInit(first.value);
   const copyOpts = copyOptions(path, width, height);
-  let stab, readoutResult = null, staticZoomUsed = null;
+  let stab, plan, readoutResult = null, staticZoomUsed = null;
   try {
-    if (readout === 'auto') {
-      // readout_ms auto: a first pass (the clip's first frames, tracked with
-      // the rolling-shutter model) estimates it; 0 when it is not reliable.
-      const e = await estimateReadout(video, width, height, JSON.stringify(params), lens, path, copyOpts, total);
-      readoutResult = { ...readoutNote(e), estimate: e };
-      params = { ...params, shutter: { readout_ms: readoutResult.readout_ms } };
-      post('readout', readoutResult);
-    }
-    stab = new Stabilizer(width, height, JSON.stringify(params), lens, path);
-    if (params.framing && params.framing.zoom === 'static') {
-      // One zoom for the whole clip: a first pass (decode, track, smooth, no
-      // rendering) finds the largest zoom any frame needs.
-      const zoom = await staticZoom(video, width, height, JSON.stringify(params), lens, path, copyOpts, total);
-      stab.setStaticZoom(zoom);
-      staticZoomUsed = zoom;
-      post('zoom-pass', { done: total || 0, total, zoom });
+    // The first passes (readout_ms auto, zoom static), as the core plans them.
+    plan = new PassPlan(width, height, JSON.stringify(params), lens, path, readout);
+    ({ readoutResult, zoom: staticZoomUsed } = await makePasses(plan, video, copyOpts, total));
+    stab = new Stabilizer(width, height, plan.paramsJson(), lens, path);
+    if (staticZoomUsed !== null) {
+      // One zoom for the whole clip, found by its first pass.
+      stab.setStaticZoom(staticZoomUsed);
+      post('zoom-pass', { done: total || 0, total, zoom: staticZoomUsed });
     }
   } catch (e) {
     first.value.close();
     if (stab) stab.free();
     throw e;
+  } finally {
+    if (plan) plan.free();
   }
   stab.setMetrics(true);
   const ow = stab.outputWidth, oh = stab.outputHeight, outFormat = stab.outputFormat;

@@ -35,7 +35,7 @@ async function newPage() {
 }
 
 // amc-server's telemetry CSV header (the page's CSV starts with the same columns).
-const TELEMETRY_HEADER = readFileSync(join(root, 'amc-server/src/engine/telemetry.rs'), 'utf8').match(/TELEMETRY_HEADER: &str = "([^"]+)"/)[1];
+const TELEMETRY_HEADER = readFileSync(join(root, 'amc-engine/src/telemetry.rs'), 'utf8').match(/TELEMETRY_HEADER: &str = "([^"]+)"/)[1];
 
 /** The summary table as { row label: [original, stabilized, change] }. */
 const summaryTable = (page) => page.evaluate(() => Object.fromEntries([...document.querySelectorAll('#summary tbody tr')]

@@ -4,7 +4,7 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
-import { initSync, Stabilizer, ReadoutEstimator, simdEnabled, simdMatchesScalar } from '../dist/pkg/amc_wasm.js';
+import { initSync, Stabilizer, ReadoutEstimator, PassPlan, simdEnabled, simdMatchesScalar } from '../dist/pkg/amc_wasm.js';
 
 const wasmPath = fileURLToPath(new URL('../dist/pkg/amc_wasm_bg.wasm', import.meta.url));
 initSync({ module: readFileSync(wasmPath) });
@@ -329,7 +329,7 @@ const { serverQuery, FIELDS } = await import('../src/settings.js');
 const { niceTicks } = await import('../src/plot.js');
 
 test("the page's telemetry CSV has the CLI's header, column order and number formats", () => {
-  const rust = readFileSync(fileURLToPath(new URL('../../amc-server/src/engine/telemetry.rs', import.meta.url)), 'utf8');
+  const rust = readFileSync(fileURLToPath(new URL('../../amc-engine/src/telemetry.rs', import.meta.url)), 'utf8');
   assert.equal(TELEMETRY_HEADER, rust.match(/TELEMETRY_HEADER: &str = "([^"]+)"/)[1]);
   const s = new Stabilizer(W, H, '{}', 70);
   s.setMetrics(true);
@@ -497,6 +497,64 @@ test('ReadoutEstimator: frames in, an estimate out (not confident on a sliding t
   // Its arguments are checked as the Stabilizer's are.
   throwsMsg(() => new ReadoutEstimator(0, H, '{}', 70), /invalid width/);
   throwsMsg(() => new ReadoutEstimator(W, H, '{}', 70, 'YUYV'), /invalid format/);
+});
+
+test('PassPlan: the core plans the first passes, their order, frame budgets and results', () => {
+  // Nothing to estimate: no pass; the parameters the main stabilizer takes.
+  const none = new PassPlan(W, H, '{}', 70);
+  assert.deepEqual(none.passes, []);
+  assert.equal(none.pass, undefined);
+  assert.equal(none.isFull, true);
+  assert.equal(JSON.parse(none.paramsJson()).shutter.readout_ms, 0);
+  none.free();
+  // readout auto, then zoom static, in that order; the readout pass takes the core's budget.
+  const json = '{"framing":{"zoom":"static"}}';
+  const plan = new PassPlan(W, H, json, 70, undefined, 'auto');
+  assert.deepEqual(plan.passes, ['readout', 'static_zoom']);
+  assert.equal(plan.pass, 'readout');
+  assert.equal(plan.frameBudget, 180);
+  for (let i = 0; i < 30; i++) {
+    plan.inputBuffer().set(frame(W, H, i, 0));
+    plan.pushInput(i / 30);
+  }
+  assert.equal(plan.frames, 30);
+  throwsMsg(() => plan.paramsJson(), /readout/);
+  const r = plan.finishPass();
+  assert.equal(r.pass, 'readout');
+  assert.ok(['estimated', 'fell_back'].includes(r.note), r.note);
+  assert.equal(r.readout_ms, r.note === 'estimated' ? r.estimate.readout_ms : 0);
+  assert.equal(r.estimate.frames, 30);
+  // The zoom pass reads the whole clip with the readout found.
+  assert.equal(plan.pass, 'static_zoom');
+  assert.equal(plan.frameBudget, undefined);
+  const params = plan.paramsJson();
+  assert.equal(JSON.parse(params).shutter.readout_ms, r.readout_ms);
+  for (let i = 0; i < 20; i++) plan.push(frame(W, H, i, 0), i / 30);
+  assert.equal(plan.isFull, false);
+  const z = plan.finishPass();
+  assert.equal(z.pass, 'static_zoom');
+  assert.equal(plan.staticZoom, z.zoom);
+  assert.equal(plan.pass, undefined);
+  plan.free();
+  // The same zoom as a stabilizer that does not render, by hand.
+  const pre = new Stabilizer(W, H, params, 70);
+  pre.setRendering(false);
+  for (let i = 0; i < 20; i++) pre.push(frame(W, H, i, 0), i / 30);
+  while (pre.finish()) { /* drain */ }
+  assert.equal(pre.maxZoomNeed(), z.zoom);
+  pre.free();
+  // Saccade mode holds no static zoom: no pass. A readout given is no pass either.
+  const passes = (j, readout) => { const p = new PassPlan(W, H, j, 70, undefined, readout); const v = p.passes; p.free(); return v; };
+  assert.deepEqual(passes('{"framing":{"zoom":"static"},"view":{"mode":"saccade"}}'), []);
+  assert.deepEqual(passes('{}', 12.5), []);
+  const given = new PassPlan(W, H, '{}', 70, undefined, 12.5);
+  assert.equal(JSON.parse(given.paramsJson()).shutter.readout_ms, 12.5);
+  given.free();
+  throwsMsg(() => new PassPlan(W, H, '{}', 70, undefined, 'fast'), /invalid readout_ms/);
+  throwsMsg(() => new PassPlan(0, H, '{}', 70), /invalid width/);
+  const ended = new PassPlan(W, H, '{}', 70, undefined, 'auto');
+  throwsMsg(() => ended.finishPass(), /at least one frame/);
+  ended.free();
 });
 
 test('render share: two stabilizers fed every frame draw each output once, byte for byte the single one\'s; measureOutputOf measures them in order', () => {
