@@ -77,7 +77,7 @@ pub const OPTIONS: &[OptionSpec] = &[
     OptionSpec {
         name: "mode",
         flag: "mode",
-        value_name: "stabilize|saccade|none",
+        value_name: "stabilize|saccade|lock|none",
         help: "stabilize (smooth view), saccade (fixed view, re-centred when needed), lock (every axis held at the first frame's orientation, a tripod; pulled toward the camera only as far as --max-crop needs) or none (default stabilize)",
         allowed: Allowed::Words(&["stabilize", "saccade", "lock", "none"]),
     },
@@ -441,6 +441,17 @@ mod tests {
                     }
                     assert!(spec.help.contains(&format!("{max}")), "{n}: {}", spec.help);
                 }
+            }
+        }
+    }
+
+    /// A word option's placeholder in `--help` names every word it takes (`--mode` once
+    /// showed `stabilize|saccade|none` without `lock`).
+    #[test]
+    fn word_placeholders_name_every_allowed_word() {
+        for o in OPTIONS {
+            if let Allowed::Words(words) = o.allowed {
+                assert_eq!(o.value_name, words.join("|"), "--{}", o.flag);
             }
         }
     }
