@@ -578,24 +578,26 @@ unsafe fn row_coords8(coord: &RowCoords<'_>, u: usize) -> (__m256, __m256) {
             _mm256_loadu_ps(xs.as_ptr().add(u)),
             _mm256_loadu_ps(ys.as_ptr().add(u)),
         ),
-        RowCoords::Homography {
-            x0,
-            y0,
-            z0,
-            dx,
-            dy,
-            dz,
-        } => {
+        RowCoords::Homography(h) => {
             let lane = _mm256_setr_ps(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0);
             let uf = _mm256_add_ps(_mm256_set1_ps(u as f32), lane);
-            let z = _mm256_add_ps(_mm256_set1_ps(z0), _mm256_mul_ps(_mm256_set1_ps(dz), uf));
+            let z = _mm256_add_ps(
+                _mm256_set1_ps(h.z0),
+                _mm256_mul_ps(_mm256_set1_ps(h.dz), uf),
+            );
             let iz = _mm256_blendv_ps(
                 _mm256_set1_ps(f32::NAN),
                 _mm256_div_ps(_mm256_set1_ps(1.0), z),
                 _mm256_cmp_ps(z, _mm256_set1_ps(1e-6), _CMP_GT_OQ),
             );
-            let x = _mm256_add_ps(_mm256_set1_ps(x0), _mm256_mul_ps(_mm256_set1_ps(dx), uf));
-            let y = _mm256_add_ps(_mm256_set1_ps(y0), _mm256_mul_ps(_mm256_set1_ps(dy), uf));
+            let x = _mm256_add_ps(
+                _mm256_set1_ps(h.x0),
+                _mm256_mul_ps(_mm256_set1_ps(h.dx), uf),
+            );
+            let y = _mm256_add_ps(
+                _mm256_set1_ps(h.y0),
+                _mm256_mul_ps(_mm256_set1_ps(h.dy), uf),
+            );
             (_mm256_mul_ps(x, iz), _mm256_mul_ps(y, iz))
         }
     }

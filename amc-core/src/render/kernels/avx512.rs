@@ -16,7 +16,7 @@
 //! rows (`sample_cubic16`). The ghost-free average of planes
 //! (`merge_row_gray`) samples the same way.
 
-use super::common::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
+use super::common::{HomographyRow, KernelGeometry, RowCoords, EDGE_TOLERANCE};
 use crate::render::robust::{Deghost, FULL_WEIGHT};
 use std::arch::x86_64::*;
 
@@ -592,7 +592,7 @@ unsafe fn interpolate(t: &Taps16, top: __m512i, bot: __m512i) -> __m512i {
 #[inline(always)]
 fn falls(coord: &RowCoords<'_>, u: usize) -> bool {
     match *coord {
-        RowCoords::Homography { y0, z0, dy, dz, .. } => dy * z0 < dz * y0,
+        RowCoords::Homography(HomographyRow { y0, z0, dy, dz, .. }) => dy * z0 < dz * y0,
         RowCoords::Table(_, ys) => ys[u + 7] < ys[u],
     }
 }
@@ -714,28 +714,30 @@ unsafe fn row_coords16(coord: &RowCoords<'_>, u: usize, lanes: __mmask16) -> (__
             _mm512_maskz_loadu_ps(lanes, xs.as_ptr().add(u)),
             _mm512_maskz_loadu_ps(lanes, ys.as_ptr().add(u)),
         ),
-        RowCoords::Homography {
-            x0,
-            y0,
-            z0,
-            dx,
-            dy,
-            dz,
-        } => {
+        RowCoords::Homography(h) => {
             let lane = _mm512_setr_ps(
                 0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0, 12.0, 13.0, 14.0,
                 15.0,
             );
             let uf = _mm512_add_ps(_mm512_set1_ps(u as f32), lane);
-            let z = _mm512_add_ps(_mm512_set1_ps(z0), _mm512_mul_ps(_mm512_set1_ps(dz), uf));
+            let z = _mm512_add_ps(
+                _mm512_set1_ps(h.z0),
+                _mm512_mul_ps(_mm512_set1_ps(h.dz), uf),
+            );
             let ahead = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(z, _mm512_set1_ps(1e-6));
             let iz = _mm512_mask_blend_ps(
                 ahead,
                 _mm512_set1_ps(f32::NAN),
                 _mm512_div_ps(_mm512_set1_ps(1.0), z),
             );
-            let x = _mm512_add_ps(_mm512_set1_ps(x0), _mm512_mul_ps(_mm512_set1_ps(dx), uf));
-            let y = _mm512_add_ps(_mm512_set1_ps(y0), _mm512_mul_ps(_mm512_set1_ps(dy), uf));
+            let x = _mm512_add_ps(
+                _mm512_set1_ps(h.x0),
+                _mm512_mul_ps(_mm512_set1_ps(h.dx), uf),
+            );
+            let y = _mm512_add_ps(
+                _mm512_set1_ps(h.y0),
+                _mm512_mul_ps(_mm512_set1_ps(h.dy), uf),
+            );
             (_mm512_mul_ps(x, iz), _mm512_mul_ps(y, iz))
         }
     }
@@ -844,13 +846,15 @@ mod tests {
                 )
             }
         };
-        let row = |x0: f32, y0: f32, dx: f32, dy: f32| RowCoords::Homography {
-            x0,
-            y0,
-            z0: 1.0,
-            dx,
-            dy,
-            dz: 0.0,
+        let row = |x0: f32, y0: f32, dx: f32, dy: f32| {
+            RowCoords::Homography(HomographyRow {
+                x0,
+                y0,
+                z0: 1.0,
+                dx,
+                dy,
+                dz: 0.0,
+            })
         };
         // A slight roll and zoom: the taps straddle two rows, then one.
         for (coord, u) in [

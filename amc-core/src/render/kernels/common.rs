@@ -199,16 +199,20 @@ pub(crate) fn average(sum: u32, n: u32) -> u8 {
 pub(crate) enum RowCoords<'a> {
     /// Precomputed `(xs[u], ys[u])` (NaN: no sample).
     Table(&'a [f32], &'a [f32]),
-    /// A homography row: `x = (x0 + dx u) / z`, `y = (y0 + dy u) / z`,
-    /// `z = z0 + dz u`, NaN where `z <= 1e-6` (exactly the scalar formula).
-    Homography {
-        x0: f32,
-        y0: f32,
-        z0: f32,
-        dx: f32,
-        dy: f32,
-        dz: f32,
-    },
+    /// A homography row ([`HomographyRow`]).
+    Homography(HomographyRow),
+}
+
+/// A homography row: `x = (x0 + dx u) / z`, `y = (y0 + dy u) / z`,
+/// `z = z0 + dz u`, NaN where `z <= 1e-6` (exactly the scalar formula).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct HomographyRow {
+    pub(crate) x0: f32,
+    pub(crate) y0: f32,
+    pub(crate) z0: f32,
+    pub(crate) dx: f32,
+    pub(crate) dy: f32,
+    pub(crate) dz: f32,
 }
 
 impl RowCoords<'_> {
@@ -218,18 +222,11 @@ impl RowCoords<'_> {
     pub(crate) fn at(&self, u: usize) -> (f32, f32) {
         match *self {
             RowCoords::Table(xs, ys) => (xs[u], ys[u]),
-            RowCoords::Homography {
-                x0,
-                y0,
-                z0,
-                dx,
-                dy,
-                dz,
-            } => {
+            RowCoords::Homography(h) => {
                 let uf = u as f32;
-                let z = z0 + dz * uf;
+                let z = h.z0 + h.dz * uf;
                 let iz = if z > 1e-6 { 1.0 / z } else { f32::NAN };
-                ((x0 + dx * uf) * iz, (y0 + dy * uf) * iz)
+                ((h.x0 + h.dx * uf) * iz, (h.y0 + h.dy * uf) * iz)
             }
         }
     }

@@ -4,7 +4,7 @@
 use super::map::RowMap;
 use super::{Warper, MAX_FRAMES};
 use crate::render::kernels::{
-    merge_row_gray_scalar, merge_row_scalar, Geometry, RowCoords, FRAME_PADDING,
+    merge_row_gray_scalar, merge_row_scalar, Geometry, HomographyRow, RowCoords, FRAME_PADDING,
 };
 use crate::render::robust::Deghost;
 
@@ -172,14 +172,14 @@ impl Warper {
         for (f, map) in pass.maps.iter().enumerate().take(MAX_FRAMES) {
             coords[f] = if !map.gridded {
                 let h = &map.h;
-                RowCoords::Homography {
+                RowCoords::Homography(HomographyRow {
                     x0: h[(0, 1)] * vf + h[(0, 2)],
                     y0: h[(1, 1)] * vf + h[(1, 2)],
                     z0: h[(2, 1)] * vf + h[(2, 2)],
                     dx: h[(0, 0)],
                     dy: h[(1, 0)],
                     dz: h[(2, 0)],
-                }
+                })
             } else {
                 RowCoords::Table(&xs[f], &ys[f])
             };
