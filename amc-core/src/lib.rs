@@ -7,6 +7,9 @@
 
 #![deny(missing_docs)]
 
+#[macro_use]
+mod multiversion;
+
 pub mod camera;
 pub mod color;
 pub mod error;

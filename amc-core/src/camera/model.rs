@@ -92,6 +92,27 @@ pub struct CameraModel {
     pub distortion: Distortion,
 }
 impl CameraModel {
+    /// A camera of `width x height` pixels with the intrinsics `[fx, fy, cx,
+    /// cy, skew]` and the lens `distortion`, unchecked (see
+    /// [`CameraModel::validate`]): every lens file's camera is made here.
+    pub(crate) fn from_intrinsics(
+        width: usize,
+        height: usize,
+        [fx, fy, cx, cy, skew]: [f64; 5],
+        distortion: Distortion,
+    ) -> Self {
+        Self {
+            width,
+            height,
+            fx,
+            fy,
+            cx,
+            cy,
+            skew,
+            distortion,
+        }
+    }
+
     /// Checks every parameter: sizes >= 1, finite positive `fx`, `fy`, finite `cx`, `cy`,
     /// `skew` and distortion coefficients, and the principal point within
     /// `[-width, 2*width] x [-height, 2*height]`.

@@ -11,16 +11,7 @@ pub(super) const Z_EPS: f64 = 1e-9;
 impl CameraModel {
     /// An undistorted pinhole camera.
     pub fn pinhole(width: usize, height: usize, fx: f64, fy: f64, cx: f64, cy: f64) -> Self {
-        Self {
-            width,
-            height,
-            fx,
-            fy,
-            cx,
-            cy,
-            skew: 0.0,
-            distortion: Distortion::None,
-        }
+        Self::from_intrinsics(width, height, [fx, fy, cx, cy, 0.0], Distortion::None)
     }
 
     /// A square-pixel pinhole camera with horizontal field of view `hfov_deg` across the

@@ -56,7 +56,7 @@ pub(super) fn parse_gyroflow(obj: &Map<String, Value>) -> Result<CameraModel, Le
     let fp = fp
         .as_object()
         .ok_or_else(|| invalid("fisheye_params", "an object", fp))?;
-    let (fx, fy, cx, cy, skew) = intrinsics_from_k(
+    let k = intrinsics_from_k(
         get(fp, "camera_matrix", "fisheye_params", F)?,
         "fisheye_params.camera_matrix",
     )?;
@@ -64,14 +64,5 @@ pub(super) fn parse_gyroflow(obj: &Map<String, Value>) -> Result<CameraModel, Le
     let mut dist = Vec::new();
     flat_numbers(dist_v, "fisheye_params.distortion_coeffs", &mut dist)?;
     let distortion = fisheye_from(&dist, "fisheye_params.distortion_coeffs", dist_v)?;
-    Ok(CameraModel {
-        width,
-        height,
-        fx,
-        fy,
-        cx,
-        cy,
-        skew,
-        distortion,
-    })
+    Ok(CameraModel::from_intrinsics(width, height, k, distortion))
 }

@@ -14,8 +14,7 @@ use serde_json::{Map, Value};
 
 pub(super) fn parse_opencv(obj: &Map<String, Value>) -> Result<CameraModel, LensError> {
     const F: &str = "OpenCV";
-    let (fx, fy, cx, cy, skew) =
-        intrinsics_from_k(get(obj, "camera_matrix", "", F)?, "camera_matrix")?;
+    let k = intrinsics_from_k(get(obj, "camera_matrix", "", F)?, "camera_matrix")?;
     let (width, height) = opencv_image_size(obj)?;
     let dist_v = get(obj, "distortion_coefficients", "", F)?;
     let dist = read_matrix(dist_v, "distortion_coefficients")?;
@@ -63,16 +62,7 @@ pub(super) fn parse_opencv(obj: &Map<String, Value>) -> Result<CameraModel, Lens
     } else {
         radtan_from(&dist, "distortion_coefficients", dist_v)?
     };
-    Ok(CameraModel {
-        width,
-        height,
-        fx,
-        fy,
-        cx,
-        cy,
-        skew,
-        distortion,
-    })
+    Ok(CameraModel::from_intrinsics(width, height, k, distortion))
 }
 
 fn opencv_image_size(obj: &Map<String, Value>) -> Result<(usize, usize), LensError> {

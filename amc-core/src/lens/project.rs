@@ -137,14 +137,10 @@ pub(super) fn parse_project(obj: &Map<String, Value>) -> Result<CameraModel, Len
             })
         }
     };
-    Ok(CameraModel {
+    Ok(CameraModel::from_intrinsics(
         width,
         height,
-        fx,
-        fy,
-        cx,
-        cy,
-        skew,
+        [fx, fy, cx, cy, skew],
         distortion,
-    })
+    ))
 }

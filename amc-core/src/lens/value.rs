@@ -129,11 +129,9 @@ pub(super) fn read_matrix(v: &Value, key: &str) -> Result<Vec<f64>, LensError> {
     Ok(out)
 }
 
-/// Intrinsics from a 3x3 camera matrix `[[fx, skew, cx], [0, fy, cy], [0, 0, 1]]`.
-pub(super) fn intrinsics_from_k(
-    v: &Value,
-    key: &str,
-) -> Result<(f64, f64, f64, f64, f64), LensError> {
+/// Intrinsics `[fx, fy, cx, cy, skew]` from a 3x3 camera matrix
+/// `[[fx, skew, cx], [0, fy, cy], [0, 0, 1]]`.
+pub(super) fn intrinsics_from_k(v: &Value, key: &str) -> Result<[f64; 5], LensError> {
     let k = read_matrix(v, key)?;
     if k.len() != 9 {
         return Err(invalid(
@@ -146,7 +144,7 @@ pub(super) fn intrinsics_from_k(
     if !small(k[3]) || !small(k[6]) || !small(k[7]) || (k[8] - 1.0).abs() > 1e-9 {
         return Err(invalid(key, "[[fx, skew, cx], [0, fy, cy], [0, 0, 1]]", v));
     }
-    Ok((k[0], k[4], k[2], k[5], k[1]))
+    Ok([k[0], k[4], k[2], k[5], k[1]])
 }
 
 pub(super) fn radtan_from(d: &[f64], key: &str, found: &Value) -> Result<Distortion, LensError> {

@@ -269,54 +269,22 @@ impl MetricsAccumulator {
         m
     }
 
-    /// The frame's sums, by the widest integer lanes this CPU has.
-    fn measure(&mut self, frame: &FrameRef<'_>, coverage: &[u8], against_prev: bool) -> FrameSums {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx512bw") {
-                // SAFETY: the CPU has AVX-512 F and BW (BW implies F).
-                return unsafe { self.measure_avx512(frame, coverage, against_prev) };
-            }
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU has AVX2.
-                return unsafe { self.measure_avx2(frame, coverage, against_prev) };
-            }
+    multiversion! {
+        /// The frame's sums, by the widest integer lanes this CPU has: the
+        /// same code compiled for AVX-512 (F and BW: 16-bit lanes thirty-two
+        /// pixels wide) or AVX2 (sixteen instead of eight). The sums are
+        /// integers and the few float operations are not reordered (no fused
+        /// multiply-add: Rust never contracts), so the result is the same bits
+        /// on every path.
+        fn measure(
+            [&mut] self,
+            frame: &FrameRef<'_>,
+            coverage: &[u8],
+            against_prev: bool,
+        ) -> FrameSums => measure_body {
+            measure_avx512: "avx512f,avx512bw" if "avx512bw",
+            measure_avx2: "avx2" if "avx2",
         }
-        self.measure_body(frame, coverage, against_prev)
-    }
-
-    /// [`Self::measure_body`] compiled for AVX-512 (F and BW: 16-bit lanes
-    /// thirty-two pixels wide). The sums are integers and the few float
-    /// operations are not reordered (no fused multiply-add: Rust never
-    /// contracts), so the result is the same bits on every path.
-    ///
-    /// # Safety
-    /// The CPU must have AVX-512 F and BW.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx512bw")]
-    unsafe fn measure_avx512(
-        &mut self,
-        frame: &FrameRef<'_>,
-        coverage: &[u8],
-        against_prev: bool,
-    ) -> FrameSums {
-        self.measure_body(frame, coverage, against_prev)
-    }
-
-    /// [`Self::measure_body`] compiled for AVX2 (the same code: the compiler
-    /// vectorizes its 16-bit loops sixteen pixels wide instead of eight).
-    ///
-    /// # Safety
-    /// The CPU must have AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn measure_avx2(
-        &mut self,
-        frame: &FrameRef<'_>,
-        coverage: &[u8],
-        against_prev: bool,
-    ) -> FrameSums {
-        self.measure_body(frame, coverage, against_prev)
     }
 
     /// One pass down the rows: row `y`'s luma, validity and channels are

@@ -83,50 +83,24 @@ impl Deghost {
         ((((self.zero_at - d).max(0)) * self.slope) >> 16).min(FULL_WEIGHT as i32) as u32
     }
 
-    /// The weighted sums of one plane (one value per pixel): for each of the
-    /// `n` pixels, `sum = sum_f w_f s_f` and `weight = sum_f w_f` over the
-    /// frames covering it (`covered[f][i]` 1, else 0 with `values[f][i]` 0),
-    /// `values[reference]` the newest frame's.
-    pub fn merge_plane<S, C>(
-        self,
-        values: &[&[S]],
-        covered: &[&[C]],
-        reference: usize,
-        n: usize,
-        sum: &mut [u32],
-        weight: &mut [u32],
-    ) where
-        S: Copy + Into<u32>,
-        C: Copy + Into<u32>,
-    {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2.
-            return unsafe { self.merge_plane_avx2(values, covered, reference, n, sum, weight) };
+    multiversion! {
+        /// The weighted sums of one plane (one value per pixel): for each of the
+        /// `n` pixels, `sum = sum_f w_f s_f` and `weight = sum_f w_f` over the
+        /// frames covering it (`covered[f][i]` 1, else 0 with `values[f][i]` 0),
+        /// `values[reference]` the newest frame's. (Compiled for AVX2 where the
+        /// CPU has it: the compiler vectorizes its integer loops eight pixels
+        /// wide.)
+        pub fn merge_plane<S, C>(
+            [] self,
+            values: &[&[S]],
+            covered: &[&[C]],
+            reference: usize,
+            n: usize,
+            sum: &mut [u32],
+            weight: &mut [u32],
+        ) where [S: Copy + Into<u32>, C: Copy + Into<u32>] => merge_plane_body {
+            merge_plane_avx2: "avx2" if "avx2",
         }
-        self.merge_plane_body(values, covered, reference, n, sum, weight)
-    }
-
-    /// [`Deghost::merge_plane`] compiled for AVX2 (the same code: the compiler
-    /// vectorizes its integer loops eight pixels wide).
-    ///
-    /// # Safety
-    /// The CPU must have AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn merge_plane_avx2<S, C>(
-        self,
-        values: &[&[S]],
-        covered: &[&[C]],
-        reference: usize,
-        n: usize,
-        sum: &mut [u32],
-        weight: &mut [u32],
-    ) where
-        S: Copy + Into<u32>,
-        C: Copy + Into<u32>,
-    {
-        self.merge_plane_body(values, covered, reference, n, sum, weight)
     }
 
     #[inline(always)]
@@ -169,56 +143,25 @@ impl Deghost {
         }
     }
 
-    /// [`Deghost::merge_plane`] for three channels: `values[f][ch]` holds
-    /// channel `ch` of pixel `i` at index `i * stride` (separate rows: stride
-    /// 1; interleaved RGB: the slice starting at the channel, stride 3), and
-    /// `sum[ch]` receives that channel's sums, pixel `i` at `i`. The difference
-    /// is the largest of the three channels'.
-    #[allow(clippy::too_many_arguments)]
-    pub fn merge_rgb<S, C>(
-        self,
-        values: &[[&[S]; 3]],
-        stride: usize,
-        covered: &[&[C]],
-        reference: usize,
-        n: usize,
-        sum: [&mut [u32]; 3],
-        weight: &mut [u32],
-    ) where
-        S: Copy + Into<u32>,
-        C: Copy + Into<u32>,
-    {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2.
-            return unsafe {
-                self.merge_rgb_avx2(values, stride, covered, reference, n, sum, weight)
-            };
+    multiversion! {
+        /// [`Deghost::merge_plane`] for three channels: `values[f][ch]` holds
+        /// channel `ch` of pixel `i` at index `i * stride` (separate rows: stride
+        /// 1; interleaved RGB: the slice starting at the channel, stride 3), and
+        /// `sum[ch]` receives that channel's sums, pixel `i` at `i`. The difference
+        /// is the largest of the three channels'.
+        #[allow(clippy::too_many_arguments)]
+        pub fn merge_rgb<S, C>(
+            [] self,
+            values: &[[&[S]; 3]],
+            stride: usize,
+            covered: &[&[C]],
+            reference: usize,
+            n: usize,
+            sum: [&mut [u32]; 3],
+            weight: &mut [u32],
+        ) where [S: Copy + Into<u32>, C: Copy + Into<u32>] => merge_rgb_body {
+            merge_rgb_avx2: "avx2" if "avx2",
         }
-        self.merge_rgb_body(values, stride, covered, reference, n, sum, weight)
-    }
-
-    /// [`Deghost::merge_rgb`] compiled for AVX2.
-    ///
-    /// # Safety
-    /// The CPU must have AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn merge_rgb_avx2<S, C>(
-        self,
-        values: &[[&[S]; 3]],
-        stride: usize,
-        covered: &[&[C]],
-        reference: usize,
-        n: usize,
-        sum: [&mut [u32]; 3],
-        weight: &mut [u32],
-    ) where
-        S: Copy + Into<u32>,
-        C: Copy + Into<u32>,
-    {
-        self.merge_rgb_body(values, stride, covered, reference, n, sum, weight)
     }
 
     #[inline(always)]

@@ -55,41 +55,23 @@ impl Eval {
 }
 
 impl Tracker {
-    /// One pass over a level's template pixels at `pose`, with the global-
-    /// or the rolling-shutter model. `warm_start`: the level's Gauss-Newton
-    /// iteration's (a rolling shutter's evaluations after the level's first
-    /// start from it, see [`WarmStart`]); `None` for one-off evaluations.
-    pub(super) fn evaluate(
-        &self,
-        level: usize,
-        img: &GrayImage,
-        pose: &Pose,
-        warm_start: Option<&mut WarmStart>,
-    ) -> Eval {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2.
-            return unsafe { self.evaluate_avx2(level, img, pose, warm_start) };
+    multiversion! {
+        /// One pass over a level's template pixels at `pose`, with the global-
+        /// or the rolling-shutter model. `warm_start`: the level's Gauss-Newton
+        /// iteration's (a rolling shutter's evaluations after the level's first
+        /// start from it, see [`WarmStart`]); `None` for one-off evaluations.
+        /// Compiled for AVX2 where the CPU has it: the per-point loops then
+        /// vectorize eight points wide instead of four, and the sums are the
+        /// same bits ([`lanes`] fixes their order).
+        pub(super) fn evaluate(
+            [&] self,
+            level: usize,
+            img: &GrayImage,
+            pose: &Pose,
+            warm_start: Option<&mut WarmStart>,
+        ) -> Eval => evaluate_body {
+            evaluate_avx2: "avx2" if "avx2",
         }
-        self.evaluate_body(level, img, pose, warm_start)
-    }
-
-    /// [`Self::evaluate_body`] compiled for AVX2: the same code, whose
-    /// per-point loops the compiler vectorizes eight points wide instead of
-    /// four. The sums are the same bits: [`lanes`] fixes their order.
-    ///
-    /// # Safety
-    /// The CPU must have AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn evaluate_avx2(
-        &self,
-        level: usize,
-        img: &GrayImage,
-        pose: &Pose,
-        warm_start: Option<&mut WarmStart>,
-    ) -> Eval {
-        self.evaluate_body(level, img, pose, warm_start)
     }
 
     /// [`Self::evaluate`] for whichever instruction set it is compiled.

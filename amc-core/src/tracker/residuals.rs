@@ -12,13 +12,49 @@ pub(super) fn residuals(img: &GrayImage, pu: &[f32], pv: &[f32], tv: &[f32], pe:
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2.
-        return unsafe { residuals_avx2(img, pu, pv, tv, pe) };
+        return with_vector_kernel(img, pu, pv, tv, pe, |pu, pv, tv, pe| unsafe {
+            residuals_avx2(img, pu, pv, tv, pe)
+        });
     }
     #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
     // SAFETY: compiled only where the module is built with simd128.
-    return unsafe { residuals_simd128(img, pu, pv, tv, pe) };
+    return with_vector_kernel(img, pu, pv, tv, pe, |pu, pv, tv, pe| unsafe {
+        residuals_simd128(img, pu, pv, tv, pe)
+    });
     #[allow(unreachable_code)]
     residuals_scalar(img, pu, pv, tv, pe);
+}
+
+/// [`residuals`] by a vector kernel: `kernel` takes the points (as many as
+/// every slice holds) and returns how many it did, a multiple of its width;
+/// the scalar reference does the rest, and all of them when the image's lane
+/// offsets do not fit ([`lane_offsets_fit`]).
+#[cfg(any(
+    target_arch = "x86_64",
+    all(target_arch = "wasm32", target_feature = "simd128")
+))]
+#[inline(always)]
+fn with_vector_kernel(
+    img: &GrayImage,
+    pu: &[f32],
+    pv: &[f32],
+    tv: &[f32],
+    pe: &mut [f32],
+    kernel: impl FnOnce(&[f32], &[f32], &[f32], &mut [f32]) -> usize,
+) {
+    let n = pe.len().min(pu.len()).min(pv.len()).min(tv.len());
+    let done = if lane_offsets_fit(img) {
+        kernel(&pu[..n], &pv[..n], &tv[..n], &mut pe[..n])
+    } else {
+        0
+    };
+    residuals_scalar(
+        img,
+        &pu[done..n],
+        &pv[done..n],
+        &tv[done..n],
+        &mut pe[done..n],
+    );
 }
 
 /// Bilinear samples of `img` at `(pu, pv)` into `out`, each point first
@@ -105,9 +141,12 @@ fn lane_offsets_fit(img: &GrayImage) -> bool {
 /// same bounds test (ordered compares, so NaN fails), truncation, taps and
 /// operations in the same order (no fused multiply-add), so the same bits.
 /// Points outside are given tap index 0 and their result replaced by NaN.
+/// Returns how many points it did (a multiple of 8), the rest left to the
+/// scalar reference ([`with_vector_kernel`]).
 ///
 /// # Safety
-/// The CPU must have AVX2.
+/// The CPU must have AVX2; `pu`, `pv` and `tv` must hold as many points as
+/// `pe`, and the image's lane offsets must fit ([`lane_offsets_fit`]).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn residuals_avx2(
@@ -116,14 +155,10 @@ pub(super) unsafe fn residuals_avx2(
     pv: &[f32],
     tv: &[f32],
     pe: &mut [f32],
-) {
+) -> usize {
     use std::arch::x86_64::*;
     let (w, h) = (img.width, img.height);
-    let n = pe.len().min(pu.len()).min(pv.len()).min(tv.len());
-    if !lane_offsets_fit(img) {
-        return residuals_scalar(img, &pu[..n], &pv[..n], &tv[..n], &mut pe[..n]);
-    }
-    let n8 = n / 8 * 8;
+    let n8 = pe.len() / 8 * 8;
     let base = img.data.as_ptr();
     let (umax, vmax) = (
         _mm256_set1_ps((w - 1) as f32),
@@ -167,7 +202,7 @@ pub(super) unsafe fn residuals_avx2(
         );
         _mm256_storeu_ps(pe.as_mut_ptr().add(i), _mm256_blendv_ps(nan, e, inside));
     }
-    residuals_scalar(img, &pu[n8..n], &pv[n8..n], &tv[n8..n], &mut pe[n8..n]);
+    n8
 }
 
 /// [`residuals_scalar`] four points at a time in WebAssembly SIMD, which has
@@ -176,11 +211,13 @@ pub(super) unsafe fn residuals_avx2(
 /// of two points are split into left and right taps by a shuffle. The same
 /// bounds test, truncation and operations in the same order (WebAssembly has
 /// no fused multiply-add), so the same bits; points outside read the taps at
-/// index 0 and their result is replaced by NaN.
+/// index 0 and their result is replaced by NaN. Returns how many points it
+/// did (a multiple of 4), as [`residuals_avx2`].
 ///
 /// # Safety
-/// None beyond the module being built with `simd128` (the taps read are
-/// those of inside points, checked against the image as the AVX2 kernel does).
+/// As [`residuals_avx2`]'s slices and image, beyond the module being built
+/// with `simd128` (the taps read are those of inside points, checked against
+/// the image as the AVX2 kernel does).
 #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
 pub(super) unsafe fn residuals_simd128(
     img: &GrayImage,
@@ -188,13 +225,10 @@ pub(super) unsafe fn residuals_simd128(
     pv: &[f32],
     tv: &[f32],
     pe: &mut [f32],
-) {
+) -> usize {
     use std::arch::wasm32::*;
     let (w, h) = (img.width, img.height);
-    let n = pe.len().min(pu.len()).min(pv.len()).min(tv.len());
-    if !lane_offsets_fit(img) {
-        return residuals_scalar(img, &pu[..n], &pv[..n], &tv[..n], &mut pe[..n]);
-    }
+    let n = pe.len();
     // Below 2^23 the offsets are exact in f32 and come out of the float
     // trick (`t + 2^23` has the bits `0x4B00_0000 + t`); else integer lanes.
     let small = w * h < 1 << 23;
@@ -254,7 +288,7 @@ pub(super) unsafe fn residuals_simd128(
             v128_bitselect(e, nan, inside),
         );
     }
-    residuals_scalar(img, &pu[n4..n], &pv[n4..n], &tv[n4..n], &mut pe[n4..n]);
+    n4
 }
 
 #[cfg(test)]
