@@ -118,9 +118,11 @@ fn default_workers() -> usize {
     std::thread::available_parallelism().map_or(2, |n| n.get())
 }
 
-/// Why the service could not start or stopped with an error.
+/// Why `amc serve` or `amc worker` could not start, or stopped with an
+/// error: the failures the two share (all of the worker's, which calls this
+/// type [`crate::worker::WorkerError`]).
 #[derive(Debug, thiserror::Error)]
-pub enum ServeError {
+pub enum ServiceError {
     /// A setting outside its range.
     #[error("invalid --{flag}: {detail}")]
     Invalid {
@@ -129,16 +131,13 @@ pub enum ServeError {
         /// The value and what is allowed.
         detail: String,
     },
-    /// The live camera's parameters or lens are refused by the core.
-    #[error(transparent)]
-    Core(#[from] amc_core::AmcError),
     /// ffmpeg is missing.
     #[error(transparent)]
     Video(#[from] amc_video::VideoError),
     /// The shared job table or bucket cannot be used.
     #[error(transparent)]
     Cluster(#[from] crate::cluster::ClusterError),
-    /// A file or folder the service needs cannot be used.
+    /// A file or folder the service or worker needs cannot be used.
     #[error("{}: {source}", path.display())]
     Io {
         /// The file or folder.
@@ -156,14 +155,38 @@ pub enum ServeError {
     },
 }
 
-fn check<T: PartialOrd + std::fmt::Display>(
+/// Why the service could not start or stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// A failure `amc worker` can have too.
+    #[error(transparent)]
+    Service(#[from] ServiceError),
+    /// The live camera's parameters or lens are refused by the core.
+    #[error(transparent)]
+    Core(#[from] amc_core::AmcError),
+}
+
+impl From<amc_video::VideoError> for ServeError {
+    fn from(e: amc_video::VideoError) -> Self {
+        Self::Service(e.into())
+    }
+}
+
+impl From<crate::cluster::ClusterError> for ServeError {
+    fn from(e: crate::cluster::ClusterError) -> Self {
+        Self::Service(e.into())
+    }
+}
+
+/// `value` within `lo..=hi`, else [`ServiceError::Invalid`] naming `--flag`.
+pub(crate) fn check<T: PartialOrd + std::fmt::Display>(
     flag: &'static str,
     value: T,
     lo: T,
     hi: T,
-) -> Result<(), ServeError> {
+) -> Result<(), ServiceError> {
     if value < lo || value > hi {
-        return Err(ServeError::Invalid {
+        return Err(ServiceError::Invalid {
             flag,
             detail: format!("{value} (allowed: {lo}..={hi})"),
         });
@@ -186,13 +209,14 @@ impl ServeConfig {
         check("max-disk-mb", self.max_disk_mb, 1, 1_000_000_000)?;
         check("ffmpeg-timeout", self.ffmpeg_timeout, 1, 86_400)?;
         if self.max_disk_mb < self.max_upload_mb {
-            return Err(ServeError::Invalid {
+            return Err(ServiceError::Invalid {
                 flag: "max-disk-mb",
                 detail: format!(
                     "{} (allowed: at least --max-upload-mb, {})",
                     self.max_disk_mb, self.max_upload_mb
                 ),
-            });
+            }
+            .into());
         }
         Ok(Limits {
             max_upload_bytes: self.max_upload_mb * 1_000_000,
@@ -212,15 +236,15 @@ impl ServeConfig {
     /// The live camera's readout: `--live-readout-ms`, else the lens file's
     /// (`lens_ms`), else 0. `auto` is refused: the estimate needs a clip's
     /// first seconds before the first frame is shown.
-    fn live_readout(&self, lens_ms: Option<f64>) -> Result<f64, ServeError> {
+    fn live_readout(&self, lens_ms: Option<f64>) -> Result<f64, ServiceError> {
         let spec = match &self.live_readout_ms {
-            Some(v) => amc_core::ReadoutSpec::parse(v).map_err(|_| ServeError::Invalid {
+            Some(v) => amc_core::ReadoutSpec::parse(v).map_err(|_| ServiceError::Invalid {
                 flag: "live-readout-ms",
                 detail: format!("{v:?} (allowed: 0..=100 milliseconds, 0 = global shutter)"),
             })?,
             None => amc_core::ReadoutSpec::FromLens,
         };
-        spec.given(lens_ms).ok_or_else(|| ServeError::Invalid {
+        spec.given(lens_ms).ok_or_else(|| ServiceError::Invalid {
             flag: "live-readout-ms",
             detail: "auto (estimating the readout needs a whole clip first; allowed: 0..=100 milliseconds)"
                 .into(),
@@ -232,10 +256,11 @@ impl ServeConfig {
         check("live-jpeg-quality", self.live_jpeg_quality, 1, 100)?;
         // The same range as every other field of view (`fov`).
         if amc_core::LensSpec::parse_fov(&self.live_fov.to_string()).is_err() {
-            return Err(ServeError::Invalid {
+            return Err(ServiceError::Invalid {
                 flag: "live-fov",
                 detail: format!("{} (allowed: 0 < DEG <= 179)", self.live_fov),
-            });
+            }
+            .into());
         }
         let mut params = amc_core::StabilizerParams::default();
         params.view.mode = self.live_mode;
@@ -243,19 +268,20 @@ impl ServeConfig {
         params.render.n_avg = self.live_n_avg;
         params.render.margin = self.live_margin;
         if self.live_zoom == amc_core::Zoom::Static {
-            return Err(ServeError::Invalid {
+            return Err(ServiceError::Invalid {
                 flag: "live-zoom",
                 detail:
                     "static (one zoom for a whole clip needs the clip first; allowed: auto or none)"
                         .into(),
-            });
+            }
+            .into());
         }
         params.framing.zoom = self.live_zoom;
         params.framing.max_crop = self.live_max_crop;
         params.render.output_width = self.live_width;
         let lens = match &self.live_lens {
             Some(p) => {
-                let text = std::fs::read_to_string(p).map_err(|source| ServeError::Io {
+                let text = std::fs::read_to_string(p).map_err(|source| ServiceError::Io {
                     path: p.clone(),
                     source,
                 })?;

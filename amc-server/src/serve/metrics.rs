@@ -16,6 +16,8 @@
 //! amc_jobs_finished_total{state}       runs this process finished, by outcome
 //! ```
 
+use axum::http::{header, HeaderValue};
+use axum::response::{IntoResponse, Response};
 use prometheus_client::encoding::EncodeLabelSet;
 use prometheus_client::metrics::counter::Counter;
 use prometheus_client::metrics::family::Family;
@@ -205,6 +207,16 @@ impl Metrics {
             out.clear();
         }
         out
+    }
+
+    /// `GET /metrics`' answer: [`Metrics::encode`] as Prometheus' text format.
+    pub fn response(&self) -> Response {
+        let mut res = self.encode().into_response();
+        res.headers_mut().insert(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("text/plain; version=0.0.4; charset=utf-8"),
+        );
+        res
     }
 }
 

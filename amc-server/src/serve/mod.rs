@@ -22,7 +22,7 @@
 //! (routes and fallbacks); `run` (the process: logs, runtime, listener,
 //! shutdown). This file only declares and re-exports.
 
-mod config;
+pub(crate) mod config;
 #[doc(hidden)]
 pub mod fuzzing;
 pub(crate) mod intake;
@@ -30,7 +30,7 @@ pub(crate) mod jobs;
 mod live;
 pub(crate) mod metrics;
 mod openapi;
-mod ops;
+pub(crate) mod ops;
 pub(crate) mod options;
 pub mod panics;
 pub(crate) mod problem;
@@ -44,7 +44,7 @@ mod tests;
 mod upload;
 pub(crate) mod work;
 
-pub use config::{Limits, ServeConfig, ServeError};
+pub use config::{Limits, ServeConfig, ServeError, ServiceError};
 pub use live::LiveConfig;
 pub use options::{JobOptions, OutputFormat};
 pub use router::app;

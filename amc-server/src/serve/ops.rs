@@ -5,7 +5,7 @@ use super::jobs::JobState;
 use super::metrics::StateLabel;
 use super::state::AppState;
 use axum::extract::State;
-use axum::http::{header, HeaderValue, StatusCode};
+use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use std::collections::HashMap;
@@ -32,24 +32,34 @@ pub async fn healthz(State(state): State<Arc<AppState>>) -> Response {
         (Ok(()), Some(cluster)) => cluster.ping().await.map_err(|e| e.to_string()),
         (check, _) => check,
     };
-    let body = |status: &str, detail: Option<String>| {
-        Json(serde_json::json!({
-            "status": status,
-            "detail": detail,
-            "version": env!("CARGO_PKG_VERSION"),
+    let busy = state.limits.workers - state.cpu.available_permits().min(state.limits.workers);
+    health(
+        check,
+        serde_json::json!({
             "workers": state.limits.workers,
-            "busy": state.limits.workers - state.cpu.available_permits().min(state.limits.workers),
+            "busy": busy,
             "live": state.live.status(),
-        }))
+        }),
+    )
+}
+
+/// The `/healthz` answer of a replica or a worker: 200 `ok` when `check`
+/// passed, else 503 `unavailable` with its `detail`; then the version and
+/// the caller's own `fields`.
+pub(crate) fn health(check: Result<(), String>, fields: serde_json::Value) -> Response {
+    let (code, status, detail) = match check {
+        Ok(()) => (StatusCode::OK, "ok", None),
+        Err(e) => (StatusCode::SERVICE_UNAVAILABLE, "unavailable", Some(e)),
     };
-    match check {
-        Ok(()) => body("ok", None).into_response(),
-        Err(e) => (
-            StatusCode::SERVICE_UNAVAILABLE,
-            body("unavailable", Some(e)),
-        )
-            .into_response(),
+    let mut body = serde_json::json!({
+        "status": status,
+        "detail": detail,
+        "version": env!("CARGO_PKG_VERSION"),
+    });
+    if let (Some(body), serde_json::Value::Object(fields)) = (body.as_object_mut(), fields) {
+        body.extend(fields);
     }
+    (code, Json(body)).into_response()
 }
 
 /// `GET /metrics`.
@@ -84,10 +94,5 @@ pub async fn prometheus(State(state): State<Arc<AppState>>) -> Response {
         .queue_depth
         .set(counts.get(&JobState::Queued).copied().unwrap_or(0) as i64);
     state.metrics.disk_used.set(state.disk.used() as i64);
-    let mut res = state.metrics.encode().into_response();
-    res.headers_mut().insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static("text/plain; version=0.0.4; charset=utf-8"),
-    );
-    res
+    state.metrics.response()
 }

@@ -1,7 +1,7 @@
 //! [`run`]: boots the service (logging, the async runtime, the listener, the
 //! once-a-second ticker) and shuts it down gracefully on Ctrl-C or SIGTERM.
 
-use super::config::{ServeConfig, ServeError};
+use super::config::{ServeConfig, ServeError, ServiceError};
 use super::router::app;
 use super::state::AppState;
 use crate::cluster::{redact, Cluster};
@@ -88,7 +88,7 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
     super::panics::install_hook();
     let (work_dir, owned_dir) = match &args.work_dir {
         Some(d) => {
-            let io = |source| ServeError::Io {
+            let io = |source| ServiceError::Io {
                 path: d.clone(),
                 source,
             };
@@ -103,7 +103,7 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
             let dir = tempfile::Builder::new()
                 .prefix("amc-serve-")
                 .tempdir()
-                .map_err(|source| ServeError::Io {
+                .map_err(|source| ServiceError::Io {
                     path: std::env::temp_dir(),
                     source,
                 })?;
@@ -114,7 +114,7 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
-        .map_err(|source| ServeError::Network {
+        .map_err(|source| ServiceError::Network {
             what: "cannot start the async runtime".into(),
             source,
         })?;
@@ -128,19 +128,19 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
             None => None,
         };
         let state = AppState::new(limits, work_dir.clone(), args.web_dir.clone(), live, cluster)
-            .map_err(|source| ServeError::Io {
+            .map_err(|source| ServiceError::Io {
                 path: work_dir.clone(),
                 source,
             })?;
         let listener = tokio::net::TcpListener::bind(args.addr)
             .await
-            .map_err(|source| ServeError::Network {
+            .map_err(|source| ServiceError::Network {
                 what: format!("cannot listen on {}", args.addr),
                 source,
             })?;
         let addr = listener
             .local_addr()
-            .map_err(|source| ServeError::Network {
+            .map_err(|source| ServiceError::Network {
                 what: format!("cannot listen on {}", args.addr),
                 source,
             })?;
@@ -177,7 +177,7 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
         state.tasks.close();
         let _ = tokio::time::timeout(Duration::from_secs(30), state.tasks.wait()).await;
         state.jobs.clear();
-        served.map_err(|source| ServeError::Network {
+        served.map_err(|source| ServiceError::Network {
             what: "the server failed".into(),
             source,
         })

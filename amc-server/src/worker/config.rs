@@ -1,7 +1,8 @@
 //! `amc worker`'s settings ([`WorkerConfig`], checked into the service's
 //! `Limits`) and its errors ([`WorkerError`]).
 
-use crate::cluster::{ClusterConfig, ClusterError};
+use crate::cluster::ClusterConfig;
+use crate::serve::config::{check, ServiceError};
 use crate::serve::Limits;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -31,54 +32,14 @@ pub struct WorkerConfig {
     pub log_json: bool,
 }
 
-/// Why a worker could not start or stopped with an error.
-#[derive(Debug, thiserror::Error)]
-pub enum WorkerError {
-    /// A setting outside its range.
-    #[error("invalid --{flag}: {detail}")]
-    Invalid {
-        /// The setting's flag, without dashes.
-        flag: &'static str,
-        /// The value and what is allowed.
-        detail: String,
-    },
-    /// The job table or the bucket.
-    #[error(transparent)]
-    Cluster(#[from] ClusterError),
-    /// ffmpeg is missing.
-    #[error(transparent)]
-    Video(#[from] amc_video::VideoError),
-    /// A folder the worker needs cannot be used.
-    #[error("{}: {source}", path.display())]
-    Io {
-        /// The folder.
-        path: PathBuf,
-        /// Why.
-        source: std::io::Error,
-    },
-    /// The listening socket or the runtime failed.
-    #[error("{what}: {source}")]
-    Network {
-        /// What was being done.
-        what: String,
-        /// Why it failed.
-        source: std::io::Error,
-    },
-}
+/// Why a worker could not start or stopped with an error: a bad setting,
+/// ffmpeg, the job table or the bucket, a folder, the socket or the runtime
+/// (the failures it shares with `amc serve`).
+pub type WorkerError = ServiceError;
 
 impl WorkerConfig {
     pub(super) fn limits(&self) -> Result<Limits, WorkerError> {
-        let check = |flag: &'static str, v: u64, lo: u64, hi: u64| {
-            if (lo..=hi).contains(&v) {
-                Ok(())
-            } else {
-                Err(WorkerError::Invalid {
-                    flag,
-                    detail: format!("{v} (allowed: {lo}..={hi})"),
-                })
-            }
-        };
-        check("threads", self.threads as u64, 1, 256)?;
+        check("threads", self.threads, 1, 256)?;
         check("job-time-limit", self.job_time_limit, 1, 604_800)?;
         check("ffmpeg-timeout", self.ffmpeg_timeout, 1, 86_400)?;
         if let Some(name) = &self.name {

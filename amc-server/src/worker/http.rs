@@ -6,12 +6,12 @@
 use super::state::WorkerState;
 use crate::serve::jobs::JobState;
 use crate::serve::metrics::StateLabel;
+use crate::serve::ops::health;
 use crate::serve::problem::ApiError;
 use axum::extract::State;
-use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
-use axum::{Json, Router};
+use axum::Router;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
@@ -35,25 +35,15 @@ async fn healthz(State(state): State<Arc<WorkerState>>) -> Response {
         Ok(Err(e)) => Err(e.to_string()),
         Err(e) => Err(e.to_string()),
     };
-    let body = |status: &str, detail: Option<String>| {
-        Json(serde_json::json!({
-            "status": status,
-            "detail": detail,
-            "version": env!("CARGO_PKG_VERSION"),
+    health(
+        check,
+        serde_json::json!({
             "role": "worker",
             "worker": state.name,
             "threads": state.limits.threads,
             "busy": state.busy.load(Ordering::SeqCst),
-        }))
-    };
-    match check {
-        Ok(()) => body("ok", None).into_response(),
-        Err(e) => (
-            StatusCode::SERVICE_UNAVAILABLE,
-            body("unavailable", Some(e)),
-        )
-            .into_response(),
-    }
+        }),
+    )
 }
 
 async fn metrics(State(state): State<Arc<WorkerState>>) -> Response {
@@ -74,10 +64,5 @@ async fn metrics(State(state): State<Arc<WorkerState>>) -> Response {
         }
     }
     m.job_retries.set(counts.retries);
-    let mut res = m.encode().into_response();
-    res.headers_mut().insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static("text/plain; version=0.0.4; charset=utf-8"),
-    );
-    res
+    m.response()
 }
