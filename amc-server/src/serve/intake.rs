@@ -6,7 +6,8 @@ use super::problem::{count, ApiError};
 use super::state::AppState;
 use super::storage::Scratch;
 use super::upload::{self, Upload};
-use super::work;
+use super::work::{self, WorkSpec};
+use amc_engine::RunControl;
 use amc_video::Inspection;
 use axum::body::BodyDataStream;
 use axum::extract::Request;
@@ -25,6 +26,48 @@ pub struct Intake {
     pub scratch: Scratch,
     pub upload: Upload,
     pub inspection: Inspection,
+}
+
+/// An accepted upload to be processed on this replica. Dropped, its scratch
+/// folder goes before its admission permit.
+pub struct LocalWork {
+    /// The run: its output (and telemetry, when asked for) in `scratch`.
+    pub spec: WorkSpec,
+    /// Cancels the run; counts its frames against the job time limit.
+    pub control: Arc<RunControl>,
+    /// The upload's size, bytes.
+    pub bytes: u64,
+    /// The frames the inspection counted, when it could.
+    pub frames: Option<u64>,
+    pub scratch: Scratch,
+    /// Holds the request's place among those the service takes at once.
+    pub admission: OwnedSemaphorePermit,
+}
+
+impl Intake {
+    /// The upload as a run on this replica (`POST /stabilize`, and
+    /// `POST /jobs` without the shared job table), with a telemetry file
+    /// when `with_telemetry`.
+    pub fn into_local(self, state: &AppState, with_telemetry: bool) -> LocalWork {
+        let Intake {
+            admission,
+            options,
+            query: _,
+            scratch,
+            upload,
+            inspection,
+        } = self;
+        let bytes = upload.bytes;
+        let spec = WorkSpec::for_upload(&scratch, upload, options, &inspection, with_telemetry);
+        LocalWork {
+            spec,
+            control: work::control(state),
+            bytes,
+            frames: inspection.info.frame_count,
+            scratch,
+            admission,
+        }
+    }
 }
 
 /// Admits, parses and receives `request`. When it is refused before its

@@ -5,11 +5,11 @@
 //! [`CancelOnDrop`] guard then cancels the run, which kills its ffmpeg
 //! children, and the scratch folder is removed with the future.
 
-use super::intake::{self, Intake};
+use super::intake;
 use super::panics::PANICKED;
 use super::problem::ApiError;
 use super::state::AppState;
-use super::work::{self, WorkSpec};
+use super::work;
 use amc_engine::{RunControl, RunSummary};
 use axum::body::Body;
 use axum::extract::{Request, State};
@@ -59,38 +59,31 @@ pub async fn handler(State(state): State<Arc<AppState>>, request: Request) -> Re
 }
 
 async fn stabilize(state: &Arc<AppState>, request: Request) -> Result<Response, ApiError> {
-    let Intake {
-        admission,
-        options,
-        query: _,
-        scratch,
-        upload,
-        inspection,
-    } = intake::accept(state, request).await?;
-    let format = options.format;
-    let spec = WorkSpec::for_upload(&scratch, upload, options, &inspection, false);
-    let control = work::control(state);
-    let guard = CancelOnDrop(Some(control.clone()));
+    let local = intake::accept(state, request)
+        .await?
+        .into_local(state, false);
+    let format = local.spec.options.format;
+    let guard = CancelOnDrop(Some(local.control.clone()));
     let permit = state
         .cpu
         .clone()
         .acquire_owned()
         .await
         .map_err(|_| ApiError::Saturated("the service is shutting down".into()))?;
-    let (spec, result) = work::stabilize_on_worker(state, spec, control)
+    let (spec, result) = work::stabilize_on_worker(state, local.spec, local.control)
         .await
         .map_err(|_| ApiError::Internal(PANICKED.into()))?;
     drop(permit);
     let summary = result?;
     guard.disarm();
-    scratch.remove(&spec.input);
+    local.scratch.remove(&spec.input);
     let file = tokio::fs::File::open(&spec.output)
         .await
         .map_err(|e| ApiError::Internal(format!("cannot read the result: {e}")))?;
     let len = file.metadata().await.map(|m| m.len()).ok();
     // The scratch folder (and the admission permit) live as long as the
     // body streams, and go when it ends or the client disconnects.
-    let keep = (scratch, admission);
+    let keep = (local.scratch, local.admission);
     let stream = tokio_util::io::ReaderStream::new(file).map(move |chunk| {
         let _ = &keep;
         chunk

@@ -6,7 +6,7 @@
 use super::shared;
 use super::store::{lock, Job};
 use super::view::{JobFile, JobPage, JobState, JobView};
-use crate::serve::intake::{self, Intake};
+use crate::serve::intake::{self, LocalWork};
 use crate::serve::panics::PANICKED;
 use crate::serve::problem::ApiError;
 use crate::serve::state::AppState;
@@ -33,7 +33,7 @@ fn new_id() -> String {
 pub async fn create(State(state): State<Arc<AppState>>, request: Request) -> Response {
     match create_job(&state, request).await {
         Ok(view) => {
-            let location = format!("/jobs/{}", view.id);
+            let location = format!("/jobs/{}", view.summary.id);
             let mut res = (StatusCode::ACCEPTED, Json(view)).into_response();
             if let Ok(v) = HeaderValue::from_str(&location) {
                 res.headers_mut().insert(header::LOCATION, v);
@@ -49,23 +49,19 @@ async fn create_job(state: &Arc<AppState>, request: Request) -> Result<JobView, 
     if let Some(cluster) = &state.cluster {
         return shared::create(cluster, new_id(), intake).await;
     }
-    let Intake {
-        admission,
-        options,
-        query: _,
+    let LocalWork {
+        spec,
+        control,
+        bytes,
+        frames,
         scratch,
-        upload,
-        inspection,
-    } = intake;
+        admission,
+    } = intake.into_local(state, true);
     let id = new_id();
-    let format = options.format;
-    let bytes = upload.bytes;
-    let spec = WorkSpec::for_upload(&scratch, upload, options, &inspection, true);
-    let control = work::control(state);
     let job = Arc::new(Job::new(
         id.clone(),
-        format,
-        inspection.info.frame_count,
+        spec.options.format,
+        frames,
         control,
         scratch,
     ));
