@@ -33,12 +33,14 @@ fn view(row: &JobRow) -> JobView {
     let done = state == JobState::Done;
     let format = OutputFormat::from_extension(&row.format).unwrap_or(OutputFormat::Mp4);
     JobView {
-        id: row.id.clone(),
-        state,
-        created: rfc3339(created(row)),
-        frames_done,
-        frames_total,
-        progress: progress(state, frames_done, frames_total),
+        summary: JobSummary {
+            id: row.id.clone(),
+            state,
+            created: rfc3339(created(row)),
+            frames_done,
+            frames_total,
+            progress: progress(state, frames_done, frames_total),
+        },
         format: format.extension(),
         error: row.error.clone(),
         metrics: row
@@ -59,15 +61,7 @@ fn created(row: &JobRow) -> SystemTime {
 }
 
 fn summary(row: &JobRow) -> JobSummary {
-    let v = view(row);
-    JobSummary {
-        id: v.id,
-        state: v.state,
-        created: v.created,
-        frames_done: v.frames_done,
-        frames_total: v.frames_total,
-        progress: v.progress,
-    }
+    view(row).summary
 }
 
 /// `POST /jobs`: the accepted upload goes into the bucket, the job into the table.

@@ -86,15 +86,9 @@ impl Job {
 
     pub fn view(&self) -> JobView {
         let inner = lock(&self.inner);
-        let frames_done = self.control.frames_done();
         let done = inner.state == JobState::Done;
         JobView {
-            id: self.id.clone(),
-            state: inner.state,
-            created: rfc3339(self.created),
-            frames_done,
-            frames_total: self.frames_total,
-            progress: self.progress(inner.state, frames_done),
+            summary: self.summary_in(inner.state),
             format: self.format.extension(),
             error: inner.error.clone(),
             metrics: inner.summary.as_ref().map(JobMetrics::of),
@@ -105,7 +99,11 @@ impl Job {
     }
 
     fn summary(&self) -> JobSummary {
-        let state = self.state();
+        self.summary_in(self.state())
+    }
+
+    /// The job's summary while it is in `state`.
+    fn summary_in(&self, state: JobState) -> JobSummary {
         let frames_done = self.control.frames_done();
         JobSummary {
             id: self.id.clone(),

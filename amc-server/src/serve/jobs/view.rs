@@ -108,17 +108,12 @@ impl JobState {
     }
 }
 
-/// A job as `GET /jobs/{id}` shows it.
+/// A job as `GET /jobs/{id}` shows it: its line in `GET /jobs`, then the
+/// rest.
 #[derive(Serialize)]
 pub struct JobView {
-    pub id: String,
-    pub state: JobState,
-    /// When the job was accepted, RFC 3339 UTC.
-    pub created: String,
-    pub frames_done: u64,
-    pub frames_total: Option<u64>,
-    /// `frames_done / frames_total` in [0, 1], when the total is known.
-    pub progress: Option<f64>,
+    #[serde(flatten)]
+    pub summary: JobSummary,
     pub format: &'static str,
     pub error: Option<String>,
     /// The clip's measurements, when done.
@@ -199,9 +194,11 @@ impl JobMotion {
 pub struct JobSummary {
     pub id: String,
     pub state: JobState,
+    /// When the job was accepted, RFC 3339 UTC.
     pub created: String,
     pub frames_done: u64,
     pub frames_total: Option<u64>,
+    /// `frames_done / frames_total` in [0, 1], when the total is known.
     pub progress: Option<f64>,
 }
 
