@@ -286,24 +286,18 @@ fn measure_peer(
     let mut a_src = video::open_input(&outs.main, &opts)?;
     let mut b_src = video::open_input(&outs.alt, &opts)?;
     let (w, h) = (a_src.info().width, a_src.info().height);
-    let mut a = Frame::new(w, h, PixelFormat::Rgb8);
     let mut b = Frame::new(w, h, PixelFormat::Rgb8);
-    let mut m = Measurer::new(fps_of(input), input.size.0, clip.lens.fx);
-    let mut mask = Vec::new();
-    let mut middle = None;
-    let mid = input.times.len() / 2;
     // ffmpeg's filters move frames in the lens's own projection.
-    for (j, pyr) in input.fit_pyramids(false).iter().enumerate() {
-        let (Some(_), Some(_)) = (a_src.next_frame(&mut a)?, b_src.next_frame(&mut b)?) else {
-            break;
+    measure_output(clip, input, false, (w, h), |a, mask| {
+        let (Some(_), Some(_)) = (a_src.next_frame(a)?, b_src.next_frame(&mut b)?) else {
+            return Ok(None);
         };
-        let valid = measure::agreement_mask(&a.as_ref(), &b.as_ref(), &mut mask);
-        m.push(input.times[j], pyr, &a.as_ref(), &mask, valid, None);
-        if j == mid {
-            middle = Some(a.clone());
-        }
-    }
-    Ok((m.finish(), middle))
+        Ok(Some(measure::agreement_mask(
+            &a.as_ref(),
+            &b.as_ref(),
+            mask,
+        )))
+    })
 }
 
 /// Measures the paper's output `.y4m` with the validity its loader wrote.
@@ -318,19 +312,39 @@ fn measure_paper(
     let (w, h) = (src.info().width, src.info().height);
     let file = std::fs::File::open(&outs.valid).map_err(|e| CompareError::io(&outs.valid, e))?;
     let mut valid_file = std::io::BufReader::new(file);
+    // Its loader undistorts distorted lenses (OpenCV's undistortion map).
+    measure_output(clip, input, true, (w, h), |frame, mask| {
+        if src.next_frame(frame)?.is_none()
+            || !paper::read_valid(&mut valid_file, &outs.valid, mask, w * h)?
+        {
+            return Ok(None);
+        }
+        Ok(Some(
+            mask.iter().filter(|&&v| v != 0).count() as f64 / (w * h) as f64,
+        ))
+    })
+}
+
+/// Measures an output clip of `w` x `h` frames, frame by frame, against the
+/// input's pyramids (`rectilinear_output`: see [`DecodedInput::fit_pyramids`]),
+/// keeping its middle frame. `next` reads the next output frame and its
+/// validity mask and gives the valid share, or `None` when the output ends.
+fn measure_output(
+    clip: &Clip,
+    input: &DecodedInput,
+    rectilinear_output: bool,
+    (w, h): (usize, usize),
+    mut next: impl FnMut(&mut Frame, &mut Vec<u8>) -> Result<Option<f64>, CompareError>,
+) -> Result<(Measured, Option<Frame>), CompareError> {
     let mut frame = Frame::new(w, h, PixelFormat::Rgb8);
     let mut m = Measurer::new(fps_of(input), input.size.0, clip.lens.fx);
     let mut mask = Vec::new();
     let mut middle = None;
     let mid = input.times.len() / 2;
-    // Its loader undistorts distorted lenses (OpenCV's undistortion map).
-    for (j, pyr) in input.fit_pyramids(true).iter().enumerate() {
-        if src.next_frame(&mut frame)?.is_none()
-            || !paper::read_valid(&mut valid_file, &outs.valid, &mut mask, w * h)?
-        {
+    for (j, pyr) in input.fit_pyramids(rectilinear_output).iter().enumerate() {
+        let Some(valid) = next(&mut frame, &mut mask)? else {
             break;
-        }
-        let valid = mask.iter().filter(|&&v| v != 0).count() as f64 / (w * h) as f64;
+        };
         m.push(input.times[j], pyr, &frame.as_ref(), &mask, valid, None);
         if j == mid {
             middle = Some(frame.clone());
