@@ -110,6 +110,17 @@ fn say_rate(input: &std::path::Path, fps: Option<f64>, timeout: Duration, quiet:
 }
 
 fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), CliError> {
+    // Outputs are checked before any work: a field-of-view estimate alone takes seconds.
+    amc_video::check_output(&args.output)?;
+    for p in args.telemetry.iter().chain(&args.metrics) {
+        amc_video::check_parent_dir(p)?;
+    }
+    if !args.quiet && args.output.is_file() {
+        eprintln!(
+            "note: {} exists: it is replaced once the new output is complete (until then it stays as it is)",
+            args.output.display()
+        );
+    }
     let input = input_of(&args.input, &args.run, args.quiet);
     let options = args
         .run
@@ -201,6 +212,9 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
 fn evaluate(a: args::EvalArgs) -> Result<(), CliError> {
     let quiet = a.quiet;
     let timeout = Duration::from_secs(a.run.input.timeout);
+    if let Some(p) = &a.plot {
+        amc_video::check_parent_dir(p)?;
+    }
     let input = input_of(&a.input, &a.run, quiet);
     say_rate(&input.frames, input.fps, timeout, quiet);
     let cfg = eval::EvalConfig {

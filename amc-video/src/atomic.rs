@@ -160,7 +160,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), VideoError> {
 }
 
 /// The directory a sibling of `path` goes in; it must exist.
-fn parent_dir(path: &Path) -> Result<PathBuf, VideoError> {
+pub(crate) fn parent_dir(path: &Path) -> Result<PathBuf, VideoError> {
     let parent = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),

@@ -40,8 +40,8 @@ pub use error::VideoError;
 pub use frame::{FrameSink, FrameSource};
 pub use images::{folder_fps, list_images};
 pub use open::{
-    create_output, ffmpeg_available, frame_size, inspect, native_format, native_output_format,
-    open_input, open_stream,
+    check_output, check_parent_dir, create_output, ffmpeg_available, frame_size, inspect,
+    native_format, native_output_format, open_input, open_stream,
 };
 pub use spec::{
     InputOptions, Inspection, OutputSpec, VideoInfo, DEFAULT_IMAGE_FPS, FOLDER_META,

@@ -115,6 +115,47 @@ fn input_kind(path: &Path, opts: &InputOptions) -> Result<InputKind, VideoError>
     Ok(InputKind::Video)
 }
 
+/// What an output path names, by its extension.
+enum OutputKind {
+    /// A directory of PNG files: no extension, a trailing `/`, or an existing directory.
+    PngFolder,
+    /// A `.y4m` file.
+    Y4m,
+    /// A container ffmpeg writes (`.mp4`, `.webm`, `.mkv`).
+    Container(ffmpeg::Container),
+}
+
+/// The kind of output `path` names, or [`VideoError::UnsupportedOutput`].
+fn output_kind(path: &Path) -> Result<OutputKind, VideoError> {
+    if is_png_folder(path) {
+        return Ok(OutputKind::PngFolder);
+    }
+    match extension(path).as_deref() {
+        None => Ok(OutputKind::PngFolder),
+        Some("y4m") => Ok(OutputKind::Y4m),
+        Some(ext) => ffmpeg::Container::from_extension(ext)
+            .map(OutputKind::Container)
+            .ok_or_else(|| VideoError::UnsupportedOutput {
+                path: path.to_path_buf(),
+                ext: format!(".{ext}"),
+            }),
+    }
+}
+
+/// Checks, before any work, that an output can be made at `path`: its
+/// extension names a format [`create_output`] writes and the directory it
+/// goes in exists. The same errors [`create_output`] would give at the end.
+pub fn check_output(path: &Path) -> Result<(), VideoError> {
+    output_kind(path)?;
+    check_parent_dir(path)
+}
+
+/// Checks that the directory a file written at `path` goes in exists (a
+/// telemetry or metrics file, before any work).
+pub fn check_parent_dir(path: &Path) -> Result<(), VideoError> {
+    crate::atomic::parent_dir(path).map(|_| ())
+}
+
 /// Creates an output at `path`, its format chosen by the extension:
 /// `.mp4` (H.264), `.webm` (VP9), `.mkv` (H.264), `.y4m`, or a directory of
 /// PNG files when `path` has no extension, ends in `/`, or is an existing directory.
@@ -126,20 +167,13 @@ pub fn create_output(path: &Path, spec: &OutputSpec) -> Result<Box<dyn FrameSink
         });
     }
     check_fps(path, spec.fps)?;
-    if is_png_folder(path) {
-        return Ok(Box::new(images::PngDirSink::create(path, spec)?));
-    }
-    match extension(path).as_deref() {
-        None => Ok(Box::new(images::PngDirSink::create(path, spec)?)),
-        Some("y4m") => Ok(Box::new(y4m::Y4mSink::create(path, spec)?)),
-        Some(ext) => match ffmpeg::Container::from_extension(ext) {
-            Some(container) => Ok(Box::new(ffmpeg::FfmpegSink::create(path, spec, container)?)),
-            None => Err(VideoError::UnsupportedOutput {
-                path: path.to_path_buf(),
-                ext: format!(".{ext}"),
-            }),
-        },
-    }
+    Ok(match output_kind(path)? {
+        OutputKind::PngFolder => Box::new(images::PngDirSink::create(path, spec)?),
+        OutputKind::Y4m => Box::new(y4m::Y4mSink::create(path, spec)?),
+        OutputKind::Container(container) => {
+            Box::new(ffmpeg::FfmpegSink::create(path, spec, container)?)
+        }
+    })
 }
 
 /// Checks that `ffmpeg` and `ffprobe` can be run.
