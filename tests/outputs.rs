@@ -100,3 +100,54 @@ fn an_existing_output_is_replaced_with_a_note() {
     let r = run(true);
     assert!(!r.stderr.contains("replaced"), "{}", r.stderr);
 }
+
+/// The GoPro clip's telemetry track (`gpmd`) and its start timecode reach the stabilized
+/// MP4 unchanged, so Gyroflow and GPS tools still read them; its `fdsc` track, with no
+/// codec ffmpeg can write, is left out (docs/cli.md says so).
+#[test]
+fn mp4_keeps_the_clips_telemetry_and_timecode() {
+    use amc_e2e::fixtures::ffprobe;
+    let tmp = tempfile::tempdir().unwrap();
+    let karma = data("karma/karma.mp4");
+    let out = tmp.path().join("karma.mp4");
+    amc_ok(&[
+        "stabilize".to_string(),
+        s(&karma),
+        "-o".into(),
+        s(&out),
+        "--fov".into(),
+        "90".into(),
+        "-q".into(),
+    ]);
+    let tracks = |p: &std::path::Path| {
+        ffprobe(
+            p,
+            &[
+                "-show_entries",
+                "stream=codec_type,codec_tag_string:stream_tags=timecode",
+                "-of",
+                "csv=p=0",
+            ],
+        )
+    };
+    let (before, after) = (tracks(&karma), tracks(&out));
+    eprintln!("[karma] input tracks:\n{before}\noutput tracks:\n{after}");
+    assert!(after.contains("data,gpmd"), "no telemetry track:\n{after}");
+    assert!(
+        after.contains("video,avc1,19:26:48:04"),
+        "no timecode:\n{after}"
+    );
+    let payload = |p: &std::path::Path, stream: &str| {
+        let o = std::process::Command::new("ffmpeg")
+            .args(["-v", "error", "-i"])
+            .arg(p)
+            .args(["-map", stream, "-c", "copy", "-f", "data", "-"])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        o.stdout
+    };
+    let (gpmd_in, gpmd_out) = (payload(&karma, "0:3"), payload(&out, "0:d:0"));
+    assert!(!gpmd_in.is_empty());
+    assert_eq!(gpmd_in, gpmd_out, "the telemetry changed on the way");
+}

@@ -29,7 +29,7 @@ use crate::frame::{
     as_rgb, as_yuv420p, check_frame, extension, no_frames, shape, FrameSink, FrameSource,
 };
 use crate::mkv::RawFormat;
-use crate::probe::{probe, probe_device, probe_with, Probe};
+use crate::probe::{probe, probe_device, probe_with, DataTrack, Probe};
 use crate::process::Proc;
 use crate::spec::{InputOptions, Inspection, OutputSpec, VideoInfo};
 use amc_core::image::{Frame, FrameRef, PixelFormat};
@@ -491,9 +491,13 @@ impl FfmpegSink {
         container: Container,
     ) -> Result<Self, VideoError> {
         container.check_crf(path, spec.crf)?;
-        let audio = match &spec.audio_from {
-            Some(src) => audio_codec_of(src, spec.timeout)?.map(|c| (src.clone(), c)),
-            None => None,
+        let Carried {
+            audio_codec,
+            data_tracks,
+            timecode,
+        } = match &spec.audio_from {
+            Some(src) => streams_to_carry(src, container, spec.timeout)?,
+            None => Carried::default(),
         };
         let temp = AtomicFile::create(path, container.suffix())?;
 
@@ -515,12 +519,19 @@ impl FfmpegSink {
         .collect();
         let mut os: Vec<OsString> = args.into_iter().map(OsString::from).collect();
         let mut more: Vec<String> = Vec::new();
-        if let Some((src, _)) = &audio {
-            os.push("-i".into());
-            os.push(src.as_os_str().to_owned());
-            more.extend(["-map", "0:v:0", "-map", "1:a?"].map(String::from));
-        } else {
-            more.extend(["-map", "0:v:0"].map(String::from));
+        more.extend(["-map", "0:v:0"].map(String::from));
+        match &spec.audio_from {
+            Some(src) if audio_codec.is_some() || !data_tracks.is_empty() => {
+                os.push("-i".into());
+                os.push(src.as_os_str().to_owned());
+                if audio_codec.is_some() {
+                    more.extend(["-map", "1:a?"].map(String::from));
+                }
+                for t in &data_tracks {
+                    more.extend(["-map".into(), format!("1:{}", t.index)]);
+                }
+            }
+            _ => {}
         }
         let raw = match spec.pixel_format {
             PixelFormat::Yuv420p => RawFormat::I420,
@@ -551,8 +562,20 @@ impl FfmpegSink {
             ]
             .map(String::from),
         );
-        if let Some((_, codec)) = &audio {
+        if let Some(codec) = &audio_codec {
             more.extend(container.audio_args(codec).iter().map(|s| s.to_string()));
+        }
+        if !data_tracks.is_empty() {
+            // Copied as they are, under their own tag (`gpmd`), so that
+            // telemetry readers (Gyroflow, GPS tools) find them.
+            more.extend(["-c:d", "copy"].map(String::from));
+            for (i, t) in data_tracks.iter().enumerate() {
+                more.extend([format!("-tag:d:{i}"), t.tag.clone()]);
+            }
+        }
+        if let Some(tc) = &timecode {
+            // The MP4 muxer writes its own timecode track (`tmcd`) from it.
+            more.extend(["-timecode".into(), tc.clone()]);
         }
         if container == Container::Mp4 {
             more.extend(["-video_track_timescale", "90000"].map(String::from));
@@ -626,12 +649,46 @@ fn pad_to_even(width: usize, height: usize, planes: &[u8], out: &mut Vec<u8>) {
     debug_assert_eq!(Some(out.len()), PixelFormat::Yuv420p.buffer_len(ew, eh));
 }
 
-/// The audio codec of the input `src`, when it is a file with audio.
-fn audio_codec_of(src: &Path, timeout: Duration) -> Result<Option<String>, VideoError> {
+/// What of the input goes into the output besides the picture.
+#[derive(Default)]
+struct Carried {
+    /// The codec of its audio, when it is a file with audio.
+    audio_codec: Option<String>,
+    /// The data tracks the container can carry.
+    data_tracks: Vec<DataTrack>,
+    /// Its start timecode, for the container's own timecode track.
+    timecode: Option<String>,
+}
+
+/// What of the input `src` goes into the output besides the picture: its
+/// audio, and in MP4 its telemetry (GoPro's `gpmd`, which Gyroflow and GPS
+/// tools read) and its start timecode. Other data tracks (GoPro's `fdsc`,
+/// with no codec ffmpeg knows) and any data track in WebM or Matroska are
+/// left out: `docs/cli.md` says so.
+fn streams_to_carry(
+    src: &Path,
+    container: Container,
+    timeout: Duration,
+) -> Result<Carried, VideoError> {
     if src.is_dir() || extension(src).as_deref() == Some("y4m") {
-        return Ok(None);
+        return Ok(Carried::default());
     }
-    Ok(probe(src, timeout)?.audio_codec)
+    let probed = probe(src, timeout)?;
+    if container != Container::Mp4 {
+        return Ok(Carried {
+            audio_codec: probed.audio_codec,
+            ..Carried::default()
+        });
+    }
+    Ok(Carried {
+        audio_codec: probed.audio_codec,
+        data_tracks: probed
+            .data_tracks
+            .into_iter()
+            .filter(DataTrack::copies_into_mp4)
+            .collect(),
+        timecode: probed.timecode,
+    })
 }
 
 impl FrameSink for FfmpegSink {

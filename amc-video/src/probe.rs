@@ -17,11 +17,35 @@ pub(crate) struct Probe {
     pub video_index: u64,
     /// Codec of the first audio stream (`aac`, `opus`, ...), if any.
     pub audio_codec: Option<String>,
+    /// The data streams (GoPro's `gpmd` telemetry, timecode, ...), in order.
+    pub data_tracks: Vec<DataTrack>,
+    /// The video stream's start timecode (`HH:MM:SS:FF`), if it has one.
+    pub timecode: Option<String>,
     /// ffmpeg's name for the container (`mov,mp4,m4a,3gp,3g2,mj2`, `png_pipe`, ...).
     pub format_name: String,
     /// The video stream's 8-bit 4:2:0 frames as its decoder gives them, when
     /// it does: planar frames then come from ffmpeg unconverted.
     pub native_420: Option<Native420>,
+}
+
+/// A data stream of a file: telemetry (GoPro's `gpmd`), timecode (`tmcd`), ...
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct DataTrack {
+    /// Index among all the file's streams.
+    pub index: u64,
+    /// ffmpeg's codec (`bin_data` for GoPro's telemetry; `unknown` when it has none).
+    pub codec: String,
+    /// The container's four-character tag (`gpmd`, `tmcd`, `fdsc`).
+    pub tag: String,
+}
+
+impl DataTrack {
+    /// Whether ffmpeg can copy it into an MP4: a codec it knows (GoPro's
+    /// `gpmd` is `bin_data`). Timecode needs no copy: the MP4 muxer writes
+    /// its own `tmcd` track from the input's timecode.
+    pub fn copies_into_mp4(&self) -> bool {
+        self.codec == "bin_data"
+    }
 }
 
 /// An 8-bit 4:2:0 video stream's frames as its decoder gives them.
@@ -122,8 +146,8 @@ pub(crate) fn probe_with(
     args.extend(
         [
             "-show_entries",
-            "stream=index,codec_type,codec_name,width,height,pix_fmt,color_range,\
-             avg_frame_rate,r_frame_rate,nb_frames,nb_read_packets,duration:stream_side_data=rotation:stream_tags=rotate:\
+            "stream=index,codec_type,codec_name,codec_tag_string,width,height,pix_fmt,color_range,\
+             avg_frame_rate,r_frame_rate,nb_frames,nb_read_packets,duration:stream_side_data=rotation:stream_tags=rotate,timecode:\
              stream_disposition=attached_pic:format=duration,format_name",
             "-of",
             "json",
@@ -217,6 +241,18 @@ fn parse(path: &Path, json: &[u8]) -> Result<Probe, VideoError> {
         .iter()
         .find(|s| is_type(s, "audio"))
         .map(|s| s["codec_name"].as_str().unwrap_or("unknown").to_string());
+    let data_tracks = streams
+        .iter()
+        .filter(|s| is_type(s, "data"))
+        .map(|s| DataTrack {
+            index: s["index"].as_u64().unwrap_or(0),
+            codec: s["codec_name"].as_str().unwrap_or("unknown").to_string(),
+            tag: s["codec_tag_string"]
+                .as_str()
+                .unwrap_or_default()
+                .to_string(),
+        })
+        .collect();
 
     let dim = |key: &str| video[key].as_u64().filter(|&v| v > 0).map(|v| v as usize);
     let (Some(mut width), Some(mut height)) = (dim("width"), dim("height")) else {
@@ -263,6 +299,8 @@ fn parse(path: &Path, json: &[u8]) -> Result<Probe, VideoError> {
             fps_assumed: false,
         },
         audio_codec,
+        data_tracks,
+        timecode: video["tags"]["timecode"].as_str().map(str::to_string),
         format_name: root["format"]["format_name"]
             .as_str()
             .unwrap_or_default()
