@@ -275,75 +275,66 @@ fn measure_ours(
     })
 }
 
-/// Measures a peer's output `.y4m` (validity from the alternative-fill run).
-fn measure_peer(
-    clip: &Clip,
-    input: &DecodedInput,
-    outs: &peers::PeerOutputs,
-    args: &CompareConfig,
-) -> Result<(Measured, Option<Frame>), CompareError> {
-    let opts = output_options(args);
-    let mut a_src = video::open_input(&outs.main, &opts)?;
-    let mut b_src = video::open_input(&outs.alt, &opts)?;
-    let (w, h) = (a_src.info().width, a_src.info().height);
-    let mut b = Frame::new(w, h, PixelFormat::Rgb8);
-    // ffmpeg's filters move frames in the lens's own projection.
-    measure_output(clip, input, false, (w, h), |a, mask| {
-        let (Some(_), Some(_)) = (a_src.next_frame(a)?, b_src.next_frame(&mut b)?) else {
-            return Ok(None);
-        };
-        Ok(Some(measure::agreement_mask(
-            &a.as_ref(),
-            &b.as_ref(),
-            mask,
-        )))
-    })
+/// Where the validity of a measured output's pixels comes from.
+enum Validity<'a> {
+    /// A peer's: where the output agrees with its alternative-fill run, this
+    /// `.y4m`. ffmpeg's filters move frames in the lens's own projection.
+    Agreement(&'a Path),
+    /// The paper's: the masks its loader wrote to this file. Its loader
+    /// undistorts distorted lenses (OpenCV's undistortion map).
+    Written(&'a Path),
 }
 
-/// Measures the paper's output `.y4m` with the validity its loader wrote.
-fn measure_paper(
-    clip: &Clip,
-    input: &DecodedInput,
-    outs: &paper::PaperOutputs,
-    args: &CompareConfig,
-) -> Result<(Measured, Option<Frame>), CompareError> {
-    let opts = output_options(args);
-    let mut src = video::open_input(&outs.main, &opts)?;
-    let (w, h) = (src.info().width, src.info().height);
-    let file = std::fs::File::open(&outs.valid).map_err(|e| CompareError::io(&outs.valid, e))?;
-    let mut valid_file = std::io::BufReader::new(file);
-    // Its loader undistorts distorted lenses (OpenCV's undistortion map).
-    measure_output(clip, input, true, (w, h), |frame, mask| {
-        if src.next_frame(frame)?.is_none()
-            || !paper::read_valid(&mut valid_file, &outs.valid, mask, w * h)?
-        {
-            return Ok(None);
-        }
-        Ok(Some(
-            mask.iter().filter(|&&v| v != 0).count() as f64 / (w * h) as f64,
-        ))
-    })
+/// A [`Validity`], open to be read frame by frame.
+enum ValidityReader<'a> {
+    Agreement(Box<dyn video::FrameSource>, Frame),
+    Written(std::io::BufReader<std::fs::File>, &'a Path),
 }
 
-/// Measures an output clip of `w` x `h` frames, frame by frame, against the
-/// input's pyramids (`rectilinear_output`: see [`DecodedInput::fit_pyramids`]),
-/// keeping its middle frame. `next` reads the next output frame and its
-/// validity mask and gives the valid share, or `None` when the output ends.
+/// Measures a peer's or the paper's output `.y4m`, `main`, with its
+/// `validity`; and keeps its middle frame.
 fn measure_output(
     clip: &Clip,
     input: &DecodedInput,
-    rectilinear_output: bool,
-    (w, h): (usize, usize),
-    mut next: impl FnMut(&mut Frame, &mut Vec<u8>) -> Result<Option<f64>, CompareError>,
+    main: &Path,
+    validity: Validity<'_>,
+    args: &CompareConfig,
 ) -> Result<(Measured, Option<Frame>), CompareError> {
+    let opts = output_options(args);
+    let mut src = video::open_input(main, &opts)?;
+    let (w, h) = (src.info().width, src.info().height);
+    let mut reader = match validity {
+        Validity::Agreement(alt) => ValidityReader::Agreement(
+            video::open_input(alt, &opts)?,
+            Frame::new(w, h, PixelFormat::Rgb8),
+        ),
+        Validity::Written(path) => {
+            let file = std::fs::File::open(path).map_err(|e| CompareError::io(path, e))?;
+            ValidityReader::Written(std::io::BufReader::new(file), path)
+        }
+    };
+    let rectilinear_output = matches!(reader, ValidityReader::Written(..));
     let mut frame = Frame::new(w, h, PixelFormat::Rgb8);
     let mut m = Measurer::new(fps_of(input), input.size.0, clip.lens.fx);
     let mut mask = Vec::new();
     let mut middle = None;
     let mid = input.times.len() / 2;
     for (j, pyr) in input.fit_pyramids(rectilinear_output).iter().enumerate() {
-        let Some(valid) = next(&mut frame, &mut mask)? else {
-            break;
+        let valid = match &mut reader {
+            ValidityReader::Agreement(alt, b) => {
+                let (Some(_), Some(_)) = (src.next_frame(&mut frame)?, alt.next_frame(b)?) else {
+                    break;
+                };
+                measure::agreement_mask(&frame.as_ref(), &b.as_ref(), &mut mask)
+            }
+            ValidityReader::Written(file, path) => {
+                if src.next_frame(&mut frame)?.is_none()
+                    || !paper::read_valid(file, path, &mut mask, w * h)?
+                {
+                    break;
+                }
+                mask.iter().filter(|&&v| v != 0).count() as f64 / (w * h) as f64
+            }
         };
         m.push(input.times[j], pyr, &frame.as_ref(), &mask, valid, None);
         if j == mid {
@@ -377,7 +368,13 @@ fn run_paper_method(
         timeout(args),
         args.repeat,
     )?;
-    let measured = measure_paper(clip, input, &outs, args);
+    let measured = measure_output(
+        clip,
+        input,
+        &outs.main,
+        Validity::Written(&outs.valid),
+        args,
+    );
     let loop_seconds = paper::loop_seconds(&outs.log);
     let _ = std::fs::remove_file(&outs.main);
     let _ = std::fs::remove_file(&outs.valid);
@@ -554,7 +551,13 @@ fn compare_clip(
             let (usage, outs) =
                 peers::run_peer(method, &ff_input, &dir, timeout(args), args.repeat)?;
             say(format!("{}: measuring", method.label()));
-            let measured = measure_peer(clip, &input, &outs, args);
+            let measured = measure_output(
+                clip,
+                &input,
+                &outs.main,
+                Validity::Agreement(&outs.alt),
+                args,
+            );
             let _ = std::fs::remove_file(&outs.main);
             let _ = std::fs::remove_file(&outs.alt);
             let (measured, middle) = measured?;
