@@ -58,6 +58,33 @@ pub struct MethodResult {
     pub frames_with_border: Option<usize>,
 }
 
+impl MethodResult {
+    /// `method`'s result from its run's `usage` over `input_frames` input
+    /// frames and its output's measurements (`middle`: the output's middle
+    /// frame); what only some methods know (ground truth, saccades, borders,
+    /// the paper's own loop) left out.
+    pub(super) fn new(
+        method: &'static str,
+        input_frames: usize,
+        usage: Usage,
+        measured: Measured,
+        middle: Option<Frame>,
+    ) -> Self {
+        Self {
+            method,
+            frames: measured.frames.len(),
+            frames_per_second: input_frames as f64 / usage.seconds.max(1e-9),
+            loop_frames_per_second: None,
+            usage,
+            measured,
+            ground_truth: None,
+            middle,
+            saccades: Vec::new(),
+            frames_with_border: None,
+        }
+    }
+}
+
 /// All methods on one clip.
 #[derive(Serialize)]
 pub struct ClipResult {

@@ -380,16 +380,8 @@ fn run_paper_method(
     let _ = std::fs::remove_file(&outs.valid);
     let (measured, middle) = measured?;
     Ok(MethodResult {
-        method: method.label(),
-        frames: measured.frames.len(),
-        frames_per_second: input.times.len() as f64 / usage.seconds.max(1e-9),
         loop_frames_per_second: loop_seconds.map(|s| input.times.len() as f64 / s),
-        usage,
-        measured,
-        ground_truth: None,
-        middle,
-        saccades: Vec::new(),
-        frames_with_border: None,
+        ..MethodResult::new(method.label(), input.times.len(), usage, measured, middle)
     })
 }
 
@@ -536,16 +528,10 @@ fn compare_clip(
                 ours_orientations.push((mode, path));
             }
             MethodResult {
-                method: method.label(),
-                frames: measured.frames.len(),
-                frames_per_second: input.times.len() as f64 / usage.seconds.max(1e-9),
-                loop_frames_per_second: None,
-                usage,
-                measured,
                 ground_truth,
-                middle,
                 saccades,
                 frames_with_border: Some(frames_with_border),
+                ..MethodResult::new(method.label(), input.times.len(), usage, measured, middle)
             }
         } else {
             let (usage, outs) =
@@ -561,18 +547,7 @@ fn compare_clip(
             let _ = std::fs::remove_file(&outs.main);
             let _ = std::fs::remove_file(&outs.alt);
             let (measured, middle) = measured?;
-            MethodResult {
-                method: method.label(),
-                frames: measured.frames.len(),
-                frames_per_second: input.times.len() as f64 / usage.seconds.max(1e-9),
-                loop_frames_per_second: None,
-                usage,
-                measured,
-                ground_truth: None,
-                middle,
-                saccades: Vec::new(),
-                frames_with_border: None,
-            }
+            MethodResult::new(method.label(), input.times.len(), usage, measured, middle)
         };
         if r.frames == 0 {
             return Err(CompareError::NoOutput {
