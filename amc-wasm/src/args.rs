@@ -47,6 +47,22 @@ pub enum ArgError {
     )]
     LensType,
     #[error(
+        "invalid lens: \"auto\" (allowed here: a horizontal field of view in degrees or the text of a \
+         lens file; fov auto is estimated by a PassPlan's lens pass, which gives the field of view)"
+    )]
+    LensAuto,
+    #[error(
+        "invalid size: fov auto keeps the clip's first {frames} frames, and {width}x{height} needs \
+         about {need_mib} MiB with them (allowed: at most {} MiB of WebAssembly memory; give the \
+         field of view in degrees)", MEMORY_BUDGET >> 20
+    )]
+    AutoFovMemory {
+        width: usize,
+        height: usize,
+        frames: usize,
+        need_mib: usize,
+    },
+    #[error(
         "invalid frame buffer length: {got} bytes (allowed: exactly {expected} = {width}x{height} {format})"
     )]
     BufferLength {
@@ -99,10 +115,13 @@ pub fn sets_shutter(json: &str) -> bool {
 }
 
 /// The lens argument: a number is a horizontal field of view in degrees
-/// (pinhole), a string the text of a lens file; anything else is refused.
+/// (pinhole), `"auto"` the field of view estimated from the clip (a
+/// [`PassPlan`]'s lens pass; a stabilizer refuses it), another string the
+/// text of a lens file; anything else is refused.
 #[derive(Clone, Copy, Debug)]
 pub enum LensArg<'a> {
     Fov(f64),
+    Auto,
     Text(&'a str),
     Other,
 }
@@ -133,6 +152,7 @@ pub fn parse_lens(
             })
         }
         LensArg::Text(text) => amc_core::lens::parse_lens_file(text).map_err(ArgError::LensFile),
+        LensArg::Auto => Err(ArgError::LensAuto),
         LensArg::Other => Err(ArgError::LensType),
     }
 }
@@ -246,6 +266,22 @@ pub struct Checked {
     pub sets_shutter: bool,
 }
 
+/// The arguments every binding checks first, in the order the page's errors
+/// name them: the format, the sizes, the parameters and the memory they need.
+fn check_input(
+    width: f64,
+    height: f64,
+    params_json: &str,
+    format: Option<&str>,
+) -> Result<(InputFormat, usize, usize, StabilizerParams), ArgError> {
+    let format = InputFormat::parse(format)?;
+    let width = dimension("width", width)?;
+    let height = dimension("height", height)?;
+    let params = parse_params(params_json)?;
+    check_memory(width, height, format, &params)?;
+    Ok((format, width, height, params))
+}
+
 /// Checks the arguments of a stabilizer or a readout estimator (see [`Checked`]).
 pub fn check(
     width: f64,
@@ -254,11 +290,7 @@ pub fn check(
     lens: LensArg<'_>,
     format: Option<&str>,
 ) -> Result<Checked, ArgError> {
-    let format = InputFormat::parse(format)?;
-    let width = dimension("width", width)?;
-    let height = dimension("height", height)?;
-    let mut params = parse_params(params_json)?;
-    check_memory(width, height, format, &params)?;
+    let (format, width, height, mut params) = check_input(width, height, params_json, format)?;
     let lens = parse_lens(lens, width, height)?;
     let sets_shutter = sets_shutter(params_json);
     if let (false, Some(ms)) = (sets_shutter, lens.readout_ms) {
@@ -301,18 +333,74 @@ pub enum ReadoutArg<'a> {
     Ms(f64),
 }
 
+impl ReadoutArg<'_> {
+    /// The readout a plan takes: `Unset` is the parameters' shutter when
+    /// `sets_shutter`, else the lens file's readout (else 0).
+    fn spec(self, sets_shutter: bool, params: &StabilizerParams) -> Result<ReadoutSpec, ArgError> {
+        Ok(match self {
+            ReadoutArg::Unset if sets_shutter => ReadoutSpec::Ms(params.shutter.readout_ms),
+            ReadoutArg::Unset => ReadoutSpec::FromLens,
+            ReadoutArg::Text(text) => ReadoutSpec::parse(text)?,
+            ReadoutArg::Ms(ms) => ReadoutSpec::parse(&ms.to_string())?,
+        })
+    }
+}
+
+/// A checked `new PassPlan(width, height, paramsJson, lens, format, readout)`:
+/// the plan, and the frames' size and format. A `lens` of `"auto"` plans the
+/// lens pass (the clip's first [`amc_core::plan::AUTO_FOV_FRAMES`] frames,
+/// kept in memory: sizes whose frames would not fit are refused); any other
+/// lens is checked as [`check`] does.
+pub fn check_plan(
+    width: f64,
+    height: f64,
+    params_json: &str,
+    lens: LensArg<'_>,
+    format: Option<&str>,
+    readout: ReadoutArg<'_>,
+) -> Result<(PassPlan, usize, usize, InputFormat), ArgError> {
+    if !matches!(lens, LensArg::Auto) {
+        let c = check(width, height, params_json, lens, format)?;
+        let (w, h, f) = (c.width, c.height, c.format);
+        return Ok((c.plan(readout)?, w, h, f));
+    }
+    let (format, width, height, params) = check_input(width, height, params_json, format)?;
+    let frames = amc_core::plan::AUTO_FOV_FRAMES;
+    // The lens pass keeps its frames (as the core's 4:2:0 or RGBA) next to
+    // what the stabilizer needs later.
+    let kept = format
+        .core()
+        .buffer_len(width, height)
+        .unwrap_or(usize::MAX);
+    let need = kept.saturating_mul(frames).saturating_add(
+        format
+            .buffer_len(width, height)
+            .saturating_mul(params.render.n_avg + params.view.lookahead + 4),
+    );
+    if need > MEMORY_BUDGET {
+        return Err(ArgError::AutoFovMemory {
+            width,
+            height,
+            frames,
+            need_mib: need >> 20,
+        });
+    }
+    let readout = readout.spec(sets_shutter(params_json), &params)?;
+    let plan = PassPlan::new(PlanChoices {
+        lens: LensChoice::Auto,
+        readout,
+        params,
+        static_zoom: true,
+        frame_size: Some((width, height)),
+    })?;
+    Ok((plan, width, height, format))
+}
+
 impl Checked {
     /// The pass plan of a clip with these arguments and the `readout`
     /// argument (see [`ReadoutArg`]); `zoom: "static"` makes its pass.
     pub fn plan(self, readout: ReadoutArg<'_>) -> Result<PassPlan, ArgError> {
-        let readout = match readout {
-            ReadoutArg::Unset if self.sets_shutter => {
-                ReadoutSpec::Ms(self.params.shutter.readout_ms)
-            }
-            ReadoutArg::Unset => ReadoutSpec::FromLens,
-            ReadoutArg::Text(text) => ReadoutSpec::parse(text)?,
-            ReadoutArg::Ms(ms) => ReadoutSpec::parse(&ms.to_string())?,
-        };
+        let readout = readout.spec(self.sets_shutter, &self.params)?;
         let lens = ResolvedLens {
             camera: self.camera,
             note: LensNote::Given,

@@ -22,11 +22,13 @@
 pub mod args;
 mod js;
 mod kernels;
+mod options;
 mod plan;
 mod readout;
 mod stabilizer;
 
 pub use kernels::{simd_enabled, simd_matches_scalar};
+pub use options::{options, resolve_options};
 pub use plan::PassPlan;
 pub use readout::ReadoutEstimator;
 pub use stabilizer::Stabilizer;

@@ -5,7 +5,8 @@ use crate::js::{err, to_js, with_lens};
 use wasm_bindgen::prelude::*;
 
 /// The first passes of a clip before it is stabilized, as the core plans
-/// them ([`amc_core::plan`]): `readout: "auto"`'s pass over the clip's first
+/// them ([`amc_core::plan`]): `lens: "auto"`'s pass over the clip's first
+/// frames, then `readout: "auto"`'s pass over the clip's first
 /// frames, then `zoom: "static"`'s over all of them (stabilize and lock
 /// modes), each reading the clip from its start. The page reads the pass
 /// [`PassPlan::pass`] names, pushing frames until [`PassPlan::is_full`] or
@@ -25,7 +26,11 @@ pub struct PassPlan {
 #[wasm_bindgen]
 impl PassPlan {
     /// `new PassPlan(width, height, paramsJson, lens, format?, readout?)`:
-    /// the first four as `new Stabilizer`'s (and checked the same way);
+    /// the first four as `new Stabilizer`'s (and checked the same way), but
+    /// `lens` may also be `"auto"`: a first pass (`"lens"`) estimates the
+    /// field of view from the clip's first frames (`fov=auto`; a pinhole of
+    /// 70 degrees when the footage does not pin it down), and its
+    /// [`PassPlan::finish_pass`] gives the degrees for the main stabilizer;
     /// `readout` is `"auto"` (estimate it: a pass), milliseconds, or
     /// `undefined`/`null` (the parameters' shutter, else the lens file's
     /// readout, else 0).
@@ -38,11 +43,6 @@ impl PassPlan {
         format: Option<String>,
         readout: JsValue,
     ) -> Result<PassPlan, JsError> {
-        let c = with_lens(&lens, |l| {
-            args::check(width, height, params_json, l, format.as_deref())
-        })
-        .map_err(err)?;
-        let (width, height, format) = (c.width, c.height, c.format);
         let text = readout.as_string();
         let arg = match (readout.as_f64(), text.as_deref()) {
             (Some(ms), _) => args::ReadoutArg::Ms(ms),
@@ -54,7 +54,10 @@ impl PassPlan {
                 ))
             }
         };
-        let inner = c.plan(arg).map_err(err)?;
+        let (inner, width, height, format) = with_lens(&lens, |l| {
+            args::check_plan(width, height, params_json, l, format.as_deref(), arg)
+        })
+        .map_err(err)?;
         Ok(PassPlan {
             inner,
             width,
@@ -65,7 +68,7 @@ impl PassPlan {
         })
     }
 
-    /// Every pass planned, in order: `"readout"`, `"static_zoom"`.
+    /// Every pass planned, in order: `"lens"`, `"readout"`, `"static_zoom"`.
     #[wasm_bindgen(getter)]
     pub fn passes(&self) -> Vec<String> {
         self.inner
@@ -75,7 +78,7 @@ impl PassPlan {
             .collect()
     }
 
-    /// The pass to read now (`"readout"` or `"static_zoom"`), `undefined`
+    /// The pass to read now (`"lens"`, `"readout"` or `"static_zoom"`), `undefined`
     /// once all are made.
     #[wasm_bindgen(getter)]
     pub fn pass(&self) -> Option<String> {
@@ -140,8 +143,10 @@ impl PassPlan {
     /// found: `{pass: "readout", readout_ms, note, estimate}` (`note`
     /// `"estimated"`, or `"fell_back"` with `readout_ms` 0 when the estimate
     /// is not reliable or the clip too short to fit; `estimate` is
-    /// `{readout_ms, confident, explained, motion_deg, frames}`), or
-    /// `{pass: "static_zoom", zoom}`.
+    /// `{readout_ms, confident, explained, motion_deg, frames}`),
+    /// `{pass: "static_zoom", zoom}`, or `{pass: "lens", hfov_deg, note}`
+    /// (`note` `"estimated"`, or `"fell_back"` with the 70 degrees assumed
+    /// when the footage does not pin the focal length down).
     #[wasm_bindgen(js_name = finishPass)]
     pub fn finish_pass(&mut self) -> Result<JsValue, JsError> {
         use amc_core::plan::{LensNote, Pass, ReadoutNote};
