@@ -1,15 +1,21 @@
 // The page's wiring: file intake (pick, drop, or Enter on the drop zone),
-// cancel, the server fallback button, the form's checks, the synced players
-// and the tabs. Each part lives in its own module; the shared state is
-// state.js's one object.
-import { $, state } from './state.js';
+// cancel, the server fallback button, the settings form (built from the
+// core's option table, which amc-wasm gives), the synced players and the
+// tabs. Each part lives in its own module; the shared state is state.js's
+// one object.
+import init, { options, resolveOptions } from './pkg/amc_wasm.js';
+import { $, state, showError } from './state.js';
 import { runLocal } from './local-run.js';
 import { runOnServer } from './server-run.js';
 import { initPlayer } from './player.js';
-import { initSettings } from './settings.js';
+import { buildForm } from './settings.js';
+import { readableList, EXTENSIONS } from './formats.js';
 import { connectLive, disconnectLive } from './live.js';
 
 // --- Input: pick or drop ---------------------------------------------------
+// The containers the page reads, named once (formats.js); anything else is offered to the server.
+$('drop-formats').textContent = readableList();
+$('file').accept = ['video/*', ...EXTENSIONS].join(',');
 $('file').onchange = () => runLocal($('file').files[0]);
 $('again').onclick = () => runLocal(state.file);
 const drop = $('drop');
@@ -24,7 +30,9 @@ document.addEventListener('drop', (e) => { e.preventDefault(); if (!drop.contain
 $('cancel').onclick = () => { if (state.cancel) state.cancel(); state.cancel = null; };
 $('server-btn').onclick = () => runOnServer(state.file);
 
-initSettings();
+// The settings form: every option of the CLI, from the core's table.
+init().then(() => buildForm(options(), resolveOptions))
+  .catch((e) => showError(`The page could not load its WebAssembly module (amc-wasm): ${e && e.message ? e.message : e}`));
 initPlayer();
 
 // --- Tabs: the clip, the live feed ------------------------------------------

@@ -1,10 +1,10 @@
-// Falls back to the server's job API for clips this browser cannot decode:
+// Falls back to the server's job API for clips this browser cannot read or decode:
 // POST /jobs with the page's settings, poll GET /jobs/{id}, then fetch the
 // output and the job's telemetry.csv (plot, download). When the browser cannot
 // play the user's file either, a second job (mode none, no averaging, no
 // crop) makes a copy it can play for the Original slot and the compare views.
 import { $, state, setPageState, showError, reset } from './state.js';
-import { settings, serverQuery, showFieldErrors, refuseSettings } from './settings.js';
+import { settings, serverQuery, refuseSettings, formReady } from './settings.js';
 import { showResult, setOriginal, playable } from './result.js';
 import { rowsFromCsv } from './telemetry.js';
 import { serverSummary } from './summary.js';
@@ -54,6 +54,7 @@ async function fetchBlob(url, what) {
 
 export async function runOnServer(file) {
   if (!file) return;
+  await formReady;
   const run = reset();
   const s = settings();
   if (s.errors.length) {
@@ -111,7 +112,9 @@ async function showOriginal(file, s, run) {
   $('orig-caption').textContent = 'Original: this browser cannot play it; the server is making a copy it can play…';
   try {
     const q = new URLSearchParams({ mode: 'none', n_avg: 1, margin: 0, metrics: false, format: 'mp4' });
-    if (!s.lensFile) q.set('fov', s.fov);
+    // Mode none through a pinhole shows the same picture at any field of
+    // view: a number (the one set, else 70) spares the server fov auto's pass.
+    if (!s.lensFile) q.set('fov', typeof s.fov === 'number' ? s.fov : 70);
     const loc = await submit(file, q, s.lensFile);
     const st = await waitFor(loc, () => {}, stale);
     if (!st) return;

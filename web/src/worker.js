@@ -13,6 +13,39 @@ import {
 const ready = init();
 let cancelled = false;
 
+/**
+ * The browser cannot read the clip (`reason`: `container`, `no-video`,
+ * `codec` or `decode`): the page offers the server instead.
+ */
+class Unreadable extends Error {
+  constructor(reason, detail, codec = null) {
+    super(detail);
+    this.reason = reason;
+    this.codec = codec;
+  }
+}
+
+const message = (e) => String(e && e.message ? e.message : e);
+
+/** A sink's samples, a decoder's failure turned into `Unreadable` (the page offers the server). */
+async function* decoded(samples) {
+  try {
+    for (;;) {
+      let r;
+      try {
+        r = await samples.next();
+      } catch (e) {
+        throw new Unreadable('decode', message(e));
+      }
+      if (r.done) return;
+      yield r.value;
+    }
+  } finally {
+    // Stopped early (a pass that has its frames): the sink closes its decoder and samples.
+    try { await samples.return(); } catch { /* it failed already */ }
+  }
+}
+
 self.onmessage = async (ev) => {
   const msg = ev.data;
   if (msg.type === 'cancel') { cancelled = true; return; }
@@ -22,7 +55,8 @@ self.onmessage = async (ev) => {
     await ready;
     await processClip(msg);
   } catch (e) {
-    self.postMessage({ type: 'error', message: String(e && e.message ? e.message : e) });
+    if (e instanceof Unreadable) post('unsupported', { reason: e.reason, codec: e.codec, detail: e.message, fileName: msg.file.name });
+    else self.postMessage({ type: 'error', message: message(e) });
   }
 };
 
@@ -39,7 +73,7 @@ async function pickVideoCodec(format, width, height) {
 }
 
 /** The progress message of each pass the plan makes (see amc-core's plan). */
-const PASS_PROGRESS = { readout: 'readout-pass', static_zoom: 'zoom-pass' };
+const PASS_PROGRESS = { lens: 'lens-pass', readout: 'readout-pass', static_zoom: 'zoom-pass' };
 
 /**
  * One pass of `plan` (a PassPlan) over `video`'s frames: each frame decoded
@@ -48,7 +82,7 @@ const PASS_PROGRESS = { readout: 'readout-pass', static_zoom: 'zoom-pass' };
  */
 async function firstPass(plan, video, copyOpts, total, kind) {
   let n = 0, lastT = -Infinity, lastPost = 0;
-  for await (const sample of new VideoSampleSink(video).samples()) {
+  for await (const sample of decoded(new VideoSampleSink(video).samples())) {
     if (cancelled) { sample.close(); throw new Error('cancelled'); }
     if (plan.isFull) { sample.close(); break; }
     let t = sample.timestamp;
@@ -67,27 +101,45 @@ async function firstPass(plan, video, copyOpts, total, kind) {
 }
 
 /**
- * The first passes the plan asks for (readout_ms auto: the clip's first
- * frames tracked with the rolling-shutter model; zoom static: every frame
- * through a stabilizer that does not render), each reading the clip from its
- * start and only the frames it takes. Posts the readout found; returns
- * `{ readoutResult, zoom }` (null where there was no such pass).
+ * The first passes the plan asks for (fov auto: the clip's first frames,
+ * for the field of view; readout_ms auto: the clip's first frames tracked
+ * with the rolling-shutter model; zoom static: every frame through a
+ * stabilizer that does not render), each reading the clip from its start
+ * and only the frames it takes. Posts the field of view and the readout
+ * found; returns `{ fov, lensResult, readoutResult, zoom }` (null where
+ * there was no such pass; `fov`: the degrees fov auto found).
  */
 async function makePasses(plan, video, copyOpts, total) {
-  let readoutResult = null, zoom = null;
+  let readoutResult = null, zoom = null, fov = null, lensResult = null;
   while (plan.pass) {
     const budget = plan.frameBudget;
     const wanted = budget === undefined ? total : (total ? Math.min(total, budget) : budget);
     await firstPass(plan, video, copyOpts, wanted, PASS_PROGRESS[plan.pass]);
+    const frames = plan.frames;
     const found = plan.finishPass();
-    if (found.pass === 'readout') {
+    if (found.pass === 'lens') {
+      fov = found.hfov_deg;
+      lensResult = lensNote(found, frames);
+      post('lens', lensResult);
+    } else if (found.pass === 'readout') {
       readoutResult = { ...readoutNote(found), estimate: found.estimate };
       post('readout', readoutResult);
     } else if (found.pass === 'static_zoom') {
       zoom = found.zoom;
     }
   }
-  return { readoutResult, zoom };
+  return { fov, lensResult, readoutResult, zoom };
+}
+
+/** What the page says of the lens pass (fov auto): the field of view found, or a warning when it fell back (the CLI's words). */
+function lensNote({ hfov_deg: deg, note }, frames) {
+  if (note === 'estimated') return { fov: deg, note: `field of view ${deg.toFixed(1)}° (estimated from ${frames} frames)` };
+  return {
+    fov: deg,
+    warning: true,
+    note: 'warning: the footage does not pin down the focal length (translation or little rotation); ' +
+      `assuming a ${deg.toFixed(0)}° horizontal field of view: set the field of view (or a lens file) under Advanced for best results`,
+  };
 }
 
 /** What the page says of the readout pass: the readout used, and a warning when it fell back to 0. */
@@ -107,32 +159,31 @@ async function processClip({ file, params, lens, format, readout }) {
   try {
     video = await input.getPrimaryVideoTrack();
   } catch (e) {
-    throw new Error(`${file.name} is not a video this page can read (MP4, WebM, MOV or MKV): ${e && e.message ? e.message : e}`);
+    throw new Unreadable('container', message(e));
   }
-  if (!video) throw new Error(`${file.name} has no video track`);
+  if (!video) throw new Unreadable('no-video', 'no video track');
   const codec = video.codec;
-  if (!(await video.canDecode())) {
-    post('unsupported', { codec: codec || 'unknown', fileName: file.name });
-    return;
-  }
+  if (!(await video.canDecode())) throw new Unreadable('codec', `cannot decode ${codec || 'its codec'}`, codec);
   const stats = await video.computePacketStats(Infinity).catch(() => null);
   const total = stats ? stats.packetCount : null;
   // Frames are processed as decoded (coded orientation, visible rectangle); a
   // rotation in the container is carried over to the output's metadata.
-  const samples = new VideoSampleSink(video).samples();
+  const samples = decoded(new VideoSampleSink(video).samples());
   const first = await samples.next();
-  if (first.done) throw new Error(`the video track of ${file.name} has no frames`);
+  if (first.done) throw new Unreadable('decode', 'no frame decoded from its video track');
   const width = first.value.visibleRect.width, height = first.value.visibleRect.height;
   // Planar frames go through the module as planes (no RGBA round trip); the
   // output is then I420 with the input's colour space.
   const path = pixelPath(first.value);
   const outColorSpace = path === 'RGBA' ? undefined : colorSpaceInit(first.value);
   const copyOpts = copyOptions(path, width, height);
-  let stab, plan, readoutResult = null, staticZoomUsed = null;
+  let stab, plan, readoutResult = null, lensResult = null, staticZoomUsed = null, fov = null;
   try {
-    // The first passes (readout_ms auto, zoom static), as the core plans them.
+    // The first passes (fov auto, readout_ms auto, zoom static), as the core plans them.
     plan = new PassPlan(width, height, JSON.stringify(params), lens, path, readout);
-    ({ readoutResult, zoom: staticZoomUsed } = await makePasses(plan, video, copyOpts, total));
+    ({ fov, lensResult, readoutResult, zoom: staticZoomUsed } = await makePasses(plan, video, copyOpts, total));
+    // fov auto: the stabilizer (and its helpers) get the degrees found.
+    if (fov !== null) lens = fov;
     stab = new Stabilizer(width, height, plan.paramsJson(), lens, path);
     if (staticZoomUsed !== null) {
       // One zoom for the whole clip, found by its first pass.
@@ -169,7 +220,7 @@ async function processClip({ file, params, lens, format, readout }) {
     throw e;
   }
   try {
-    await stabilizeClip({ format, video, stats, total, width, height, first, samples, path, outColorSpace, copyOpts, codec, stab, share, ow, oh, outFormat, readoutResult, input });
+    await stabilizeClip({ format, video, stats, total, width, height, first, samples, path, outColorSpace, copyOpts, codec, stab, share, ow, oh, outFormat, readoutResult, lensResult, fov: typeof lens === 'number' ? lens : null, input });
   } finally {
     share.close();
     stab.free();
@@ -177,7 +228,7 @@ async function processClip({ file, params, lens, format, readout }) {
 }
 
 /** The main pass: every frame decoded, stabilized (its output drawn here or by a helper), encoded and muxed. */
-async function stabilizeClip({ format, video, stats, total, width, height, first, samples, path, outColorSpace, copyOpts, codec, stab, share, ow, oh, outFormat, readoutResult, input }) {
+async function stabilizeClip({ format, video, stats, total, width, height, first, samples, path, outColorSpace, copyOpts, codec, stab, share, ow, oh, outFormat, readoutResult, lensResult, fov, input }) {
   const container = format === 'webm' ? new WebMOutputFormat() : new Mp4OutputFormat({ fastStart: 'in-memory' });
   const outCodec = await pickVideoCodec(format, ow, oh);
   const output = new Output({ format: container, target: new BufferTarget() });
@@ -202,7 +253,8 @@ async function stabilizeClip({ format, video, stats, total, width, height, first
 
   post('start', { width, height, outWidth: ow, outHeight: oh, total, codec, outCodec, simd: simdEnabled(), workers: share.count,
     pixelFormat: path, decodedFormat: first.value.format,
-    params: JSON.parse(stab.paramsJson()), audioNote, readoutNote: readoutResult && readoutResult.note });
+    params: JSON.parse(stab.paramsJson()), audioNote, readoutNote: readoutResult && readoutResult.note,
+    lensNote: lensResult && lensResult.note, fov });
 
   const t0 = performance.now();
   const inputMetrics = []; // of frames whose output the lookahead still holds back

@@ -1,5 +1,6 @@
 // End to end in headless Chromium against `amc serve` (serving web/dist):
-// the page stabilizes cup.mp4 in the browser; an HEVC clip goes to the job API;
+// the page stabilizes cup.mp4 in the browser; clips it cannot read (HEVC, AVI,
+// not a video) are offered to the job API; its settings are the CLI's options;
 // the Live tab shows a looped source. Screenshots land in web/test-artifacts/.
 // Run: node --test --test-concurrency=1 test/e2e.test.mjs   (after ./build.sh)
 import { test, before, after } from 'node:test';
@@ -8,7 +9,7 @@ import { execFileSync } from 'node:child_process';
 import { mkdtempSync, readFileSync, renameSync, rmSync, writeFileSync } from 'node:fs';
 import { cpus, tmpdir } from 'node:os';
 import { join } from 'node:path';
-import { startServer, launch, shot, ffprobeFrames, rmsFrameChange, streamTypes, dataDir, artifacts, root } from './helpers.mjs';
+import { startServer, launch, shot, ffprobeFrames, rmsFrameChange, streamTypes, dataDir, artifacts, root, amcBin } from './helpers.mjs';
 
 const cup = join(dataDir, 'cup', 'cup.mp4');
 let server, browser, tmp;
@@ -31,8 +32,13 @@ async function newPage() {
   page.on('pageerror', (e) => errors.push(e.message));
   page.on('response', (r) => { if (r.status() === 404) errors.push(`404 ${r.url()}`); });
   await page.goto(server.url + '/');
+  // The settings form is built from the core's option table once amc-wasm is loaded.
+  await page.waitForSelector('#settings[data-ready]', { state: 'attached', timeout: 30000 });
   return { page, errors };
 }
+
+/** Opens the Advanced fold (every option of the CLI). */
+const openAdvanced = (page) => page.evaluate(() => { document.getElementById('advanced').open = true; });
 
 // amc-server's telemetry CSV header (the page's CSV starts with the same columns).
 const TELEMETRY_HEADER = readFileSync(join(root, 'amc-engine/src/telemetry.rs'), 'utf8').match(/TELEMETRY_HEADER: &str = "([^"]+)"/)[1];
@@ -111,6 +117,11 @@ test('drop cup.mp4: every frame stabilized in the browser; the MP4 download has 
   })), null, 1));
   const input = ffprobeFrames(cup);
   assert.equal(Number(await page.evaluate(() => document.body.dataset.frames)), input.frames);
+  // fov auto, the CLI's default: a first pass estimated the field of view (or fell back to 70 degrees with a warning).
+  const { fov, fovNote } = await page.evaluate(() => ({ fov: Number(document.body.dataset.fov), fovNote: document.body.dataset.fovNote }));
+  assert.ok(fov > 0 && fov <= 179, String(fov));
+  assert.match(fovNote, /^field of view \d+\.\d° \(estimated from 90 frames\)$|^warning: the footage does not pin down the focal length/);
+  if (fovNote.startsWith('warning')) assert.equal(fov, 70);
   const file = await download(page, 'cup-stabilized.mp4');
   const out = ffprobeFrames(file);
   assert.equal(out.codec, 'h264');
@@ -237,6 +248,7 @@ test('planar VideoFrames in Chromium: I420 and NV12 copied with the page\'s layo
 test('WebM download (VP9) with the same frame count', async () => {
   const { page } = await newPage();
   await page.selectOption('#format', 'webm');
+  await openAdvanced(page);
   await page.fill('#n_avg', '3');
   await page.selectOption('#mode', 'saccade');
   await page.selectOption('#zoom', 'none'); // the paper's fixed margin
@@ -277,6 +289,7 @@ test('render helpers that cannot start: the clip is stabilized in one worker', a
 
 test('zoom static: a first pass finds one zoom for the clip, held on every frame, no border', async () => {
   const { page } = await newPage();
+  await openAdvanced(page);
   await page.selectOption('#zoom', 'static');
   await page.setInputFiles('[data-testid=file-input]', cup);
   await waitState(page, ['done', 'error']);
@@ -292,8 +305,9 @@ test('zoom static: a first pass finds one zoom for the clip, held on every frame
 
 test('readout: checked as typed; auto makes a first pass and the stabilizer runs with its estimate (or 0 with a warning)', async () => {
   const { page } = await newPage();
+  await openAdvanced(page);
   await page.fill('#readout_ms', '150');
-  assert.match(await page.textContent('[data-testid=form-error]'), /Readout \(readout_ms\): 150 is out of range \(allowed: 0\.\.=100 milliseconds or auto/);
+  assert.match(await page.textContent('[data-testid=form-error]'), /Readout time \(--readout-ms\): 150 is out of range \(allowed: 0\.\.=100 or auto/);
   await page.fill('#readout_ms', 'auto');
   assert.equal(await page.isVisible('[data-testid=form-error]'), false);
   await page.setInputFiles('[data-testid=file-input]', cup);
@@ -320,33 +334,39 @@ test('readout: checked as typed; auto makes a first pass and the stabilizer runs
 
 test('bad settings and a file that is not a video end in the error state with a message', async () => {
   const { page } = await newPage();
+  await openAdvanced(page);
   await page.fill('#n_avg', '0');
-  // Checked as typed: the field is marked and named with its range.
-  assert.match(await page.textContent('[data-testid=form-error]'), /Averaging window \(n_avg\): 0 is out of range \(allowed: 1\.\.=64 frames/);
+  // Checked as typed: the field is marked and named with its flag and range.
+  assert.match(await page.textContent('[data-testid=form-error]'), /Averaging window \(--n-avg\): 0 is out of range \(allowed: 1\.\.=64, whole numbers; empty: the default, 6\)/);
   assert.equal(await page.getAttribute('#n_avg', 'aria-invalid'), 'true');
   await page.setInputFiles('[data-testid=file-input]', cup);
   await waitState(page, ['done', 'error']);
   assert.equal(await state(page), 'error');
-  assert.match(await page.textContent('#error'), /Not started: Averaging window \(n_avg\) out of range/);
-  assert.match(await page.textContent('[data-testid=form-error]'), /Averaging window \(n_avg\): 0 is out of range \(allowed: 1\.\.=64 frames/);
+  assert.match(await page.textContent('#error'), /Not started: Averaging window \(--n-avg\) out of range/);
+  assert.match(await page.textContent('[data-testid=form-error]'), /Averaging window \(--n-avg\): 0 is out of range \(allowed: 1\.\.=64/);
   await page.fill('#margin', '0.6');
   await page.fill('#fov', '180');
   const msg = await page.textContent('[data-testid=form-error]');
-  assert.match(msg, /Margin \(margin\): 0\.6 is out of range \(allowed: 0\.\.=0\.45/);
-  assert.match(msg, /Field of view \(fov\): 180 is out of range \(allowed: 0 < value <= 179 degrees/);
+  assert.match(msg, /Margin \(--margin\): 0\.6 is out of range \(allowed: 0\.\.=0\.45/);
+  assert.match(msg, /Field of view \(--fov\): 180 is out of range \(allowed: 0 < DEG <= 179 or auto/);
   await shot(page, 'error-settings');
-  for (const [id, v] of [['margin', '0.125'], ['fov', '70']]) await page.fill(`#${id}`, v);
+  for (const [id, v] of [['margin', '0.125'], ['fov', 'auto']]) await page.fill(`#${id}`, v);
   await page.fill('#n_avg', ''); // empty: the default
   assert.equal(await page.isVisible('[data-testid=form-error]'), false);
   assert.equal(await page.isVisible('#error'), false, 'the refusal goes once the settings are fixed');
   assert.equal(await state(page), 'idle');
   assert.equal(await page.getAttribute('#n_avg', 'aria-invalid'), 'false');
+  // Not a video: the page cannot read it, offers the server, and shows the server's refusal.
   const junk = join(tmp, 'junk.mp4');
   writeFileSync(junk, 'this is not a video');
   await page.setInputFiles('[data-testid=file-input]', junk);
-  await waitState(page, ['done', 'error']);
+  await page.waitForSelector('[data-testid=server-fallback]', { state: 'visible', timeout: 60000 });
   assert.equal(await state(page), 'error');
-  assert.match(await page.textContent('#error'), /junk\.mp4 is not a video/, 'the message names the file');
+  assert.match(await page.textContent('#unsupported-text'), /junk\.mp4 is not a video this page can read in the browser/, 'the message names the file');
+  await page.click('[data-testid=server-fallback]');
+  await page.waitForSelector('#error', { state: 'visible', timeout: 30000 });
+  assert.equal(await state(page), 'error');
+  assert.match(await page.textContent('#error'), /server refused the job: .*not a video/);
   await shot(page, 'error-state');
   // Cancel while processing.
   await page.setInputFiles('[data-testid=file-input]', cup);
@@ -377,11 +397,11 @@ test('HEVC clip: the browser cannot decode it; the page offers the server and ge
   assert.equal(await state(page), 'done', await page.textContent('#error'));
   const file = await download(page, 'cup-hevc-stabilized.mp4');
   assert.equal(ffprobeFrames(file).frames, 48);
-  // The page's settings went along; the smoothing only when not the defaults.
+  // The page's settings went along: all the CLI's defaults, so only the mode and the format
+  // (the server's defaults are the same table's: fov auto among them).
   const q = posted[0].searchParams;
   assert.equal(posted[0].pathname, '/jobs');
-  assert.deepEqual([q.get('mode'), q.get('n_avg'), q.get('margin'), q.get('lookahead'), q.get('fov')], ['stabilize', '6', '0.125', '0', '70']);
-  assert.equal(q.has('rate_a') || q.has('rate_b'), false);
+  assert.equal(q.toString(), 'mode=stabilize&format=mp4');
   // The plot (speeds from the job's telemetry.csv), its CSV and the summary.
   await page.waitForSelector('#plot[data-series="est,view,zoom"]', { timeout: 10000 });
   const csv = readFileSync(await download(page, 'cup-hevc-telemetry.csv', 'telemetry-download'), 'utf8').trim().split('\n');
@@ -402,12 +422,14 @@ test('HEVC clip: the browser cannot decode it; the page offers the server and ge
   await page.close();
 });
 
-test('server fallback sends rate_a/rate_b when they differ from the defaults, and shows the server\'s refusal', async () => {
+test('server fallback sends the smoothing strength as rate_a/rate_b, and shows the server\'s refusal', async () => {
   const hevc = join(tmp, 'cup-hevc-short.mp4');
   execFileSync('ffmpeg', ['-v', 'error', '-y', '-i', cup, '-frames:v', '8', '-vf', 'scale=160:120', '-c:v', 'libx265', '-preset', 'ultrafast',
     '-x265-params', 'log-level=error', '-tag:v', 'hvc1', '-an', hevc]);
   const { page } = await newPage();
-  await page.fill('#rate_a', '1.5');
+  // Strong smoothing: the CLI's gains (2 and 20) halved.
+  await page.selectOption('#smoothing', 'strong');
+  assert.deepEqual(await page.evaluate(() => [document.getElementById('rate_a').value, document.getElementById('rate_b').value]), ['1', '10']);
   await page.setInputFiles('[data-testid=file-input]', hevc);
   await page.waitForSelector('[data-testid=server-fallback]', { state: 'visible', timeout: 60000 });
   let seen = null;
@@ -418,9 +440,127 @@ test('server fallback sends rate_a/rate_b when they differ from the defaults, an
   await page.click('[data-testid=server-fallback]');
   await page.waitForSelector('#error', { state: 'visible', timeout: 10000 });
   assert.equal(await state(page), 'error');
-  assert.equal(seen.searchParams.get('rate_a'), '1.5');
-  assert.equal(seen.searchParams.has('rate_b'), false);
+  assert.equal(seen.searchParams.get('rate_a'), '1');
+  assert.equal(seen.searchParams.get('rate_b'), '10');
   assert.match(await page.textContent('#error'), /server refused the job: unknown option "rate_a" \(test\)/);
+  await page.close();
+});
+
+test('an AVI clip: the page cannot read it in the browser, offers the server, and the server stabilizes it', async () => {
+  const avi = join(tmp, 'testsrc.avi');
+  execFileSync('ffmpeg', ['-v', 'error', '-y', '-f', 'lavfi', '-i', 'testsrc=size=320x240:rate=30', '-t', '2', '-c:v', 'mjpeg', avi]);
+  const { page, errors } = await newPage();
+  // The drop zone names the containers the page reads: the same list as the message.
+  const list = await page.textContent('[data-testid=drop-formats]');
+  assert.equal(list, 'MP4, MOV, WebM, MKV or MPEG-TS');
+  await page.setInputFiles('[data-testid=file-input]', avi);
+  await page.waitForSelector('[data-testid=server-fallback]', { state: 'visible', timeout: 60000 });
+  assert.equal(await state(page), 'error');
+  const text = await page.textContent('#unsupported-text');
+  assert.ok(text.includes(`testsrc.avi is not a video this page can read in the browser (it reads ${list})`), text);
+  assert.match(text, /The server reads every format ffmpeg reads/);
+  assert.equal(await page.isVisible('#error'), false, 'an offer, not an error');
+  await shot(page, 'avi-1-unsupported');
+  await page.click('[data-testid=server-fallback]');
+  await waitState(page, ['processing', 'done', 'error'], 10000);
+  await waitState(page, ['done', 'error']);
+  assert.equal(await state(page), 'done', await page.textContent('#error'));
+  const out = ffprobeFrames(await download(page, 'testsrc-stabilized.mp4'));
+  assert.equal(out.frames, 60);
+  assert.equal(out.codec, 'h264');
+  // Chromium cannot play AVI either: the server makes a playable copy for the Original slot.
+  await page.waitForFunction(() => { const o = document.getElementById('orig'); return !o.hidden && o.readyState >= 2 && o.videoWidth === 320; }, null, { timeout: 60000 });
+  await shot(page, 'avi-2-done');
+  assert.deepEqual(errors.filter((e) => !e.startsWith('404')), []);
+  await page.close();
+});
+
+/** `amc stabilize --help`: { flag: { value, help } } for every option it lists. */
+function cliHelp() {
+  const text = execFileSync(amcBin(), ['stabilize', '--help'], { encoding: 'utf8' });
+  const out = {};
+  let cur = null;
+  for (const line of text.split('\n')) {
+    const m = line.match(/^\s+(?:-\w, )?--([\w-]+)(?: <([^>]+)>)?\s*$/);
+    if (m) { cur = out[m[1]] = { value: m[2] || '', help: '' }; continue; }
+    if (cur && line.trim()) cur.help = (cur.help ? `${cur.help} ` : '') + line.trim();
+    else cur = null;
+  }
+  return out;
+}
+
+test("the settings: a few plain choices first; every CLI option under Advanced with the CLI's flag, help, range and default", async () => {
+  const { page } = await newPage();
+  const cli = cliHelp();
+  // Closed at first: the page leads with mode, smoothing strength, horizon (roll) and output.
+  assert.equal(await page.evaluate(() => document.getElementById('advanced').tagName + ':' + document.getElementById('advanced').open), 'DETAILS:false');
+  const visible = await page.evaluate(() => [...document.querySelectorAll('#settings input, #settings select')]
+    .filter((e) => e.checkVisibility()).map((e) => e.id));
+  assert.deepEqual(visible, ['mode', 'smoothing', 'roll', 'format']);
+  await shot(page, 'settings-1-basic');
+  await openAdvanced(page);
+  const fields = await page.evaluate(() => [...document.querySelectorAll('#settings input, #settings select')].map((e) => ({
+    id: e.id, tag: e.tagName, type: e.type, value: e.value, min: e.getAttribute('min'), max: e.getAttribute('max'), step: e.getAttribute('step'),
+    title: e.title, label: e.labels[0].firstChild.textContent.trim(), advanced: !!e.closest('#advanced'),
+    words: e.tagName === 'SELECT' ? [...e.options].map((o) => o.value) : null,
+  })));
+  await shot(page, 'settings-2-advanced');
+  const byId = Object.fromEntries(fields.map((f) => [f.id, f]));
+  // Every option of the core's table is a field (checked against the CLI's help, the user's reference).
+  const table = await page.evaluate(async () => { const w = await import('/pkg/amc_wasm.js'); await w.default(); return w.options(); });
+  assert.ok(table.length >= 20, String(table.length));
+  for (const o of table) {
+    const f = byId[o.name], c = cli[o.flag];
+    assert.ok(f, `a field for ${o.name}`);
+    assert.ok(c, `--${o.flag} in amc stabilize --help`);
+    assert.equal(c.value, o.value_name, `--${o.flag}'s placeholder`);
+    assert.equal(f.advanced, !['mode', 'roll'].includes(o.name), `${o.name} under Advanced`);
+    // Named as in the CLI, with its help (range and default) as the tooltip.
+    assert.match(f.label, new RegExp(`\\(--${o.flag}\\)$`), f.label);
+    assert.equal(f.title, `--${o.flag} ${o.value_name}: ${c.help}`);
+    // The CLI's default ("(default 6)"; "(default: the input width)" is no value: empty).
+    const def = c.help.match(/\(default ([^;:)\s]+)/);
+    if (def) assert.equal(f.value, def[1], `${o.name} starts at the CLI's default`);
+    else { assert.match(c.help, /\(default: /); assert.equal(f.value, '', `${o.name} starts empty (the CLI's default)`); }
+    if (f.tag === 'SELECT') {
+      assert.deepEqual(f.words, o.allowed.words, o.name);
+      for (const w of f.words) assert.ok(c.help.includes(w), `${w} in --${o.flag}'s help`);
+    } else if (f.type === 'number') {
+      // The field's limits: the range in the CLI's help.
+      assert.ok(c.help.includes(`${f.min}..=${f.max}`), `${o.name}: ${f.min}..=${f.max} in ${c.help}`);
+      assert.equal(f.step, o.allowed.kind === 'integer' ? '1' : 'any', o.name);
+    }
+  }
+  // The ranges the issue names: the server's lookahead (0..=600, not 0..240); the CLI's field of view.
+  assert.ok(byId.lookahead.title.includes('0..=600') && !byId.lookahead.title.includes('240'), byId.lookahead.title);
+  assert.equal(byId.lookahead.max, '600');
+  assert.ok(byId.fov.title.includes('0 < DEG <= 179, or auto') && byId.fov.value === 'auto', byId.fov.title);
+  assert.equal(byId.n_avg.label, 'Averaging window (--n-avg)');
+  // Untouched, the form reads as the core's defaults: the parameters of new Stabilizer(…, '{}'), fov auto, the lens file's readout.
+  const read = await page.evaluate(async () => {
+    const { settings } = await import('/settings.js');
+    const w = await import('/pkg/amc_wasm.js');
+    const st = new w.Stabilizer(64, 48, '{}', 70);
+    const core = JSON.parse(st.paramsJson());
+    st.free();
+    delete core.shutter;
+    const s = settings();
+    return { params: s.params, fov: s.fov, readout: s.readout, core, errors: s.errors };
+  });
+  assert.deepEqual(read.errors, []);
+  assert.deepEqual(read.params, read.core);
+  assert.equal(read.fov, 'auto');
+  assert.equal(read.readout, null);
+  // Smoothing strength: normal = the CLI's rate_a and rate_b; the menu follows gains typed by hand.
+  assert.equal(byId.smoothing.value, 'normal');
+  assert.deepEqual([byId.rate_a.value, byId.rate_b.value], ['2', '20']);
+  await page.selectOption('#smoothing', 'very-strong');
+  assert.deepEqual(await page.evaluate(() => [document.getElementById('rate_a').value, document.getElementById('rate_b').value]), ['0.5', '5']);
+  await page.fill('#rate_a', '3');
+  assert.equal(await page.inputValue('#smoothing'), 'custom');
+  await page.fill('#rate_a', '4');
+  await page.fill('#rate_b', '40');
+  assert.equal(await page.inputValue('#smoothing'), 'light');
   await page.close();
 });
 

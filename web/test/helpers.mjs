@@ -19,13 +19,17 @@ const freePort = () => new Promise((res, rej) => {
   s.listen(0, '127.0.0.1', () => { const { port } = s.address(); s.close(() => res(port)); });
 });
 
+/** The `amc` binary the tests run: $AMC_BIN, else target/release/amc. */
+export const amcBin = () => process.env.AMC_BIN || join(root, 'target', 'release', 'amc');
+
 /** Starts `amc serve` on a free port serving web/dist (built by web/build.sh). */
 export async function startServer(extraArgs = []) {
   // Development only: point the tests at an already running server.
   if (process.env.AMC_E2E_URL) return { url: process.env.AMC_E2E_URL, log: () => '', stop: async () => {} };
   if (!existsSync(join(webDir, 'dist', 'index.html'))) throw new Error('web/dist missing: run web/build.sh first');
-  let bin = process.env.AMC_BIN || join(root, 'target', 'release', 'amc');
-  if (!process.env.AMC_BIN) execFileSync('cargo', ['build', '--release', '-q', '-p', 'amc-server'], { cwd: root, stdio: 'inherit' });
+  const bin = amcBin();
+  // The `amc` binary is amc-cli's (it serves through amc-server).
+  if (!process.env.AMC_BIN) execFileSync('cargo', ['build', '--release', '-q', '-p', 'amc-cli'], { cwd: root, stdio: 'inherit' });
   const port = await freePort();
   const args = ['serve', '--addr', `127.0.0.1:${port}`, '--web-dir', join(webDir, 'dist'), ...extraArgs];
   const proc = spawn(bin, args, { stdio: ['ignore', 'pipe', 'pipe'] });

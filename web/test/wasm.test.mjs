@@ -4,7 +4,7 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
-import { initSync, Stabilizer, ReadoutEstimator, PassPlan, simdEnabled, simdMatchesScalar } from '../dist/pkg/amc_wasm.js';
+import { initSync, Stabilizer, ReadoutEstimator, PassPlan, simdEnabled, simdMatchesScalar, options, resolveOptions } from '../dist/pkg/amc_wasm.js';
 
 const wasmPath = fileURLToPath(new URL('../dist/pkg/amc_wasm_bg.wasm', import.meta.url));
 initSync({ module: readFileSync(wasmPath) });
@@ -325,7 +325,7 @@ test('planar formats: bad names and buffer lengths are JS Errors naming the allo
 // --- The page's pure modules on the API's real output ----------------------
 const { TELEMETRY_HEADER, telemetryCsv, rowsFromCsv, rowsFromWorker } = await import('../src/telemetry.js');
 const { summaryRows, localSummary } = await import('../src/summary.js');
-const { serverQuery, FIELDS } = await import('../src/settings.js');
+const { serverQuery, checkValue, allowedText, titleOf, labelOf, smoothingRates, smoothingLevel, SMOOTHING } = await import('../src/settings.js');
 const { niceTicks } = await import('../src/plot.js');
 
 test("the page's telemetry CSV has the CLI's header, column order and number formats", () => {
@@ -395,50 +395,116 @@ test("the page's telemetry CSV has the CLI's header, column order and number for
   s.free();
 });
 
-test("the page's form ranges are the core's, and the server query sends smoothing only when changed", () => {
-  // Each field's range, as the WASM API (amc-core's validate) enforces it.
-  const field = Object.fromEntries(FIELDS.map((f) => [f.id, f]));
-  const stage = (id) => (['n_avg', 'margin', 'deghost'].includes(id) ? 'render' : id === 'max_crop' ? 'framing' : 'view');
-  const params = (id, v) => ({ [stage(id)]: { [id]: v } });
-  for (const id of ['n_avg', 'deghost', 'margin', 'max_crop', 'rate_a', 'rate_b', 'lookahead']) {
-    const f = field[id];
-    const step = f.int ? 1 : 1e-6;
-    for (const ok of [f.min, f.max]) assert.doesNotThrow(() => new Stabilizer(64, 48, JSON.stringify(params(id, ok)), 70).free(), `${id} ${ok}`);
-    for (const bad of [f.min - step, f.max + step]) throwsMsg(() => new Stabilizer(64, 48, JSON.stringify(params(id, bad)), 70), new RegExp(`invalid ${id}|expected usize`));
-    const def = new Stabilizer(64, 48, '{}', 70);
-    const p = JSON.parse(def.paramsJson());
-    assert.equal(p[stage(id)][id], f.def, `default of ${id}`);
-    def.free();
+test("options(): the core's option table, each default the core's; resolveOptions reads values as the CLI does", () => {
+  const table = options();
+  const names = table.map((o) => o.name);
+  for (const n of ['mode', 'roll', 'fov', 'readout_ms', 'n_avg', 'deghost', 'antialias', 'interpolation', 'n_track', 'margin', 'zoom',
+    'max_crop', 'track_width', 'lookahead', 'rate_a', 'rate_b', 'roll_rate_a', 'roll_rate_b', 'output_width', 'output_height']) {
+    assert.ok(names.includes(n), n);
   }
-  // fov: 0 < DEG <= 179, the minimum excluded.
-  throwsMsg(() => new Stabilizer(W, H, '{}', field.fov.min), /invalid fov/);
-  assert.doesNotThrow(() => new Stabilizer(W, H, '{}', field.fov.max).free());
-  throwsMsg(() => new Stabilizer(W, H, '{}', field.fov.max + 1e-6), /invalid fov/);
-  const s = (rate_a, rate_b) => ({ params: { view: { mode: 'stabilize', rate_a, rate_b, lookahead: 0 }, render: { n_avg: 6, margin: 0.125 } }, fov: 70, format: 'mp4', lensFile: null });
-  assert.equal(serverQuery(s(2, 20)).toString(), 'mode=stabilize&n_avg=6&margin=0.125&lookahead=0&format=mp4&fov=70');
-  assert.equal(serverQuery(s(1.5, 20)).get('rate_a'), '1.5');
-  assert.equal(serverQuery(s(1.5, 20)).has('rate_b'), false);
-  // deghost: sent only when not the default (the plain average).
-  assert.equal(serverQuery(s(2, 20)).has('deghost'), false);
-  const ghostFree = s(2, 20);
-  ghostFree.params.render.deghost = 6;
-  assert.equal(serverQuery(ghostFree).get('deghost'), '6');
-  // interpolation: sent only when not the default (bilinear); the core takes both words.
-  assert.equal(serverQuery(s(2, 20)).has('interpolation'), false);
-  const sharp = s(2, 20);
-  sharp.params.render.interpolation = 'bicubic';
-  assert.equal(serverQuery(sharp).get('interpolation'), 'bicubic');
-  for (const word of ['bilinear', 'bicubic']) {
-    const st = new Stabilizer(64, 48, JSON.stringify({ render: { interpolation: word } }), 70);
-    assert.equal(JSON.parse(st.paramsJson()).render.interpolation, word);
-    st.free();
+  // The table as amc-core/src/options.rs writes it.
+  const rust = readFileSync(fileURLToPath(new URL('../../amc-core/src/options.rs', import.meta.url)), 'utf8');
+  for (const o of table) {
+    assert.equal(o.flag, o.name.replaceAll('_', '-'));
+    assert.ok(rust.includes(`help: "${o.help.replaceAll('"', '\\"')}"`), `${o.name}: ${o.help}`);
+    assert.ok(rust.includes(`value_name: "${o.value_name}"`), o.value_name);
   }
-  throwsMsg(() => new Stabilizer(64, 48, JSON.stringify({ render: { interpolation: 'lanczos' } }), 70), /interpolation|unknown variant/);
-  assert.equal(serverQuery(s(2, 80)).get('rate_b'), '80');
-  assert.equal(serverQuery({ ...s(2, 20), lensFile: {} }).has('fov'), false);
-  const locked = s(2, 20);
-  locked.params.view.roll = 'lock';
-  assert.equal(serverQuery(locked).get('roll'), 'lock');
+  const byName = Object.fromEntries(table.map((o) => [o.name, o]));
+  assert.deepEqual(byName.lookahead.allowed, { kind: 'integer', min: 0, max: 600 });
+  assert.deepEqual(byName.fov.allowed, { kind: 'number', min: 0, max: 179, above_min: true, words: ['auto'] });
+  assert.equal(byName.fov.default, 'auto');
+  assert.equal(byName.readout_ms.default, null);
+  assert.equal(byName.mode.default, 'stabilize');
+  // No values: exactly the core's default parameters (the shutter apart), fov auto, the lens file's readout.
+  const core = new Stabilizer(64, 48, '{}', 70);
+  const def = JSON.parse(core.paramsJson());
+  core.free();
+  delete def.shutter;
+  const r = resolveOptions('{}');
+  assert.deepEqual(r.params, def);
+  assert.equal(r.fov, 'auto');
+  assert.equal(r.readout, null);
+  // Each option's default, given as its value, changes nothing.
+  const defaults = Object.fromEntries(table.filter((o) => o.default !== null).map((o) => [o.name, String(o.default)]));
+  assert.deepEqual(resolveOptions(JSON.stringify(defaults)), r);
+  const set = resolveOptions(JSON.stringify({ n_avg: '4', fov: '90', readout_ms: 'auto', roll: 'lock', rate_a: '1.5', output_width: '' }));
+  assert.equal(set.params.render.n_avg, 4);
+  assert.equal(set.params.view.roll, 'lock');
+  assert.equal(set.params.view.rate_a, 1.5);
+  assert.equal(set.params.render.output_width, null);
+  assert.equal(set.fov, 90);
+  assert.equal(set.readout, 'auto');
+  throwsMsg(() => resolveOptions('{"n_avg":"0"}'), /invalid n_avg/);
+  throwsMsg(() => resolveOptions('{"bogus":"1"}'), /bogus/);
+});
+
+test("the page's check of every option is the core's: the same values pass, the message names the flag and the table's range", () => {
+  const table = options();
+  const core = (name, text) => { try { resolveOptions(JSON.stringify({ [name]: text })); return true; } catch { return false; } };
+  for (const o of table) {
+    const a = o.allowed;
+    const probes = a.kind === 'words'
+      ? [...a.words, a.words[0].toUpperCase(), 'wobble']
+      : [a.min, a.max, a.min - (a.kind === 'integer' ? 1 : 1e-6), a.max + (a.kind === 'integer' ? 1 : 1e-6 * Math.max(1, a.max)),
+        (a.min + a.max) / 2, 'x', 'nan', 'inf', ...(a.words || [])].map(String);
+    for (const p of probes) {
+      const page = checkValue(o, p);
+      assert.equal(!page.error, core(o.name, p), `${o.name}=${p}: page ${JSON.stringify(page)}`);
+    }
+    // Empty: the default (nothing sent to the core).
+    assert.deepEqual(checkValue(o, ''), { value: null });
+    assert.ok(titleOf(o).startsWith(`--${o.flag} ${o.value_name}: `) && titleOf(o).endsWith(o.help), titleOf(o));
+    assert.match(labelOf(o), new RegExp(` \\(--${o.flag}\\)$`));
+    if (a.kind !== 'words') {
+      const bad = checkValue(o, String(a.max * 2 + 1));
+      assert.match(bad.error, new RegExp(`^.* \\(--${o.flag}\\): .* is out of range \\(allowed: `));
+      assert.ok(bad.error.includes(allowedText(o)), bad.error);
+      // The range the page names is the one the help gives.
+      const range = a.above_min ? `${a.min} < ${o.value_name.split('|')[0]} <= ${a.max}` : `${a.min}..=${a.max}`;
+      assert.ok(o.help.includes(range), `${o.name}: ${range} in ${o.help}`);
+    }
+  }
+  const byName = Object.fromEntries(table.map((o) => [o.name, o]));
+  assert.match(checkValue(byName.n_avg, '0').error, /^Averaging window \(--n-avg\): 0 is out of range \(allowed: 1\.\.=64, whole numbers; empty: the default, 6\)\.$/);
+  assert.match(checkValue(byName.fov, '180').error, /^Field of view \(--fov\): 180 is out of range \(allowed: 0 < DEG <= 179 or auto; empty: the default, auto\)\.$/);
+  assert.deepEqual(checkValue(byName.fov, 'Auto'), { value: 'auto' });
+  assert.match(checkValue(byName.lookahead, '601').error, /allowed: 0\.\.=600, whole numbers/);
+  assert.match(checkValue(byName.readout_ms, '150').error, /allowed: 0\.\.=100 or auto; empty: the default, the lens file's readout_ms or Gyroflow frame_readout_time, else 0\)/);
+});
+
+test('smoothing strength: each level is rate_a and rate_b times one factor; normal is exactly the defaults', () => {
+  const table = options();
+  const def = resolveOptions('{}').params.view;
+  assert.deepEqual(smoothingRates(table, 'normal'), { rate_a: def.rate_a, rate_b: def.rate_b });
+  assert.deepEqual(smoothingRates(table, 'normal'), { rate_a: 2, rate_b: 20 });
+  for (const l of SMOOTHING) {
+    const r = smoothingRates(table, l.value);
+    assert.deepEqual(r, { rate_a: l.factor * 2, rate_b: l.factor * 20 });
+    assert.equal(smoothingLevel(table, r.rate_a, r.rate_b), l.value);
+    // The core takes them.
+    const v = resolveOptions(JSON.stringify({ rate_a: String(r.rate_a), rate_b: String(r.rate_b) })).params.view;
+    assert.deepEqual([v.rate_a, v.rate_b], [r.rate_a, r.rate_b]);
+  }
+  assert.deepEqual(SMOOTHING.map((l) => l.factor), [2, 1, 0.5, 0.25]);
+  assert.equal(smoothingLevel(table, null, null), 'normal');
+  assert.equal(smoothingLevel(table, 3, 20), 'custom');
+});
+
+test('the server query: the mode and the format, and every other option only where it is not the default', () => {
+  const table = options();
+  const q = (values, extra = {}) => serverQuery({ values: { mode: 'stabilize', ...values }, format: 'mp4', lensFile: null, ...extra }, table);
+  assert.equal(q({}).toString(), 'mode=stabilize&format=mp4');
+  // The defaults typed in are not sent either.
+  assert.equal(q({ n_avg: '6', fov: 'auto', rate_a: '2', zoom: 'auto', interpolation: 'bilinear' }).toString(), 'mode=stabilize&format=mp4');
+  const set = q({ n_avg: '4', rate_a: '1.5', fov: '90', readout_ms: 'auto', deghost: '6', interpolation: 'bicubic', roll: 'lock', zoom: 'static', output_width: '320' }, { format: 'webm' });
+  assert.deepEqual(Object.fromEntries(set), {
+    mode: 'stabilize', roll: 'lock', fov: '90', readout_ms: 'auto', n_avg: '4', deghost: '6', interpolation: 'bicubic', zoom: 'static',
+    rate_a: '1.5', output_width: '320', format: 'webm',
+  });
+  // A lens file goes instead of the field of view.
+  assert.equal(q({ fov: '90' }, { lensFile: {} }).has('fov'), false);
+  // Every name the page sends is an option the server knows (the same table).
+  for (const k of set.keys()) assert.ok(k === 'format' || table.some((o) => o.name === k), k);
 });
 
 test('plot ticks are round numbers covering the range', () => {
@@ -455,8 +521,8 @@ test('readout_ms reaches the core: its range, a lens file\'s readout, the page\'
     st.free();
     return ms;
   };
-  const f = FIELDS.find((x) => x.id === 'readout_ms');
-  assert.equal(readout({}), f.def);
+  const f = options().find((x) => x.name === 'readout_ms').allowed;
+  assert.equal(readout({}), 0);
   assert.equal(readout({ shutter: { readout_ms: f.max } }), f.max);
   assert.equal(readout({ shutter: { readout_ms: 16.5 } }), 16.5);
   throwsMsg(() => new Stabilizer(64, 48, JSON.stringify({ shutter: { readout_ms: f.max + 1e-6 } }), 70), /invalid readout_ms/);
@@ -468,9 +534,9 @@ test('readout_ms reaches the core: its range, a lens file\'s readout, the page\'
   assert.equal(readout({}, lens({})), 0);
   throwsMsg(() => new Stabilizer(64, 48, '{}', lens({ readout_ms: 250 })), /readout_ms.*0\.\.=100/);
   // The server gets it only when set: a number or auto.
-  const q = (r) => serverQuery({ params: { view: { mode: 'stabilize', rate_a: 2, rate_b: 20, lookahead: 0 }, render: { n_avg: 6, margin: 0.125 } }, fov: 70, format: 'mp4', lensFile: null, readout: r });
+  const q = (r) => serverQuery({ values: { mode: 'stabilize', readout_ms: r }, format: 'mp4', lensFile: null }, options());
   assert.equal(q(null).has('readout_ms'), false);
-  assert.equal(q(14.5).get('readout_ms'), '14.5');
+  assert.equal(q('14.5').get('readout_ms'), '14.5');
   assert.equal(q('auto').get('readout_ms'), 'auto');
 });
 
@@ -555,6 +621,42 @@ test('PassPlan: the core plans the first passes, their order, frame budgets and 
   const ended = new PassPlan(W, H, '{}', 70, undefined, 'auto');
   throwsMsg(() => ended.finishPass(), /at least one frame/);
   ended.free();
+});
+
+test('PassPlan with lens "auto" (fov auto): a lens pass over the first frames gives the degrees the stabilizer takes', () => {
+  const plan = new PassPlan(W, H, '{"framing":{"zoom":"static"}}', 'auto', 'RGBA', 'auto');
+  assert.deepEqual(plan.passes, ['lens', 'readout', 'static_zoom']);
+  assert.equal(plan.pass, 'lens');
+  assert.equal(plan.frameBudget, 90);
+  for (let i = 0; i < 30; i++) plan.push(frame(W, H, 2 * i, i % 3), i / 30);
+  assert.equal(plan.frames, 30);
+  const l = plan.finishPass();
+  assert.equal(l.pass, 'lens');
+  assert.ok(['estimated', 'fell_back'].includes(l.note), l.note);
+  assert.ok(l.hfov_deg > 0 && l.hfov_deg <= 179, String(l.hfov_deg));
+  if (l.note === 'fell_back') assert.equal(l.hfov_deg, 70);
+  assert.equal(plan.pass, 'readout');
+  plan.free();
+  // No other pass: the lens pass alone, then the parameters.
+  const only = new PassPlan(W, H, '{}', 'AUTO');
+  assert.deepEqual(only.passes, ['lens']);
+  for (let i = 0; i < 12; i++) only.push(frame(W, H, i, 0), i / 30);
+  const found = only.finishPass();
+  assert.equal(only.pass, undefined);
+  assert.equal(JSON.parse(only.paramsJson()).shutter.readout_ms, 0);
+  only.free();
+  // The stabilizer takes the degrees found; "auto" itself is the plan's.
+  new Stabilizer(W, H, '{}', found.hfov_deg).free();
+  throwsMsg(() => new Stabilizer(W, H, '{}', 'auto'), /invalid lens: "auto".*PassPlan/);
+  throwsMsg(() => new ReadoutEstimator(W, H, '{}', 'auto'), /invalid lens: "auto"/);
+  // Too few frames to estimate: an error naming them.
+  const short = new PassPlan(W, H, '{}', 'auto');
+  short.push(frame(W, H), 0);
+  throwsMsg(() => short.finishPass(), /frames/);
+  short.free();
+  // The pass keeps its frames: sizes whose 90 frames would not fit in WebAssembly memory are refused up front.
+  throwsMsg(() => new PassPlan(4096, 2160, '{}', 'auto'), /fov auto keeps the clip's first 90 frames.*give the field of view in degrees/);
+  new PassPlan(4096, 2160, '{}', 70).free();
 });
 
 test('render share: two stabilizers fed every frame draw each output once, byte for byte the single one\'s; measureOutputOf measures them in order', () => {
