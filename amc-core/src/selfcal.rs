@@ -43,8 +43,8 @@ pub struct FocalEstimate {
 }
 
 /// Score ratio (20% away in focal length vs the minimum) above which the
-/// estimate is trusted. Rotation-only synthetic clips reach 2.5-4x; real
-/// footage dominated by translation (cc9, a car driving) stays under 1.05x.
+/// estimate is trusted: rotation-only footage clears it by far, footage
+/// dominated by translation does not (see `docs/core-history.md#selfcal-confidence-ratio`).
 pub const CONFIDENCE_RATIO: f64 = 1.2;
 
 /// Estimates the focal length of a pinhole camera from `frames` (with their

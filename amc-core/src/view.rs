@@ -13,9 +13,7 @@
 //! the camera turns away on purpose. Our default `b` is half the paper's: the
 //! framing (`crate::framing`) now keeps the view within the crop budget by
 //! pulling it toward the camera where needed, so the filter itself may smooth
-//! more (measured on cup, karma and cc9: less normal flow and frame change,
-//! online and offline, for 0-2% more crop; the paper's framing, `zoom = none`,
-//! is best with the paper's 40).
+//! more (see `docs/core-history.md#view-rate-b`).
 //!
 //! ## Lookahead (offline, zero phase)
 //! With `N` future frames, the forward-filtered views `F_j..F_{j+N}` are filtered

@@ -38,11 +38,12 @@ pub struct RenderParams {
 /// depends on the sub-pixel offset: at half a pixel it halves the picture's
 /// finest detail, at a whole pixel it passes it. A stabilized view samples
 /// every frame at offsets that wander from frame to frame, so on average it
-/// costs a real picture 8-9% of its sharpness (gradient energy) before any
-/// averaging, and the blur breathes with the offset. Bicubic interpolation
-/// (4 x 4 taps, Keys' cubic convolution with `a = -1/2`, i.e. Catmull-Rom)
-/// keeps nearly all of the passband at every offset: 4 x 4 instead of 2 x 2
-/// taps, in the same 8.8 fixed point (see `kernels/common.rs`).
+/// costs a real picture some of its sharpness before any averaging (see
+/// `docs/core-history.md#render-interpolation`), and the blur breathes with the
+/// offset. Bicubic interpolation (4 x 4 taps, Keys' cubic convolution with
+/// `a = -1/2`, i.e. Catmull-Rom) keeps nearly all of the passband at every offset: 4
+/// x 4 instead of 2 x 2 taps, in the same 8.8 fixed point (see
+/// `kernels/common.rs`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Interpolation {

@@ -5,13 +5,8 @@
 //! and taken as zero, so until the gauge is first found every path is off
 //! by minus the first frame's, and later checks correct it again by small
 //! amounts. Each correction moves every later path at once; rendered as it
-//! comes, the picture's shear jumps in one frame. At 100 deg/s through a 10
-//! ms readout the first correction is the whole rotation across a readout
-//! (1.7 deg), and that one jump was all of the excess of saccade mode's
-//! normal flow without averaging over a global shutter's (1.26x over a 4 s
-//! clip; from frame 9 on, 1.01x). Even with the first frame's path known
-//! exactly from the second frame on, the first frame itself, rendered
-//! before anything is known of it, left 1.27x.
+//! comes, the picture's shear jumps in one frame, and the first correction
+//! is the whole rotation across a readout (see `docs/core-history.md#shutter-ease`).
 //!
 //! So the rendered path is the best estimate plus the part of the
 //! corrections not yet shown, `T - S`: `T` the corrections made so far, and
@@ -23,12 +18,10 @@
 
 use super::IntraFrame;
 
-/// Frames over which a correction of the gauge reaches the rendered paths
-/// (the time constant of its exponential approach). Saccade mode's normal
-/// flow without averaging over 4 s clips, as a multiple of the global
-/// shutter's, shown at once / with 8 / 12 / 20: pinhole, 100 deg/s through
-/// 10 ms, 1.26x / 1.05x / 1.04x / 1.04x; through 300 deg/s, 1.91x / 1.57x /
-/// 1.54x / 1.64x (longer, the first frames' shear lingers).
+/// Frames over which a correction of the gauge reaches the rendered paths (the
+/// time constant of its exponential approach): long enough to hide the jump,
+/// short enough that the first frames' shear does not linger (see
+/// `docs/core-history.md#shutter-ease-frames`).
 pub const EASE_FRAMES: f64 = 12.0;
 
 /// The corrections shown so far (see the module's doc).

@@ -24,10 +24,9 @@ use nalgebra::Vector2;
 
 /// Grid spacing of a [`LandingGrid`], source pixels. Between the nodes the
 /// displacement is interpolated with a Catmull-Rom cubic, whose error falls
-/// with the fourth power of the spacing: 16 px cells stay within 0.0003-0.0034
-/// px of the exact landing for 1-6 deg readout turns of a 150 deg fisheye
-/// (see the tests), under the render grid's own 0.005 px, at about as many
-/// nodes per frame as one map of the frame has.
+/// with the fourth power of the spacing: 16 px cells stay under the render
+/// grid's own 0.005 px (see the tests), at about as many nodes per frame as
+/// one map of the frame has (see `docs/core-history.md#shutter-landing-grid-step`).
 pub const LANDING_GRID_STEP: f64 = 16.0;
 
 /// The fixed-point tolerance of a node's landing (pixels): a node is computed
@@ -142,8 +141,7 @@ impl LandingGrid {
 /// Catmull-Rom weights of the four nodes around a point `t` (0..1) of the
 /// way from the second to the third: a cubic that passes through the nodes,
 /// its error falling with the fourth power of the spacing (bilinear's with
-/// the second: 16 px cells left up to 0.06 px on a 320x180 fisheye turned
-/// 6 deg across its readout).
+/// the second; see `docs/core-history.md#shutter-catmull-rom`).
 #[inline]
 fn catmull_rom(t: f64) -> [f64; 4] {
     let (t2, t3) = (t * t, t * t * t);
@@ -161,9 +159,10 @@ mod tests {
     use crate::shutter::IntraFrame;
     use crate::so3::Tangent;
 
-    /// The largest distance (px) between the grid's landing and the exact
-    /// fixed point of the same readout table (as the renderer projects), over mid-readout pixels spread across the frame and its
-    /// surroundings, and how many of them the grid answered.
+    /// The largest distance (px) between the grid's landing and the exact fixed
+    /// point of the same readout table (as the renderer projects), over
+    /// mid-readout pixels spread across the frame and its surroundings, and how
+    /// many of them the grid answered.
     fn worst_landing(cam: &CameraModel, intra: &IntraFrame) -> (f64, usize) {
         let mut rows = RollingProjector::default();
         rows.set(intra, cam.height);
@@ -214,8 +213,7 @@ mod tests {
     /// point (the render grid's own interpolation error) for the readout
     /// turns 100-300 deg/s shake makes through 10-20 ms (1-6 deg), on a
     /// 150 deg fisheye at two sizes, and answers for the frame and its
-    /// surroundings. (Measured: 0.0003-0.0013 px at 640x360, 0.0010-0.0034 px
-    /// at 320x180; bilinear cells had left 0.005-0.06 px.)
+    /// surroundings (see `docs/core-history.md#shutter-landing-test`).
     #[test]
     fn landing_matches_the_fixed_point() {
         let cams = [

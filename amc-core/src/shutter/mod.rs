@@ -18,9 +18,8 @@
 //! shake a readout can span 0.4 of a shake period: a constant velocity per
 //! frame leaves a bend that biases the mid-readout pose, so the tracker
 //! estimates the terms the motion needs (see `tracker/`), from the
-//! intensities, per frame ([`IntraFrame`]). Best fits to 300 deg/s shake at
-//! 12-20 Hz through a 20 ms readout leave, RMS over the rows: 0.40 deg
-//! (linear), 0.049 (quadratic), 0.0087 (cubic), 0.0008 (quartic).
+//! intensities, per frame ([`IntraFrame`]); a quartic follows such shake to
+//! well under the tracking error (see `docs/core-history.md#shutter-terms`).
 //!
 //! A ray seen at sensor row `y` is rotated by `exp(-a(s))`, `a(s) = s phi +
 //! s^2 psi + s^3 chi + s^4 xi`, from

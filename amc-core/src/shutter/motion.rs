@@ -30,9 +30,8 @@ pub struct IntraFrame {
     /// period, and without it the path's S-shape leaks into `phi`.
     pub chi: Tangent,
     /// Fourth-order term (radians): the readout time to the fourth over 24
-    /// times the angular snap. A 20 ms readout of 300 deg/s shake at 12-20 Hz
-    /// spans up to 0.4 of a period; the best cubic through that path is off by
-    /// 0.009 deg RMS (0.056 max), the best quartic by 0.0008 (0.005).
+    /// times the angular snap; fast shake through a long readout needs it
+    /// (see `docs/core-history.md#shutter-xi`).
     #[serde(default)]
     pub xi: Tangent,
 }

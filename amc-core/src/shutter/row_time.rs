@@ -92,18 +92,16 @@ impl RowTime {
     }
 
     /// A table's `s` at every pixel of a `width x height` pyramid level
-    /// ([`RowTime::at`] there), for sampling bilinearly between pixels as
-    /// the level's image is sampled: the tracker's vector kernels gather
-    /// from it, where a lookup through [`RowTime::at`] per point (a scalar
-    /// call with clamps and bounds checks) kept the whole per-point pass
-    /// scalar and made a distorted lens's rolling-shutter evaluations 8x a
-    /// pinhole's. Between pixels it interpolates on the level's grid rather
-    /// than the finest one's; `s` is smooth, so inside the image the two
-    /// differ by little (a 150-degree fisheye: 0.004 of a finest row at level
-    /// 1, 0.06 at level 3). Past the level's edges, where only a landing's
-    /// iterates stray, it clamps at the level's last pixel rather than at the
-    /// finest level's. `None` for an affine `s`, which the tracker evaluates
-    /// directly.
+    /// ([`RowTime::at`] there), for sampling bilinearly between pixels as the
+    /// level's image is sampled: the tracker's vector kernels gather from it,
+    /// where a lookup through [`RowTime::at`] per point (a scalar call with
+    /// clamps and bounds checks) kept the whole per-point pass scalar. Between
+    /// pixels it interpolates on the level's grid rather than the finest one's;
+    /// `s` is smooth, so inside the image the two differ by little (see
+    /// `docs/core-history.md#shutter-level-table`). Past the level's edges,
+    /// where only a landing's iterates stray, it clamps at the level's last
+    /// pixel rather than at the finest level's. `None` for an affine `s`, which
+    /// the tracker evaluates directly.
     pub fn level_table(&self, level: usize, width: usize, height: usize) -> Option<GrayImage> {
         if let RowTime::Affine { .. } = self {
             return None;

@@ -14,8 +14,9 @@
 //! The camera's orientation is one continuous curve, though, and consecutive
 //! readouts (10-20 ms, every 16.7 ms) see most of it. So the recent frames'
 //! paths are fitted together by one spline `R(t) = R_c exp(x(t))`, `x` a
-//! quintic B-spline in time with knots every half frame period, and the
-//! newest frame's pose is read off it:
+//! quintic B-spline in time with knots every half frame period (finer than
+//! the shake, coarse enough to smooth the noise), and the newest frame's pose
+//! is read off it:
 //! ```text
 //! min  sum_j sum_m g_m | log(R_c^T R_j exp(a_j(s_m))) - x(t_j + tau (1 + e) s_m) - c(s_m) |^2
 //! ```
@@ -26,46 +27,31 @@
 //! * `c(s) = sum_k c_k s^k`, the paths' common offset: alignment sees only a
 //!   frame's readout motion *relative to its template's*, and the absolute
 //!   value the tracker pins over blocks of frames ([`crate::tracker`]'s
-//!   gauge) wanders by 0.04-0.13 deg between its corrections, 5-10x the
-//!   paths' own frame-to-frame error. Fitted freely per window, the offset
-//!   leaves the paths' shapes to the fit and their level to continuity. It
-//!   is common only while every frame held is in one gauge: when the tracker
-//!   corrects its gauge (its block check, or a template regauged), the
-//!   frames held are corrected alike ([`TrajectorySmoother::regauge`]).
-//!   Before, every window that straddled a correction (each new template's,
-//!   once regauged) mixed two, and the per-frame error was 1.01-1.13x what
-//!   it is now (fisheye, 100 deg/s through 20 ms: 1.53x -> 1.36x the global
-//!   shutter's; 300 deg/s: 2.17x -> 1.95x).
+//!   gauge) wanders between its corrections by more than the paths' own
+//!   frame-to-frame error. Fitted freely per window, the offset leaves the
+//!   paths' shapes to the fit and their level to continuity. It is common
+//!   only while every frame held is in one gauge: when the tracker corrects
+//!   its gauge (its block check, or a template regauged), the frames held are
+//!   corrected alike ([`TrajectorySmoother::regauge`]).
 //! * `e`, the readout's stretch ([`Stretch`]).
-//!
-//! On a one-axis model of 12-20 Hz shake at 300 deg/s (rows uniformly
-//! informative) the error of the pose difference between frames falls from
-//! 1.88x the global shutter's (a quartic per frame) to 1.40-1.47x (10 ms
-//! readout) and 1.6-1.8x (20 ms), with no lag: only frames up to the newest
-//! are used. A knot every half frame period represents that shake to 0.1 of
-//! the noise; a knot per frame is 10-20x too coarse.
 //!
 //! The stabilizer uses the fitted pose where the tracker frees the path's
 //! bend (`psi`: a fast pace, see [`crate::tracker::Tracker::estimates_bend`]);
 //! at a slow pace it fits `phi` alone, an odd term that leaves the pose as
-//! certain as a global shutter's, and there the fit only added its own
-//! assumptions (cc9 against its gyro: 0.057 -> 0.064 deg per frame).
+//! certain as a global shutter's, and there the fit only adds its own
+//! assumptions.
 //!
 //! The fitted offset also serves the tracker: each new template is rectified
 //! again with its path less the offset ([`TrajectorySmoother::path_offset`],
 //! `Tracker::regauge_template`). A template's path off by `c` biases every
 //! frame aligned to it by about `|a| |c| / 2` (the rotations do not
-//! commute), and at 300 deg/s that bias, smooth in time and so kept by any
-//! spline, was most of the per-frame error: with it, 2.47x -> 1.62x the
-//! global shutter's (pinhole, 10 ms) and 2.42x -> 2.17x (fisheye, 20 ms).
-//! Corrected from the start, the first frames' offset (their paths 0.4 deg
-//! off while the tracker's gauge is unknown) left 0.1 deg of orientation
-//! error, so it waits for [`STRETCH_AFTER`] fits.
+//! commute), a bias smooth in time and so kept by any spline. Corrected from
+//! the start, the first frames' offset (while the tracker's gauge is
+//! unknown) would stay, so it waits for [`STRETCH_AFTER`] fits.
 //!
 //! Only the pose is replaced: the newest frame's path, at the spline's end,
-//! is pinned by its own rows alone, and there the spline's was noisier from
-//! frame to frame than the tracker's (saccade mode's normal flow 1.26x ->
-//! 1.45x the global shutter's).
+//! is pinned by its own rows alone, and there the spline's is noisier from
+//! frame to frame than the tracker's.
 //!
 //! The fit is linear: a few dozen samples and about 30 unknowns per axis
 //! with the same normal matrix for the three axes (the stretch, which
@@ -73,6 +59,8 @@
 //! in fixed buffers; nothing is allocated per frame. A small penalty on the
 //! coefficients' third differences keeps it solvable where the readout is so
 //! short that whole knot spans see no row.
+//!
+//! The measurements behind these choices: see `docs/core-history.md#shutter-trajectory`.
 
 use super::{IntraFrame, INTRA_TERMS};
 use crate::so3::{self, Rot, Tangent};
@@ -122,16 +110,13 @@ const NODES: [(f64, f64); 6] = [
 /// The tracker measures each frame's path against its rows (readout
 /// fractions), whatever the readout; the fit places row `s` at time
 /// `t + readout s`. A readout off by a share `e` misplaces the samples in
-/// time, and at 300 deg/s even 1% of a 20 ms readout is 0.05 deg at the
-/// readout's ends, 15x the poses' error. Trusting the readout given, the fit
-/// was 5-13x worse than the tracker alone with one 5% off. So `e` is a
+/// time, by far more than the poses' error at fast motion. So `e` is a
 /// parameter of every fit (a sample read at `s` is the rotation at
 /// `t + readout (1 + e) s`, to first order `x(t + readout s) + e s a'(s)`),
 /// and its estimates are pooled over the recent fits, each weighted by its
 /// information (a fast pace pins it, a slow one barely). The pooled value is
 /// the one used, and the next fit places its samples with it, so the
-/// first-order model only has to find what is left: on exact paths the
-/// readout is found to 0.02% from 5% long or 20% short.
+/// first-order model only has to find what is left (see `docs/core-history.md#shutter-stretch`).
 #[derive(Clone, Copy, Debug, Default)]
 struct Stretch {
     /// Decayed sums of information-weighted estimates and of information.
@@ -202,11 +187,10 @@ impl TrajectorySmoother {
         }
     }
 
-    /// The paths' common offset at the last fit (the tracker's gauge error,
-    /// in the newest frame's camera axes), once the fit has seen enough frames
-    /// to trust it (the tracker's first paths wait for its gauge, and were
-    /// 0.4 deg off: a template corrected with the offset of the first frames
-    /// kept 0.1 deg of orientation error).
+    /// The paths' common offset at the last fit (the tracker's gauge error, in
+    /// the newest frame's camera axes), once the fit has seen enough frames to
+    /// trust it (the tracker's first paths wait for its gauge; see
+    /// `docs/core-history.md#shutter-path-offset`).
     pub fn path_offset(&self) -> Option<IntraFrame> {
         (self.fits > STRETCH_AFTER).then_some(self.offset)
     }
@@ -214,9 +198,8 @@ impl TrajectorySmoother {
     /// The paths' common offset at the last fit, from the first fit on: what
     /// [`TrajectorySmoother::path_offset`] gives once trusted, but also while
     /// the tracker's gauge is still the first frame's (every path then has
-    /// the same offset, minus the first frame's path, and three frames pin
-    /// it to 0.1-0.2 deg at 100 deg/s through 10 ms, six to 0.04). `None`
-    /// before the first fit.
+    /// the same offset, minus the first frame's path, and a few frames pin it;
+    /// see `docs/core-history.md#shutter-fitted-offset`). `None` before the first fit.
     pub fn fitted_offset(&self) -> Option<IntraFrame> {
         (self.fits > 0).then_some(self.offset)
     }
@@ -267,8 +250,8 @@ impl TrajectorySmoother {
     /// The fit of the frames held, evaluated at the newest one.
     fn fit(&mut self) -> Option<Rot> {
         // The samples are placed with the stretch found so far, and the fit
-        // estimates what is left of it (a first-order model: from 15% off,
-        // a single step left 2.5%).
+        // estimates what is left of it (a first-order model; see
+        // `docs/core-history.md#shutter-stretch-steps`).
         let placed = 1.0 + self.stretch.value();
         let readout_s = self.readout_s * placed;
         let newest = *self.frames.back()?;
@@ -534,11 +517,11 @@ mod tests {
         }
     }
 
-    /// A gauge that changes every 5 frames (as the tracker corrects it):
-    /// told of each change ([`TrajectorySmoother::regauge`]), the fit keeps
-    /// the exact poses and finds the gauge of the newest frames; not told,
-    /// its windows mix two offsets and the poses drift off (measured: 0.0002
-    /// against 0.009 deg at worst).
+    /// A gauge that changes every 5 frames (as the tracker corrects it): told
+    /// of each change ([`TrajectorySmoother::regauge`]), the fit keeps the
+    /// exact poses and finds the gauge of the newest frames; not told, its
+    /// windows mix two offsets and the poses drift off (see
+    /// `docs/core-history.md#shutter-regauge-test`).
     #[test]
     fn a_gauge_corrected_in_steps_is_followed() {
         let (fps, readout) = (60.0, 0.015);

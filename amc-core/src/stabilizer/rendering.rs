@@ -12,8 +12,8 @@ use crate::view::Mode;
 use std::collections::VecDeque;
 
 /// The rendering stage: the ring's frames in, stabilized frames out. Apart
-/// from [`Tracking`] so that the two can run at once (see
-/// [`Stabilizer::set_pipelined`]).
+/// from [`Tracking`](super::tracking::Tracking) so that the two can run at once (see
+/// [`Stabilizer::set_pipelined`](super::Stabilizer::set_pipelined)).
 pub(super) struct Rendering {
     /// Renders colour frames, or the Y plane of planar ones.
     pub(super) warper: Warper,
@@ -52,7 +52,7 @@ pub(super) struct Rendering {
     /// Whether pixels are rendered (off: views and zoom needs only).
     pub(super) render: bool,
     /// Which outputs this stabilizer renders: output `j` when `j % share.0 ==
-    /// share.1` ([`Stabilizer::set_render_share`]); `(1, 0)`: every one.
+    /// share.1` ([`Stabilizer::set_render_share`](super::Stabilizer::set_render_share)); `(1, 0)`: every one.
     pub(super) share: (u64, u64),
     /// Lock mode's view: the first frame's orientation.
     pub(super) locked_view: Option<Rot>,

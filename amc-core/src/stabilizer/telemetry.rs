@@ -32,7 +32,7 @@ pub struct Telemetry {
     pub uncovered: u64,
     /// Rotation vector (radians, this frame's camera axes) of the camera's
     /// rotation across its readout, first row to last (`a(1/2) - a(-1/2)` of
-    /// [`IntraFrame`]; about the readout time times the angular velocity at
+    /// [`IntraFrame`](crate::shutter::IntraFrame); about the readout time times the angular velocity at
     /// mid-readout). Zero with a global shutter.
     pub readout_rotation: [f64; 3],
     /// Tracking quality.

@@ -15,7 +15,7 @@ pub(super) struct Tracking {
     /// With a rolling shutter, the recent frames' poses and readout paths
     /// fitted as one trajectory, which gives each frame its pose (`None`: a
     /// global shutter, or switched off with
-    /// [`Stabilizer::set_trajectory_smoothing`]).
+    /// [`Stabilizer::set_trajectory_smoothing`](super::Stabilizer::set_trajectory_smoothing)).
     pub(super) smoother: Option<TrajectorySmoother>,
     /// With a rolling shutter, the gauge's corrections eased into the
     /// rendered paths.
@@ -53,8 +53,9 @@ impl Tracking {
             let smoothed = smoother.push(t, r, path, weight);
             // At a slow pace the tracker fits `phi` alone, which leaves the
             // pose as certain as a global shutter's: there the fit only adds
-            // its own assumptions (cc9 against its gyro: 0.057 -> 0.064 deg
-            // per frame), and the tracker's own pose and gauge stand.
+            // its own assumptions (see
+            // `docs/core-history.md#stabilizer-slow-pace-pose`), and the
+            // tracker's own pose and gauge stand.
             if self.tracker.estimates_bend() {
                 // A new template is rectified again with its path's level as
                 // the trajectory finds it (the tracker's own gauge check is

@@ -9,13 +9,14 @@ use nalgebra::Matrix3;
 
 impl Warper {
     /// Renders the average of frames `frame_at(0..n)` (with `rotations[i]`, the
-    /// output->source rotation of frame `i`) into `out` (interleaved, `channels`
-    /// 3 or 4) in one pass: per output row the source coordinates of every
-    /// frame are computed into small row buffers, then each pixel samples all
-    /// frames and is written once. `coverage` receives the per-pixel count of
-    /// covering frames. Returns the share of pixels covered by every frame.
-    /// Supersampled: each pixel is its block's [`box_down`], its coverage the
-    /// block's least.
+    /// output->source rotation of frame `i`) into `out` (interleaved,
+    /// `channels` 3 or 4) in one pass: per output row the source coordinates of
+    /// every frame are computed into small row buffers, then each pixel samples
+    /// all frames and is written once. `coverage` receives the per-pixel count
+    /// of covering frames. Returns the share of pixels covered by every frame.
+    /// Supersampled: each pixel is its block's
+    /// [`box_down`](super::downsample::box_down), its coverage the block's
+    /// least.
     pub fn average_into<'a, F: Fn(usize) -> FrameRef<'a>>(
         &mut self,
         frame_at: F,

@@ -117,8 +117,9 @@ pub(super) fn finish_gray_row(
     complete
 }
 
-/// Writes one interleaved output row from [`Warper::merge_row`]'s weighted
-/// sums (every pixel); returns the pixels every frame covers.
+/// Writes one interleaved output row from
+/// [`Warper::merge_row`](super::Warper::merge_row)'s weighted sums (every
+/// pixel); returns the pixels every frame covers.
 pub(super) fn finish_merged_rgb_row(
     kernel: Kernel,
     scratch: &RowScratch,
@@ -157,8 +158,9 @@ pub(super) fn finish_merged_rgb_row(
     complete
 }
 
-/// Writes one single-channel output row from [`Warper::merge_row`]'s weighted
-/// sums (uncovered pixels `fill`); returns the pixels every frame covers.
+/// Writes one single-channel output row from
+/// [`Warper::merge_row`](super::Warper::merge_row)'s weighted sums (uncovered
+/// pixels `fill`); returns the pixels every frame covers.
 pub(super) fn finish_merged_gray_row(
     scratch: &RowScratch,
     out_row: &mut [u8],

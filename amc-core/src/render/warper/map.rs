@@ -9,8 +9,8 @@ use nalgebra::Matrix3;
 /// The fixed-point tolerance of a grid node's rolling-shutter projection
 /// (pixels, see [`RollingProjector::project_within`]): it leaves the node
 /// within about a tenth of this (the iteration contracts by under 0.1 per
-/// step), far inside the 0.005 px of the grid's interpolation; at a tenth of
-/// it, a 320x180 run's nodes took 3.3 projections each instead of 3.1.
+/// step), far inside the 0.005 px of the grid's interpolation; tighter costs
+/// projections for nothing (see `docs/core-history.md#render-node-tolerance-px`).
 pub(super) const NODE_TOLERANCE_PX: f64 = 1e-3;
 
 // Both steps fit the grid fill's table of in-cell offsets.
@@ -46,8 +46,7 @@ impl Warper {
             // Each node starts from the row its two left neighbours' rows
             // extrapolate to (the landing row changes almost linearly along a
             // grid row), or the one left neighbour's, so fewer fixed-point
-            // steps are left to take (the nodes' projections went from 11.6%
-            // to 10.7% of a 320x180 run with a 15 ms readout).
+            // steps are left to take (see `docs/core-history.md#render-node-guess`).
             let (mut prev, mut last) = (None, None);
             for (i, ray) in self.grid_rays.iter().enumerate() {
                 if i % self.grid_w == 0 {

@@ -7,14 +7,15 @@
 //! plane's (the chroma planes of 4:2:0 frames by one built for the half-size
 //! cameras, [`chroma_camera`]): one geometry, three planes.
 //!
-//! Supersampling (anti-aliasing of minified outputs, [`super::Antialias`]):
-//! a warper built with `S > 1` ([`Warper::supersampled`]) renders every output
+//! Supersampling (anti-aliasing of minified outputs, [`super::Antialias`]): a
+//! warper built with `S > 1` ([`Warper::supersampled`]) renders every output
 //! through the same kernels into a grid `S` times finer per axis, the output
 //! camera rescaled pixel-centre correct (`f' = S f`, `c' = S c + (S - 1) / 2`:
-//! fine pixel `S i + k` looks along the ray of output position
-//! `i + (k - (S - 1) / 2) / S`, so the `S x S` samples of a pixel are spread
-//! evenly over it around its centre), then averages each `S x S` block in
-//! integers ([`box_down`], [`box_down_slot`]): the same bytes whatever the
+//! fine pixel `S i + k` looks along the ray of output position `i + (k - (S -
+//! 1) / 2) / S`, so the `S x S` samples of a pixel are spread evenly over it
+//! around its centre), then averages each `S x S` block in integers
+//! ([`box_down`](downsample::box_down),
+//! [`box_down_slot`](downsample::box_down_slot)): the same bytes whatever the
 //! kernel. With `S = 1` nothing of this runs and the output is the plain one.
 //!
 //! Output rows are independent. With the `parallel` feature, a frame's rows
@@ -50,8 +51,9 @@ pub const GRID_STEP: usize = 8;
 
 /// Grid spacing (output pixels) of a pinhole source's map through a rolling
 /// shutter: the map is a homography bent smoothly by the readout motion, and
-/// bilinear interpolation over 16 px cells stays within 0.005 px of it (a
-/// 90 deg lens turned by 5 deg); a quarter of the nodes of [`GRID_STEP`].
+/// bilinear interpolation over 16 px cells stays within 0.005 px of it (see
+/// `docs/core-history.md#render-rolling-grid-step`); a quarter of the nodes of
+/// [`GRID_STEP`].
 pub const ROLLING_GRID_STEP: usize = 16;
 
 /// Samples source frames along rotated output rays.

@@ -81,7 +81,7 @@ impl Warper {
     /// frame `i`'s pair, the averages go to `out_a` and `out_b`, the covering
     /// frames (the same for both) to `coverage`. The vector kernels sample both
     /// planes along a row at once, finding each pixel's taps once (see
-    /// [`Kernel::accumulate_row_gray_pair`]); ghost-free averaging and
+    /// [`Kernel::accumulate_row_gray_pair`](crate::render::kernels::Kernel::accumulate_row_gray_pair)); ghost-free averaging and
     /// unpadded planes take the planes one after the other. Returns how many
     /// pixels every frame covers. Supersampled: as [`Warper::average_into`].
     #[allow(clippy::too_many_arguments)]

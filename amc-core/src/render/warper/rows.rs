@@ -187,7 +187,7 @@ impl Warper {
         coords
     }
 
-    /// The ghost-free row (see [`super::robust`]): every frame of `pass` sampled
+    /// The ghost-free row (see [`crate::render::robust`]): every frame of `pass` sampled
     /// along row `v` and weighted by its agreement with the last (newest)
     /// frame, by the vector kernel for the first `n8` pixels and the scalar
     /// reference for the rest: weighted sums in `scratch.sums` (three channels,

@@ -20,7 +20,7 @@ impl Warper {
     /// A warper from frames of `src` into `out` (a pinhole) that averages
     /// `supersample x supersample` samples per output pixel (clamped to
     /// `1..=MAX_SUPERSAMPLE`; see the module's docs and
-    /// [`super::RenderParams::supersample`]). `S^2` times the sampling work.
+    /// [`crate::render::RenderParams::supersample`]). `S^2` times the sampling work.
     pub fn supersampled(src: &CameraModel, view: &CameraModel, supersample: usize) -> Self {
         let s = supersample.clamp(1, MAX_SUPERSAMPLE);
         // `S = 1` keeps the camera as it is (rescaling by 1 could round).
@@ -90,7 +90,7 @@ impl Warper {
 
     /// Averages of several frames ([`Warper::average_into`],
     /// [`Warper::average_plane_into`]) weight each frame's pixel by its
-    /// agreement with the last frame's (see [`super::robust`]); `None` (the
+    /// agreement with the last frame's (see [`crate::render::robust`]); `None` (the
     /// default) averages plainly.
     pub fn set_deghost(&mut self, deghost: Option<Deghost>) {
         self.deghost = deghost;
@@ -141,7 +141,7 @@ impl Warper {
     /// between them). Empty (the default) for a global shutter. Frames beyond
     /// the list, or with empty tables, are sampled as with a global shutter.
     ///
-    /// A distorted source's frames each get a [`LandingGrid`] when they are
+    /// A distorted source's frames each get a [`LandingGrid`](crate::shutter::LandingGrid) when they are
     /// rendered averaged with others: their nodes then take one projection
     /// through the lens and a lookup instead of two to three projections,
     /// within 0.005 px of the fixed point. A frame passed again in a later

@@ -50,12 +50,12 @@ pub(in crate::render::kernels) unsafe fn finish_row_rgba(
     }
 }
 
-/// Finishes `n8` pixels (a multiple of 4) of a single-channel output row
-/// (a plane of a planar frame) from the kernel's sums, as the scalar pass in
-/// the warper does: `(sum as f32 * (1 / (256 n)) + 0.5) as u8`, `fill` where
-/// `n = 0`, the coverage `n` as a byte; returns the pixels whose count is
-/// `full`. (The scalar pass did not vectorize in V8: it was 9% of a 320x180
-/// render.)
+/// Finishes `n8` pixels (a multiple of 4) of a single-channel output row (a
+/// plane of a planar frame) from the kernel's sums, as the scalar pass in the
+/// warper does: `(sum as f32 * (1 / (256 n)) + 0.5) as u8`, `fill` where
+/// `n = 0`, the coverage `n` as a byte; returns the pixels whose count is `full`.
+/// (The scalar pass did not vectorize in V8; see
+/// `docs/core-history.md#render-simd128-finish-gray`.)
 ///
 /// # Safety
 /// `sum` and `count` must hold at least `n8` values, `out` and `coverage` at
