@@ -1,7 +1,7 @@
 //! Media fixtures shared by every test that needs ffmpeg: the one place that runs `ffmpeg` and
 //! `ffprobe`, and that makes test clips and pictures from ffmpeg's `lavfi` generators
-//! (`testsrc2`, `sine`). Used by the end-to-end tests in `tests/` and by amc-video's own tests
-//! (a dev-dependency of amc-video; this crate must never depend on amc-video).
+//! (`testsrc2`, `sine`). Used by the end-to-end tests in `tests/` and by amc-video's and
+//! amc-server's own tests (a dev-dependency of both; this crate must never depend on them).
 
 use std::ffi::OsStr;
 use std::path::Path;
@@ -52,29 +52,56 @@ pub fn test_picture(out: &Path, width: u32, height: u32) {
     );
 }
 
+/// ffmpeg's output arguments of the test clips' video: H.264 (x264's fastest preset), yuv420p.
+const H264: [&str; 6] = [
+    "-c:v",
+    "libx264",
+    "-preset",
+    "ultrafast",
+    "-pix_fmt",
+    "yuv420p",
+];
+
+/// ffmpeg's moving `testsrc2` pattern at `width`x`height` and `fps` frames/s.
+fn moving_pattern(width: u32, height: u32, fps: u32) -> String {
+    format!("testsrc2=size={width}x{height}:rate={fps}")
+}
+
 /// A test clip with sound, `seconds` long: ffmpeg's moving `testsrc2` pattern at
 /// `width`x`height` and `fps` frames/s (H.264, yuv420p), with a 440 Hz tone (AAC, 48 kHz).
 /// The container follows `out`'s extension (`.mp4`, `.mkv`...).
 pub fn test_clip(out: &Path, width: u32, height: u32, fps: u32, seconds: f64) {
+    let seconds = seconds.to_string();
     lavfi(
         out,
         &[
-            &format!("testsrc2=size={width}x{height}:rate={fps}"),
+            &moving_pattern(width, height, fps),
             "sine=frequency=440:sample_rate=48000",
         ],
         &[
-            "-t",
-            &seconds.to_string(),
-            "-c:v",
-            "libx264",
-            "-preset",
-            "ultrafast",
-            "-pix_fmt",
-            "yuv420p",
-            "-c:a",
-            "aac",
-            "-shortest",
-        ],
+            &["-t", seconds.as_str()][..],
+            &H264,
+            &["-c:a", "aac", "-shortest"],
+        ]
+        .concat(),
+    );
+}
+
+/// A test clip without sound: [`test_clip`]'s picture alone, then ffmpeg's output arguments
+/// `args` (`-movflags +faststart`...).
+pub fn silent_test_clip(
+    out: &Path,
+    width: u32,
+    height: u32,
+    fps: u32,
+    seconds: f64,
+    args: &[&str],
+) {
+    let seconds = seconds.to_string();
+    lavfi(
+        out,
+        &[&moving_pattern(width, height, fps)],
+        &[&["-t", seconds.as_str()][..], &H264, args].concat(),
     );
 }
 

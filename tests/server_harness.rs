@@ -200,6 +200,15 @@ impl Drop for Server {
 
 /// Direct children of `pid` whose command name is `name`.
 pub fn children_named(pid: u32, name: &str) -> Vec<u32> {
+    children(pid)
+        .into_iter()
+        .filter(|(_, comm)| comm == name)
+        .map(|(child, _)| child)
+        .collect()
+}
+
+/// Direct children of `pid`, with their command names.
+pub fn children(pid: u32) -> Vec<(u32, String)> {
     let mut out = Vec::new();
     for e in std::fs::read_dir("/proc").into_iter().flatten().flatten() {
         let Ok(child) = e.file_name().to_string_lossy().parse::<u32>() else {
@@ -212,13 +221,12 @@ pub fn children_named(pid: u32, name: &str) -> Vec<u32> {
         let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else {
             continue;
         };
-        let comm = &stat[open + 1..close];
         let ppid = stat[close + 1..]
             .split_whitespace()
             .nth(1)
             .and_then(|p| p.parse::<u32>().ok());
-        if ppid == Some(pid) && comm == name {
-            out.push(child);
+        if ppid == Some(pid) {
+            out.push((child, stat[open + 1..close].to_string()));
         }
     }
     out
@@ -256,13 +264,42 @@ pub fn rss_kb(pid: u32) -> u64 {
         .unwrap_or(0)
 }
 
-/// An HTTP client that returns 4xx/5xx responses instead of errors.
+/// An HTTP client that returns 4xx/5xx responses instead of errors, 300 s per request.
 pub fn agent() -> ureq::Agent {
+    agent_with_timeout(Duration::from_secs(300))
+}
+
+/// An HTTP client that returns 4xx/5xx responses instead of errors, `timeout` per request.
+pub fn agent_with_timeout(timeout: Duration) -> ureq::Agent {
     ureq::Agent::config_builder()
         .http_status_as_error(false)
-        .timeout_global(Some(Duration::from_secs(300)))
+        .timeout_global(Some(timeout))
         .build()
         .into()
+}
+
+/// The status [`answer`] and [`raw_request`] give a request that got no answer.
+pub const NO_ANSWER: u16 = 0;
+
+/// Status and body of a finished request; [`NO_ANSWER`] with `"{what}: {error}"` as the
+/// body when there was no answer (a transport error).
+pub fn answer(
+    result: Result<ureq::http::Response<ureq::Body>, ureq::Error>,
+    what: &str,
+) -> (u16, Vec<u8>) {
+    match result {
+        Ok(mut res) => (res.status().as_u16(), body(&mut res)),
+        Err(e) => (NO_ANSWER, format!("{what}: {e}").into_bytes()),
+    }
+}
+
+/// The whole body of a response (empty if it cannot be read).
+fn body(res: &mut ureq::http::Response<ureq::Body>) -> Vec<u8> {
+    res.body_mut()
+        .with_config()
+        .limit(u64::MAX)
+        .read_to_vec()
+        .unwrap_or_default()
 }
 
 /// A finished HTTP exchange.
@@ -302,16 +339,10 @@ fn reply(mut res: ureq::http::Response<ureq::Body>) -> Reply {
         .iter()
         .map(|(k, v)| (k.to_string(), v.to_str().unwrap_or("").to_string()))
         .collect();
-    let body = res
-        .body_mut()
-        .with_config()
-        .limit(u64::MAX)
-        .read_to_vec()
-        .unwrap_or_default();
     Reply {
         status,
         headers,
-        body,
+        body: body(&mut res),
     }
 }
 
@@ -367,7 +398,7 @@ pub fn post_multipart(url: &str, parts: &[(&str, &str, &str, &[u8])]) -> Reply {
 }
 
 /// Sends a request by hand: `head` (request line and headers, without the
-/// final blank line) then `body`, then reads whatever comes back (status 0 if nothing).
+/// final blank line) then `body`, then reads whatever comes back ([`NO_ANSWER`] if nothing).
 pub fn raw_request(addr: &str, head: &str, body: &[u8], close_early: bool) -> u16 {
     let mut s = TcpStream::connect(addr).expect("connect");
     s.set_read_timeout(Some(Duration::from_secs(30))).ok();
@@ -376,7 +407,7 @@ pub fn raw_request(addr: &str, head: &str, body: &[u8], close_early: bool) -> u1
     if close_early {
         // The client goes away mid-upload.
         let _ = s.shutdown(std::net::Shutdown::Both);
-        return 0;
+        return NO_ANSWER;
     }
     let mut out = Vec::new();
     let _ = s.read_to_end(&mut out);
@@ -384,7 +415,7 @@ pub fn raw_request(addr: &str, head: &str, body: &[u8], close_early: bool) -> u1
     text.split_whitespace()
         .nth(1)
         .and_then(|c| c.parse().ok())
-        .unwrap_or(0)
+        .unwrap_or(NO_ANSWER)
 }
 
 /// A WebSocket client on `path` with a read timeout.

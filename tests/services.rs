@@ -12,6 +12,7 @@
 //! `AMC_REQUIRE_SERVICES=1` (CI sets it, see `.ci/run`) it panics instead, saying how to
 //! install it.
 
+use crate::server::{agent_with_timeout, answer};
 use std::collections::BTreeSet;
 use std::io::{Read, Seek, SeekFrom};
 use std::net::TcpListener;
@@ -568,7 +569,7 @@ impl SeaweedS3 {
     /// `/buckets/BUCKET/`, without the parts of unfinished multipart uploads in `.uploads/`).
     pub fn object_keys(&self) -> Vec<String> {
         const LIMIT: usize = 1000;
-        let agent = agent(Duration::from_secs(30));
+        let agent = agent_with_timeout(Duration::from_secs(30));
         let mut keys = Vec::new();
         let mut folders = vec![String::new()];
         while let Some(folder) = folders.pop() {
@@ -581,7 +582,7 @@ impl SeaweedS3 {
                     uri_encode(&folder, true),
                     uri_encode(&last, false)
                 );
-                let (status, body) = http(
+                let (status, body) = answer(
                     agent.get(&url).header("Accept", "application/json").call(),
                     &url,
                 );
@@ -677,7 +678,7 @@ impl SeaweedS3 {
         .expect("bucket");
         let credentials = Credentials::new(self.access_key.clone(), secret.to_string());
         let valid = Duration::from_secs(300);
-        let agent = agent(timeout);
+        let agent = agent_with_timeout(timeout);
         let (url, result) = match method {
             "PUT" => {
                 let url = bucket.put_object(Some(&credentials), key).sign(valid);
@@ -696,7 +697,7 @@ impl SeaweedS3 {
             }
             _ => panic!("unsupported S3 request {method} {key:?}"),
         };
-        http(result, url.as_str())
+        answer(result, url.as_str())
     }
 
     fn data_dir(&self) -> PathBuf {
@@ -812,7 +813,10 @@ impl SeaweedS3 {
     /// `/dir/status` topology); `None` while it does not list the volume server.
     fn master_volumes(&self) -> Option<usize> {
         let url = format!("http://127.0.0.1:{}/dir/status", self.ports.master);
-        let (status, body) = http(agent(Duration::from_secs(2)).get(&url).call(), &url);
+        let (status, body) = answer(
+            agent_with_timeout(Duration::from_secs(2)).get(&url).call(),
+            &url,
+        );
         if status != 200 {
             return None;
         }
@@ -1091,36 +1095,6 @@ fn volume_files(dir: &Path) -> usize {
         .sum()
 }
 
-/// An HTTP client that returns 4xx/5xx responses instead of errors.
-fn agent(timeout: Duration) -> ureq::Agent {
-    ureq::Agent::config_builder()
-        .http_status_as_error(false)
-        .timeout_global(Some(timeout))
-        .build()
-        .into()
-}
-
-/// Status and body of a finished request; status 0 (and the error as the body) when there was
-/// no answer.
-fn http(
-    result: Result<ureq::http::Response<ureq::Body>, ureq::Error>,
-    url: &str,
-) -> (u16, Vec<u8>) {
-    match result {
-        Ok(mut res) => {
-            let status = res.status().as_u16();
-            let body = res
-                .body_mut()
-                .with_config()
-                .limit(u64::MAX)
-                .read_to_vec()
-                .unwrap_or_default();
-            (status, body)
-        }
-        Err(e) => (0, format!("{url}: {e}").into_bytes()),
-    }
-}
-
 /// Percent-encodes all but the unreserved characters (RFC 3986), and `/` when `keep_slash`:
 /// the encoding of paths and query values that SigV4 signs.
 fn uri_encode(s: &str, keep_slash: bool) -> String {
@@ -1143,6 +1117,7 @@ mod tests {
     //! leave nothing behind. Skipped (a `skipped:` line) where they are not installed.
 
     use super::*;
+    use crate::server::children;
     use std::net::TcpStream;
 
     /// Waits (up to 10 s) until none of `pids` is alive; panics naming those left.
@@ -1166,32 +1141,10 @@ mod tests {
         let mut tree = vec![pid];
         let mut i = 0;
         while i < tree.len() {
-            tree.extend(children(tree[i]));
+            tree.extend(children(tree[i]).into_iter().map(|(child, _)| child));
             i += 1;
         }
         tree
-    }
-
-    /// Direct children of `pid`.
-    fn children(pid: u32) -> Vec<u32> {
-        let mut out = Vec::new();
-        for e in std::fs::read_dir("/proc").into_iter().flatten().flatten() {
-            let Ok(child) = e.file_name().to_string_lossy().parse::<u32>() else {
-                continue;
-            };
-            let Ok(stat) = std::fs::read_to_string(format!("/proc/{child}/stat")) else {
-                continue;
-            };
-            // pid (comm) state ppid ...
-            let ppid = stat
-                .rfind(')')
-                .and_then(|i| stat[i + 1..].split_whitespace().nth(1))
-                .and_then(|p| p.parse::<u32>().ok());
-            if ppid == Some(pid) {
-                out.push(child);
-            }
-        }
-        out
     }
 
     fn refuses_connections(port: u16) -> bool {
@@ -1259,9 +1212,9 @@ mod tests {
         assert!(s3.endpoint().starts_with("http://127.0.0.1:"));
 
         // Anonymous and wrongly signed requests are refused.
-        let anonymous = agent(Duration::from_secs(10));
+        let anonymous = agent_with_timeout(Duration::from_secs(10));
         let url = format!("{}/{}/", s3.endpoint(), s3.bucket());
-        assert_eq!(http(anonymous.get(&url).call(), &url).0, 403);
+        assert_eq!(answer(anonymous.get(&url).call(), &url).0, 403);
         let (status, _) =
             s3.s3_request_signed_with("HEAD", "", b"", "wrong-secret", Duration::from_secs(10));
         assert_eq!(status, 403);

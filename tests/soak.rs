@@ -34,8 +34,10 @@
 //!
 //! The report (one row per sample, then the statuses by kind) goes to stdout.
 
-use amc_e2e::fixtures::{lavfi, test_clip, test_picture};
-use amc_e2e::server::{multipart_body, raw_request, rss_kb, websocket, Server};
+use amc_e2e::fixtures::{silent_test_clip, test_clip, test_picture};
+use amc_e2e::server::{
+    self, agent_with_timeout, multipart_body, raw_request, rss_kb, websocket, Server, NO_ANSWER,
+};
 use amc_e2e::{data, s};
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -45,8 +47,6 @@ use tungstenite::Message;
 
 /// Longest any one request may take before it counts as a failure.
 const REQUEST_TIMEOUT: Duration = Duration::from_secs(60);
-/// Status recorded for a request that got no answer (the client left, or a transport error).
-const NO_ANSWER: u16 = 0;
 
 /// Statuses by kind of traffic, and what went wrong.
 #[derive(Default)]
@@ -117,28 +117,13 @@ impl Rng {
 }
 
 fn agent() -> ureq::Agent {
-    ureq::Agent::config_builder()
-        .http_status_as_error(false)
-        .timeout_global(Some(REQUEST_TIMEOUT))
-        .build()
-        .into()
+    agent_with_timeout(REQUEST_TIMEOUT)
 }
 
-/// A reply's status and body, or the transport error as status 0.
+/// A reply's status and body, or the transport error as [`NO_ANSWER`] (also the status
+/// recorded for a request whose client left).
 fn answer(r: Result<ureq::http::Response<ureq::Body>, ureq::Error>) -> (u16, Vec<u8>) {
-    match r {
-        Ok(mut res) => {
-            let status = res.status().as_u16();
-            let body = res
-                .body_mut()
-                .with_config()
-                .limit(u64::MAX)
-                .read_to_vec()
-                .unwrap_or_default();
-            (status, body)
-        }
-        Err(e) => (NO_ANSWER, format!("transport error: {e}").into_bytes()),
-    }
+    server::answer(r, "transport error")
 }
 
 fn get(agent: &ureq::Agent, url: &str) -> (u16, Vec<u8>) {
@@ -213,22 +198,7 @@ fn make_clips(dir: &std::path::Path) -> Clips {
     // 3 s with the index (moov) first, so its first half decodes to 45 of the 90 frames
     // it declares.
     let whole = dir.join("whole.mp4");
-    lavfi(
-        &whole,
-        &["testsrc2=size=160x90:rate=30"],
-        &[
-            "-t",
-            "3",
-            "-c:v",
-            "libx264",
-            "-preset",
-            "ultrafast",
-            "-pix_fmt",
-            "yuv420p",
-            "-movflags",
-            "+faststart",
-        ],
-    );
+    silent_test_clip(&whole, 160, 90, 30, 3.0, &["-movflags", "+faststart"]);
     let whole = std::fs::read(&whole).unwrap();
     Clips {
         good: std::fs::read(&good).unwrap(),

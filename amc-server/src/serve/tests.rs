@@ -259,30 +259,7 @@ fn job_times_are_rfc3339() {
 /// A 1 s, 160x90, 30 fps H.264 clip in `dir`.
 fn small_clip(dir: &std::path::Path) -> std::path::PathBuf {
     let clip = dir.join("clip.mp4");
-    let ok = std::process::Command::new("ffmpeg")
-        .args([
-            "-v",
-            "error",
-            "-f",
-            "lavfi",
-            "-i",
-            "testsrc2=size=160x90:rate=30",
-            "-t",
-            "1",
-        ])
-        .args([
-            "-c:v",
-            "libx264",
-            "-preset",
-            "ultrafast",
-            "-pix_fmt",
-            "yuv420p",
-        ])
-        .arg(&clip)
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false);
-    assert!(ok, "ffmpeg could not make a test clip");
+    amc_e2e::fixtures::silent_test_clip(&clip, 160, 90, 30, 1.0, &[]);
     clip
 }
 
