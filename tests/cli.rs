@@ -12,17 +12,7 @@ fn eval_plot_and_markdown_table() {
         &["--seconds", "2", "--shake-dps", "100", "--seed", "7"],
     );
     let plot = tmp.path().join("p.png");
-    let r = amc_ok(&[
-        "eval".to_string(),
-        s(&clip),
-        "--lens".into(),
-        s(&clip.join("lens.json")),
-        "--fps".into(),
-        "60".into(),
-        "--plot".into(),
-        s(&plot),
-        "-q".into(),
-    ]);
+    let r = eval_synth_clip(&clip, &["--plot", &s(&plot), "-q"]);
     eprintln!("[eval] stdout:\n{}", r.stdout);
     let bytes = std::fs::read(&plot).expect("eval wrote no plot");
     eprintln!(

@@ -391,6 +391,37 @@ pub fn synth(dir: &Path, args: &[&str]) {
     assert!(dir.join("gt.csv").exists() && dir.join("lens.json").exists());
 }
 
+/// `amc synth` arguments of the scenario tests' clips (`ground_truth.rs`, `paper_effect.rs`):
+/// 10 s of 320x180 at 60 frames/s, shaking in the 12-20 Hz band (each row adds its speed, its
+/// seed, and its lens or pan).
+pub const SHAKY_CLIP: [&str; 10] = [
+    "--width",
+    "320",
+    "--height",
+    "180",
+    "--fps",
+    "60",
+    "--shake-band",
+    "12,20",
+    "--seconds",
+    "10",
+];
+
+/// Runs `amc eval CLIP --lens CLIP/lens.json --fps 60 ARGS...` on a clip rendered by [`synth`]
+/// (at 60 frames/s) and panics with its output unless it succeeds.
+pub fn eval_synth_clip(clip: &Path, args: &[&str]) -> Run {
+    let mut a = vec![
+        "eval".to_string(),
+        s(clip),
+        "--lens".into(),
+        s(&clip.join("lens.json")),
+        "--fps".into(),
+        "60".into(),
+    ];
+    a.extend(args.iter().map(|s| s.to_string()));
+    amc_ok(&a)
+}
+
 /// Reads the `metrics` object of a `--metrics` JSON file.
 pub fn read_json(path: &Path) -> serde_json::Value {
     let text = std::fs::read_to_string(path)

@@ -54,7 +54,7 @@ fn assert_finite(e: &GtErrors) {
 struct Scenario {
     /// Label in the test's output.
     name: &'static str,
-    /// `amc synth` arguments besides the lens: size, rate, shake, length, seed.
+    /// `amc synth` arguments besides [`SHAKY_CLIP`]'s and the lens: shake speed, seed.
     synth: &'static [&'static str],
     /// `amc synth`'s lens arguments (the stabilizer reads the clip's lens.json).
     lens: &'static [&'static str],
@@ -66,25 +66,10 @@ struct Scenario {
     cross_check_eval: bool,
 }
 
-/// A clip of 320x180 at 60 frames/s, 10 s, shaking at 12-20 Hz at `$dps` deg/s.
+/// A [`SHAKY_CLIP`] shaking at `$dps` deg/s.
 macro_rules! shake {
     ($dps:literal, seed $seed:literal) => {
-        &[
-            "--width",
-            "320",
-            "--height",
-            "180",
-            "--fps",
-            "60",
-            "--shake-band",
-            "12,20",
-            "--shake-dps",
-            $dps,
-            "--seconds",
-            "10",
-            "--seed",
-            $seed,
-        ]
+        &["--shake-dps", $dps, "--seed", $seed]
     };
 }
 
@@ -133,7 +118,12 @@ scenarios! {
 /// Renders, stabilizes and checks one scenario.
 fn run_scenario(sc: &Scenario) {
     let tmp = tempfile::tempdir().unwrap();
-    let args: Vec<&str> = sc.synth.iter().chain(sc.lens).copied().collect();
+    let args: Vec<&str> = SHAKY_CLIP
+        .iter()
+        .chain(sc.synth)
+        .chain(sc.lens)
+        .copied()
+        .collect();
     let e = run_clip(tmp.path(), &args);
     let name = sc.name;
     report(name, &e);
@@ -141,18 +131,7 @@ fn run_scenario(sc: &Scenario) {
     if sc.cross_check_eval {
         // Cross-check: `amc eval --gt --json` reports the same median per-frame error.
         let clip = tmp.path().join("clip");
-        let r = amc_ok(&[
-            "eval".to_string(),
-            s(&clip),
-            "--lens".into(),
-            s(&clip.join("lens.json")),
-            "--fps".into(),
-            "60".into(),
-            "--gt".into(),
-            s(&clip.join("gt.csv")),
-            "--json".into(),
-            "-q".into(),
-        ]);
+        let r = eval_synth_clip(&clip, &["--gt", &s(&clip.join("gt.csv")), "--json", "-q"]);
         let v: serde_json::Value = serde_json::from_str(r.stdout.trim())
             .unwrap_or_else(|e| panic!("eval --json printed no JSON ({e}):\n{}", r.stdout));
         let modes = v["modes"].as_array().expect("eval JSON has no modes array");

@@ -106,8 +106,8 @@ fn check_bars(name: &str, none: &ModeRun, stab: &ModeRun, sacc: &ModeRun) -> Vec
 
 /// Where a scenario's footage comes from.
 enum Input {
-    /// A clip rendered by `amc synth` with these arguments.
-    Synth(&'static [&'static str]),
+    /// A [`SHAKY_CLIP`] rendered by `amc synth`, with these arguments besides.
+    ShakyClip(&'static [&'static str]),
     /// Shared real data (a file or a folder of frames).
     Data(&'static str),
 }
@@ -166,23 +166,13 @@ macro_rules! scenarios {
 scenarios! {
     paper_effect_synthetic: Scenario {
         name: "synthetic 100 deg/s + 15 deg/s pan",
-        input: Input::Synth(&[
-            "--width",
-            "320",
-            "--height",
-            "180",
-            "--fps",
-            "60",
+        input: Input::ShakyClip(&[
             "--fov",
             "90",
             "--shake-dps",
             "100",
-            "--shake-band",
-            "12,20",
             "--pan-dps",
             "15",
-            "--seconds",
-            "10",
             "--seed",
             "4",
         ]),
@@ -226,9 +216,9 @@ scenarios! {
 fn run_scenario(sc: &Scenario) {
     let tmp = tempfile::tempdir().unwrap();
     let input = match sc.input {
-        Input::Synth(args) => {
+        Input::ShakyClip(args) => {
             let clip = tmp.path().join("clip");
-            synth(&clip, args);
+            synth(&clip, &[&SHAKY_CLIP[..], args].concat());
             clip
         }
         Input::Data(rel) => data(rel),
