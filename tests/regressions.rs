@@ -12,6 +12,19 @@ fn cup() -> std::path::PathBuf {
     data("cup/cup.mp4")
 }
 
+/// `amc stabilize cup.mp4 -o OUT --fov 60 ARGS...`; panics unless it succeeds.
+fn stabilize_cup(out: &std::path::Path, args: &[&str]) -> Run {
+    let cup = s(&cup());
+    let out = s(out);
+    amc_ok(
+        &[
+            &["stabilize", cup.as_str(), "-o", out.as_str(), "--fov", "60"][..],
+            args,
+        ]
+        .concat(),
+    )
+}
+
 #[test]
 fn an_output_that_is_the_input_is_refused_and_nothing_is_touched() {
     let d = tempfile::tempdir().unwrap();
@@ -155,14 +168,17 @@ fn synthetic_folders_are_read_at_their_own_rate() {
         &["--seconds", "0.5", "--width", "64", "--height", "36"],
     );
     assert!(clip.join("meta.json").is_file());
-    let r = run_amc(&[
-        "stabilize",
-        &s(&clip),
-        "-o",
-        &s(&d.path().join("o.y4m")),
-        "--lens",
-        &s(&clip.join("lens.json")),
-    ]);
+    let stabilize = |out: &str| {
+        run_amc(&[
+            "stabilize",
+            &s(&clip),
+            "-o",
+            &s(&d.path().join(out)),
+            "--lens",
+            &s(&clip.join("lens.json")),
+        ])
+    };
+    let r = stabilize("o.y4m");
     assert_eq!(r.code, Some(0), "{}", r.stderr);
     assert!(!r.stderr.contains("assuming"), "{}", r.stderr);
     let y4m = std::fs::read(d.path().join("o.y4m")).unwrap();
@@ -172,14 +188,7 @@ fn synthetic_folders_are_read_at_their_own_rate() {
     // A folder that states no rate gets a warning.
     std::fs::remove_file(clip.join("meta.json")).unwrap();
     std::fs::remove_file(clip.join("gt.csv")).unwrap();
-    let r = run_amc(&[
-        "stabilize",
-        &s(&clip),
-        "-o",
-        &s(&d.path().join("p.y4m")),
-        "--lens",
-        &s(&clip.join("lens.json")),
-    ]);
+    let r = stabilize("p.y4m");
     assert!(r.stderr.contains("assuming 30 frames/s"), "{}", r.stderr);
 }
 
@@ -240,21 +249,18 @@ fn every_output_gets_ordinary_file_permissions() {
     let umask_probe = d.path().join("probe");
     std::fs::write(&umask_probe, b"").unwrap();
     let expected = mode(&umask_probe);
-    amc_ok(&[
-        "stabilize",
-        &s(&cup()),
-        "-o",
-        &s(&out),
-        "--fov",
-        "60",
-        "--output-width",
-        "160",
-        "--telemetry",
-        &s(&tel),
-        "--metrics",
-        &s(&met),
-        "-q",
-    ]);
+    stabilize_cup(
+        &out,
+        &[
+            "--output-width",
+            "160",
+            "--telemetry",
+            &s(&tel),
+            "--metrics",
+            &s(&met),
+            "-q",
+        ],
+    );
     for p in [&out, &tel, &met] {
         assert_eq!(mode(p), expected, "{}", p.display());
     }
@@ -268,19 +274,7 @@ fn decoding_and_encoding_on_their_own_threads_changes_no_byte() {
             d.path().join(format!("o{threads}.y4m")),
             d.path().join(format!("t{threads}.csv")),
         );
-        amc_ok(&[
-            "stabilize",
-            &s(&cup()),
-            "-o",
-            &s(&out),
-            "--fov",
-            "60",
-            "--telemetry",
-            &s(&tel),
-            "--threads",
-            threads,
-            "-q",
-        ]);
+        stabilize_cup(&out, &["--telemetry", &s(&tel), "--threads", threads, "-q"]);
         (std::fs::read(out).unwrap(), std::fs::read(tel).unwrap())
     };
     let one = run("1");

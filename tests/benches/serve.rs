@@ -21,33 +21,35 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[i]
 }
 
+/// `ffmpeg INPUT... -c:v libx264 -preset veryfast -crf 20 AUDIO... OUT`: the bench's clips.
+fn encode(input: &[&str], audio: &[&str], out: &std::path::Path) {
+    let video = ["-c:v", "libx264", "-preset", "veryfast", "-crf", "20"];
+    let out = s(out);
+    ffmpeg(&[input, &video, audio, &[out.as_str()]].concat());
+}
+
 fn main() {
     let dir = tempfile::tempdir().expect("temp dir");
     let clip = dir.path().join("karma-720p30-20s.mp4");
     // karma.mp4 looped and scaled.
-    ffmpeg(&[
-        "-stream_loop",
-        "1",
-        "-i",
-        &s(&data("karma/karma.mp4")),
-        "-t",
-        "20",
-        "-map",
-        "0:v:0",
-        "-map",
-        "0:a:0",
-        "-vf",
-        "scale=1280:720,fps=30",
-        "-c:v",
-        "libx264",
-        "-preset",
-        "veryfast",
-        "-crf",
-        "20",
-        "-c:a",
-        "aac",
-        &s(&clip),
-    ]);
+    encode(
+        &[
+            "-stream_loop",
+            "1",
+            "-i",
+            &s(&data("karma/karma.mp4")),
+            "-t",
+            "20",
+            "-map",
+            "0:v:0",
+            "-map",
+            "0:a:0",
+            "-vf",
+            "scale=1280:720,fps=30",
+        ],
+        &["-c:a", "aac"],
+        &clip,
+    );
     let bytes = std::fs::read(&clip).expect("clip");
     let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
     println!(
@@ -93,20 +95,7 @@ fn main() {
     );
 
     let clip60 = dir.path().join("karma-720p60-20s.mp4");
-    ffmpeg(&[
-        "-i",
-        &s(&clip),
-        "-vf",
-        "fps=60",
-        "-c:v",
-        "libx264",
-        "-preset",
-        "veryfast",
-        "-crf",
-        "20",
-        "-an",
-        &s(&clip60),
-    ]);
+    encode(&["-i", &s(&clip), "-vf", "fps=60"], &["-an"], &clip60);
     for (viewer, (rate, lat, skipped)) in live(&clip60, 2, 1230).into_iter().enumerate() {
         println!(
             "| 720p60 source, viewer {} of 2 | {:.1} ms | {:.1} ms | {:.1} ms | {rate:.1} | {skipped} |",
