@@ -115,12 +115,6 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
     for p in args.telemetry.iter().chain(&args.metrics) {
         amc_video::check_parent_dir(p)?;
     }
-    if !args.quiet && args.output.is_file() {
-        eprintln!(
-            "note: {} exists: it is replaced once the new output is complete (until then it stays as it is)",
-            args.output.display()
-        );
-    }
     let input = input_of(&args.input, &args.run, args.quiet);
     let options = args
         .run
@@ -135,6 +129,12 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
     paths.extend(args.telemetry.iter().map(|p| ("telemetry", p.as_path())));
     paths.extend(args.metrics.iter().map(|p| ("metrics", p.as_path())));
     engine::check_distinct(&paths)?;
+    if !args.quiet && args.output.is_file() {
+        eprintln!(
+            "note: {} exists: it is replaced once the new output is complete (until then it stays as it is)",
+            args.output.display()
+        );
+    }
     say_rate(&input.frames, fps, timeout, args.quiet);
     let resolved = engine::resolve(
         &options,
