@@ -20,11 +20,11 @@ use amc_core::pyramid::Pyramid;
 use amc_core::render::Interpolation;
 use amc_core::shutter::{IntraFrame, RowTime, TrajectorySmoother, TRAJECTORY_FRAMES};
 use amc_core::so3::Rot;
-use amc_core::synth::{EquirectRenderer, Shake, ShakeParams};
 use amc_core::tracker::{Tracker, TrackerParams};
 use amc_core::view::Mode;
 use amc_core::Zoom;
 use amc_core::{Frame, PixelFormat, Stabilizer, StabilizerParams};
+use amc_synth::{EquirectRenderer, Shake, ShakeParams};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 

@@ -125,7 +125,7 @@ impl AmcError {
 }
 
 /// Checks `lo <= value <= hi` (and finiteness) for a parameter.
-pub(crate) fn check_range(
+pub fn check_range(
     name: &'static str,
     value: f64,
     lo: f64,

@@ -19,7 +19,6 @@ pub mod image;
 pub mod lanes;
 pub mod lens;
 pub mod so3;
-pub mod synth;
 
 pub use error::AmcError;
 pub mod frontend;

@@ -17,7 +17,7 @@
 /// compiled. The receiver is written `[&mut] self`, `[&] self` or `[] self`,
 /// the bounds of its generic parameters `where [..]`.
 ///
-/// ```ignore
+/// ```text
 /// multiversion! {
 ///     /// The frame's sums.
 ///     fn measure([&mut] self, frame: &FrameRef<'_>) -> FrameSums => measure_body {

@@ -14,10 +14,8 @@ mod common;
 
 use amc_core::framing::FramingParams;
 use amc_core::so3::{self, Rot, Tangent};
-use amc_core::synth::{
-    downsample_pano, pano_downsample_factor, EquirectRenderer, Shake, ShakeParams,
-};
 use amc_core::{CameraModel, Frame, Mode, PixelFormat, Stabilizer, StabilizerParams, Zoom};
+use amc_synth::{downsample_pano, pano_downsample_factor, EquirectRenderer, Shake, ShakeParams};
 use common::{hash, panorama};
 use nalgebra::{Vector2, Vector3};
 

@@ -1,4 +1,4 @@
-//! Ground truth in process: rotation-only shake clips rendered with `amc_core::synth` from a
+//! Ground truth in process: rotation-only shake clips rendered with `amc_synth` from a
 //! procedural panorama, pushed through the [`Stabilizer`], and its estimated orientations
 //! (telemetry `r_est`) compared with the shake's exact ones. No binary, no files, no ffmpeg:
 //! the in-process twin of the workspace's end-to-end `tests/ground_truth.rs`.
@@ -13,10 +13,8 @@
 mod common;
 
 use amc_core::so3::{self, Rot, Tangent};
-use amc_core::synth::{
-    downsample_pano, pano_downsample_factor, EquirectRenderer, Shake, ShakeParams,
-};
 use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams};
+use amc_synth::{downsample_pano, pano_downsample_factor, EquirectRenderer, Shake, ShakeParams};
 use common::panorama;
 
 /// Frame rate of every clip, frames per second.

@@ -3,9 +3,9 @@
 //! pipelining (tracking one frame while rendering the previous output) changes
 //! when outputs come, never what they are.
 
-use amc_core::synth::{EquirectRenderer, Shake, ShakeParams};
 use amc_core::view::Mode;
 use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams};
+use amc_synth::{EquirectRenderer, Shake, ShakeParams};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 

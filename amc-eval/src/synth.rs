@@ -19,9 +19,7 @@
 
 use amc_core::camera::CameraModel;
 use amc_core::image::{Frame, FrameRef, PixelFormat};
-use amc_core::synth::{
-    downsample_pano, pano_downsample_factor, EquirectRenderer, Shake, ShakeParams,
-};
+use amc_synth::{downsample_pano, pano_downsample_factor, EquirectRenderer, Shake, ShakeParams};
 use amc_video::AtomicDir;
 use amc_video::VideoError;
 use std::fs;
