@@ -34,11 +34,8 @@ impl Warper {
                     Target::Caller(buffers) => buffers,
                     Target::Fine(fine) => fine.image(fine_len),
                 };
-                let (ow, oh) = (w.out.width, w.out.height);
-                coverage.clear();
-                coverage.resize(ow * oh, 0);
-                let maps = w.prepare_maps(rotations);
-                let n_frames = rotations.len().min(MAX_FRAMES);
+                let ow = w.out.width;
+                let (maps, n_frames) = w.begin_render(rotations, coverage);
                 // Hoist each frame's pixels out of the per-pixel loop.
                 let mut datas: [&[u8]; MAX_FRAMES] = [&[]; MAX_FRAMES];
                 let first = frame_at(0);

@@ -35,11 +35,8 @@ impl Warper {
                     Target::Caller(buffers) => buffers,
                     Target::Fine(fine) => fine.image(fine_len),
                 };
-                let (ow, oh) = (w.out.width, w.out.height);
-                coverage.clear();
-                coverage.resize(ow * oh, 0);
-                let maps = w.prepare_maps(rotations);
-                let n_frames = rotations.len().min(MAX_FRAMES);
+                let ow = w.out.width;
+                let (maps, n_frames) = w.begin_render(rotations, coverage);
                 let mut datas: [&[u8]; MAX_FRAMES] = [&[]; MAX_FRAMES];
                 for (f, d) in datas.iter_mut().enumerate().take(n_frames) {
                     let p = plane_at(f);
@@ -128,9 +125,7 @@ impl Warper {
                     Target::Fine(fine) => fine.pair(fine_len),
                 };
                 let (ow, oh) = (w.out.width, w.out.height);
-                coverage.clear();
-                coverage.resize(ow * oh, 0);
-                let maps = w.prepare_maps(rotations);
+                let (maps, _) = w.begin_render(rotations, coverage);
                 let geom = Geometry::plane(width, height, 1);
                 let pass_a = w.pass(&maps[..n_frames], &datas[0][..n_frames], geom, height);
                 let pass_b = w.pass(&maps[..n_frames], &datas[1][..n_frames], geom, height);

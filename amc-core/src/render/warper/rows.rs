@@ -7,6 +7,7 @@ use crate::render::kernels::{
     merge_row_gray_scalar, merge_row_scalar, Geometry, HomographyRow, RowCoords, FRAME_PADDING,
 };
 use crate::render::robust::Deghost;
+use nalgebra::Matrix3;
 
 /// Per-row working buffers: one set per band of rows being rendered.
 #[derive(Clone, Debug, Default)]
@@ -63,6 +64,22 @@ impl Pass<'_, '_> {
 }
 
 impl Warper {
+    /// The start of a render of the frames of `rotations` on the render grid:
+    /// `coverage` zeroed at its size, the frames' maps (to hand back to
+    /// `self.maps` after), and how many frames are rendered (at most
+    /// [`MAX_FRAMES`]).
+    pub(super) fn begin_render(
+        &mut self,
+        rotations: &[Matrix3<f64>],
+        coverage: &mut Vec<u8>,
+    ) -> (Vec<RowMap>, usize) {
+        let (ow, oh) = (self.out.width, self.out.height);
+        coverage.clear();
+        coverage.resize(ow * oh, 0);
+        let maps = self.prepare_maps(rotations);
+        (maps, rotations.len().min(MAX_FRAMES))
+    }
+
     /// The pass over `datas` (frames or planes with geometry `geom`, sampled
     /// with this warper's interpolation): the first
     /// `n8` pixels of a row (a multiple of 8) go to the vector kernel when it is
