@@ -151,3 +151,45 @@ fn mp4_keeps_the_clips_telemetry_and_timecode() {
     assert!(!gpmd_in.is_empty());
     assert_eq!(gpmd_in, gpmd_out, "the telemetry changed on the way");
 }
+
+/// A constant-rate clip keeps its rate: frame times are read exactly (from each frame's
+/// timestamp and its stream's time base), not from ffmpeg's six-digit `pts_time`, which
+/// made a 496-frame 30 fps AVI come out at 4960000/165333 frames/s.
+#[test]
+fn a_constant_rate_clip_keeps_its_rate() {
+    use amc_e2e::fixtures::{ffprobe, lavfi};
+    let tmp = tempfile::tempdir().unwrap();
+    let clip = tmp.path().join("clip.avi");
+    lavfi(
+        &clip,
+        &["testsrc=size=160x120:rate=30"],
+        &["-frames:v", "496", "-c:v", "mpeg4"],
+    );
+    let out = tmp.path().join("out.mp4");
+    amc_ok(&[
+        "stabilize".to_string(),
+        s(&clip),
+        "-o".into(),
+        s(&out),
+        "--fov".into(),
+        "60".into(),
+        "-q".into(),
+    ]);
+    let rates = ffprobe(
+        &out,
+        &[
+            "-select_streams",
+            "v:0",
+            "-show_entries",
+            "stream=avg_frame_rate,nb_frames",
+            "-of",
+            "default=nw=1",
+        ],
+    );
+    eprintln!(
+        "[avi 30 fps, 496 frames] output: {}",
+        rates.replace('\n', " ")
+    );
+    assert!(rates.contains("avg_frame_rate=30/1"), "{rates}");
+    assert!(rates.contains("nb_frames=496"), "{rates}");
+}

@@ -272,6 +272,8 @@ fn read_stderr(
 ) {
     let mut reader = BufReader::new(err);
     let mut raw = Vec::new();
+    // The filtered stream's time base, from showinfo's `config in` line.
+    let mut time_base: Option<(u64, u64)> = None;
     loop {
         raw.clear();
         match reader.read_until(b'\n', &mut raw) {
@@ -281,11 +283,12 @@ fn read_stderr(
         let line = String::from_utf8_lossy(&raw);
         let line = line.trim_end();
         match classify(line) {
-            Line::FramePts(t) => {
+            Line::FramePts { pts, pts_time } => {
                 if let Some(tx) = &pts_tx {
-                    let _ = tx.send(t);
+                    let _ = tx.send(frame_time(pts, pts_time, time_base));
                 }
             }
+            Line::TimeBase(tb) => time_base = Some(tb),
             Line::Noise => {}
             Line::Error(msg) => {
                 let mut kept = lock(lines);
@@ -307,8 +310,16 @@ fn read_stderr(
 }
 
 enum Line<'a> {
-    /// A `showinfo` frame line: the frame's `pts_time` (NaN when it has none).
-    FramePts(f64),
+    /// A `showinfo` frame line: the frame's integer timestamp (when it has
+    /// one) and its `pts_time` (NaN when it has none).
+    FramePts {
+        /// `pts:`, in the time base of the showinfo's input.
+        pts: Option<i64>,
+        /// `pts_time:`, printed with six significant digits only.
+        pts_time: f64,
+    },
+    /// showinfo's `config in time_base: NUM/DEN`.
+    TimeBase((u64, u64)),
     /// Informational output.
     Noise,
     /// Something worth showing a person.
@@ -336,8 +347,19 @@ fn classify(line: &str) -> Line<'_> {
             if is_error {
                 return Line::Error(msg);
             }
-            if tag == "[info] " && line.contains("showinfo") && msg.starts_with("n:") {
-                return Line::FramePts(parse_pts_time(msg));
+            if tag == "[info] " && line.contains("showinfo") {
+                if msg.starts_with("n:") {
+                    return Line::FramePts {
+                        pts: parse_pts(msg),
+                        pts_time: parse_pts_time(msg),
+                    };
+                }
+                if let Some(tb) = msg
+                    .strip_prefix("config in time_base:")
+                    .and_then(parse_time_base)
+                {
+                    return Line::TimeBase(tb);
+                }
             }
             return Line::Noise;
         }
@@ -355,6 +377,43 @@ fn strip_context(line: &str) -> &str {
         }
     }
     line
+}
+
+/// A frame's time in seconds: its integer timestamp in the stream's time base
+/// where both are known (exact: `pts_time` has six significant digits, 16.4333
+/// for 493/30, which put frames 33 us off a constant rate), else `pts_time`.
+fn frame_time(pts: Option<i64>, pts_time: f64, time_base: Option<(u64, u64)>) -> f64 {
+    match (pts, time_base) {
+        (Some(pts), Some((num, den))) if pts_time.is_finite() => {
+            pts as f64 * num as f64 / den as f64
+        }
+        _ => pts_time,
+    }
+}
+
+/// `pts: 3000` (or `pts:1478997` once the number fills its column) from a
+/// showinfo line; `None` when absent or `NOPTS`.
+fn parse_pts(msg: &str) -> Option<i64> {
+    let mut tokens = msg.split_whitespace();
+    while let Some(tok) = tokens.next() {
+        if let Some(rest) = tok.strip_prefix("pts:") {
+            let value = if rest.is_empty() {
+                tokens.next()?
+            } else {
+                rest
+            };
+            return value.parse().ok();
+        }
+    }
+    None
+}
+
+/// ` 1/30, frame_rate: 30/1` after showinfo's `config in time_base:`.
+fn parse_time_base(rest: &str) -> Option<(u64, u64)> {
+    let tb = rest.split(',').next()?.trim();
+    let (num, den) = tb.split_once('/')?;
+    let (num, den) = (num.trim().parse().ok()?, den.trim().parse().ok()?);
+    (num > 0 && den > 0).then_some((num, den))
 }
 
 /// `pts_time:1.234` from a showinfo line; NaN when absent or `NOPTS`.
@@ -485,10 +544,22 @@ mod tests {
     #[test]
     fn classifies_stderr_lines() {
         let l = "[Parsed_showinfo_0 @ 0x55f5] [info] n:   3 pts:   3000 pts_time:0.112036 pos: 1 fmt:yuv420p";
-        assert!(matches!(classify(l), Line::FramePts(t) if (t - 0.112036).abs() < 1e-9));
+        assert!(
+            matches!(classify(l), Line::FramePts { pts: Some(3000), pts_time } if (pts_time - 0.112036).abs() < 1e-9)
+        );
+        let l = "[Parsed_showinfo_0 @ 0x55f5] [info] n: 493 pts:1478997 pts_time:16.4333 pos: 1";
+        assert!(matches!(
+            classify(l),
+            Line::FramePts {
+                pts: Some(1478997),
+                ..
+            }
+        ));
         let l = "[Parsed_showinfo_0 @ 0x55f5] [info] n:   3 pts:NOPTS pts_time:NOPTS";
-        assert!(matches!(classify(l), Line::FramePts(t) if t.is_nan()));
-        let l = "[Parsed_showinfo_0 @ 0x55f5] [info] config in time_base: 1/26777";
+        assert!(matches!(classify(l), Line::FramePts { pts: None, pts_time } if pts_time.is_nan()));
+        let l = "[Parsed_showinfo_0 @ 0x55f5] [info] config in time_base: 1/26777, frame_rate: 0/0";
+        assert!(matches!(classify(l), Line::TimeBase((1, 26777))));
+        let l = "[Parsed_showinfo_0 @ 0x55f5] [info] config out time_base: 0/0, frame_rate: 0/0";
         assert!(matches!(classify(l), Line::Noise));
         let l = "[mov,mp4 @ 0x1] [error] moov atom not found";
         assert!(matches!(classify(l), Line::Error("moov atom not found")));
@@ -500,5 +571,14 @@ mod tests {
         ));
         let l = "[mov,mp4,m4a @ 0x55cf64af04c0] moov atom not found";
         assert!(matches!(classify(l), Line::Error("moov atom not found")));
+    }
+
+    /// Frame 493 of a 30 fps clip is at 493/30 s exactly, not at showinfo's 16.4333.
+    #[test]
+    fn frame_times_come_from_the_integer_timestamp() {
+        let t = frame_time(Some(493), 16.4333, Some((1, 30)));
+        assert_eq!(t, 493.0 / 30.0);
+        assert_eq!(frame_time(Some(493), 16.4333, None), 16.4333);
+        assert!(frame_time(None, f64::NAN, Some((1, 30))).is_nan());
     }
 }
