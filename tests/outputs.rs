@@ -3,6 +3,21 @@
 
 use amc_e2e::fixtures::test_clip;
 use amc_e2e::*;
+use std::path::Path;
+
+/// `amc stabilize INPUT -o OUT --fov 60 EXTRA...`'s arguments.
+fn stabilize_args(input: &Path, out: &Path, extra: &[&str]) -> Vec<String> {
+    let mut argv = vec![
+        "stabilize".to_string(),
+        s(input),
+        "-o".into(),
+        s(out),
+        "--fov".into(),
+        "60".into(),
+    ];
+    argv.extend(extra.iter().map(|a| a.to_string()));
+    argv
+}
 
 /// A bad output fails at once: with a missing input as well, the one error line names
 /// the output (the input is not even opened, no field of view is estimated).
@@ -72,18 +87,11 @@ fn an_existing_output_is_replaced_with_a_note() {
     let out = tmp.path().join("out.y4m");
     std::fs::write(&out, b"old").unwrap();
     let run = |quiet: bool| {
-        let mut argv = vec![
-            "stabilize".to_string(),
-            s(&clip),
-            "-o".into(),
-            s(&out),
-            "--fov".into(),
-            "60".into(),
-        ];
-        if quiet {
-            argv.push("-q".into());
-        }
-        amc_ok(&argv)
+        amc_ok(&stabilize_args(
+            &clip,
+            &out,
+            if quiet { &["-q"] } else { &[] },
+        ))
     };
     let r = run(false);
     assert!(
@@ -110,15 +118,7 @@ fn mp4_keeps_the_clips_telemetry_and_timecode() {
     let tmp = tempfile::tempdir().unwrap();
     let karma = data("karma/karma.mp4");
     let out = tmp.path().join("karma.mp4");
-    amc_ok(&[
-        "stabilize".to_string(),
-        s(&karma),
-        "-o".into(),
-        s(&out),
-        "--fov".into(),
-        "90".into(),
-        "-q".into(),
-    ]);
+    amc_ok(&stabilize_args(&karma, &out, &["-q"]));
     let tracks = |p: &std::path::Path| {
         ffprobe(
             p,
@@ -166,15 +166,7 @@ fn a_constant_rate_clip_keeps_its_rate() {
         &["-frames:v", "496", "-c:v", "mpeg4"],
     );
     let out = tmp.path().join("out.mp4");
-    amc_ok(&[
-        "stabilize".to_string(),
-        s(&clip),
-        "-o".into(),
-        s(&out),
-        "--fov".into(),
-        "60".into(),
-        "-q".into(),
-    ]);
+    amc_ok(&stabilize_args(&clip, &out, &["-q"]));
     let rates = ffprobe(
         &out,
         &[

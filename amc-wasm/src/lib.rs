@@ -20,6 +20,7 @@
 //! call into the module (memory growth detaches them); copy what you keep.
 
 pub mod args;
+mod input;
 mod js;
 mod kernels;
 mod options;

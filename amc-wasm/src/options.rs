@@ -164,14 +164,14 @@ pub fn resolve(values: &Map<String, Value>) -> Result<Value, AmcError> {
 }
 
 /// `options()`: every option of a run as the command line has it (see
-/// [`table`]): `[{name, flag, value_name, help, allowed, default}]`.
+/// `table`): `[{name, flag, value_name, help, allowed, default}]`.
 #[wasm_bindgen]
 pub fn options() -> Result<JsValue, JsError> {
     to_js(&table())
 }
 
 /// `resolveOptions(valuesJson)`: the page's values (a JSON object of option
-/// name to text) as the core reads them (see [`resolve`]); a bad value is an
+/// name to text) as the core reads them (see `resolve`); a bad value is an
 /// `Error` naming the option and what it allows.
 #[wasm_bindgen(js_name = resolveOptions)]
 pub fn resolve_options(values_json: &str) -> Result<JsValue, JsError> {

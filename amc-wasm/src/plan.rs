@@ -1,6 +1,7 @@
 //! A run's first passes (`new PassPlan`): the core's plan, driven by the page.
 
-use crate::args::{self, InputFormat};
+use crate::args;
+use crate::input::FrameInput;
 use crate::js::{err, to_js, with_lens};
 use wasm_bindgen::prelude::*;
 
@@ -16,11 +17,7 @@ use wasm_bindgen::prelude::*;
 #[wasm_bindgen]
 pub struct PassPlan {
     inner: amc_core::plan::PassPlan,
-    width: usize,
-    height: usize,
-    format: InputFormat,
-    input: Vec<u8>,
-    planar: Vec<u8>,
+    input: FrameInput,
 }
 
 #[wasm_bindgen]
@@ -60,11 +57,7 @@ impl PassPlan {
         .map_err(err)?;
         Ok(PassPlan {
             inner,
-            width,
-            height,
-            format,
-            input: Vec::new(),
-            planar: Vec::new(),
+            input: FrameInput::new(width, height, format),
         })
     }
 
@@ -108,35 +101,24 @@ impl PassPlan {
     /// [`Stabilizer::input_buffer`](crate::Stabilizer::input_buffer); then call [`PassPlan::push_input`].
     #[wasm_bindgen(js_name = inputBuffer)]
     pub fn input_buffer(&mut self) -> js_sys::Uint8Array {
-        let len = self.format.buffer_len(self.width, self.height);
-        self.input.resize(len, 0);
-        // SAFETY: as for `Stabilizer::input_buffer`.
-        unsafe { js_sys::Uint8Array::view(&self.input) }
+        self.input.view()
     }
 
     /// Gives the pass the frame in [`PassPlan::input_buffer`], `t` seconds in.
     #[wasm_bindgen(js_name = pushInput)]
     pub fn push_input(&mut self, t: f64) -> Result<(), JsError> {
-        let input = std::mem::take(&mut self.input);
-        let r = self.push(&input, t);
-        self.input = input;
-        r
+        let inner = &mut self.inner;
+        self.input
+            .with_frame(None, |frame| Ok(inner.push(frame, t)?))
+            .map_err(err)
     }
 
     /// Gives the pass a frame in this plan's format, `t` seconds in.
     pub fn push(&mut self, data: &[u8], t: f64) -> Result<(), JsError> {
-        let Self {
-            inner,
-            width,
-            height,
-            format,
-            planar,
-            ..
-        } = self;
-        args::with_frame(*format, *width, *height, data, planar, |frame| {
-            Ok(inner.push(frame, t)?)
-        })
-        .map_err(err)
+        let inner = &mut self.inner;
+        self.input
+            .with_frame(Some(data), |frame| Ok(inner.push(frame, t)?))
+            .map_err(err)
     }
 
     /// Resolves the pass from its frames and moves on. Returns what it

@@ -1,6 +1,7 @@
 //! The rolling-shutter readout estimate as a pass of its own (`new ReadoutEstimator`).
 
-use crate::args::{self, InputFormat};
+use crate::args;
+use crate::input::FrameInput;
 use crate::js::{err, to_js, with_lens};
 use wasm_bindgen::prelude::*;
 
@@ -13,11 +14,7 @@ use wasm_bindgen::prelude::*;
 #[wasm_bindgen]
 pub struct ReadoutEstimator {
     inner: Option<amc_core::readout::ReadoutEstimator>,
-    width: usize,
-    height: usize,
-    format: InputFormat,
-    input: Vec<u8>,
-    planar: Vec<u8>,
+    input: FrameInput,
 }
 
 #[wasm_bindgen]
@@ -41,11 +38,7 @@ impl ReadoutEstimator {
                 .map_err(err)?;
         Ok(ReadoutEstimator {
             inner: Some(inner),
-            width: c.width,
-            height: c.height,
-            format: c.format,
-            input: Vec::new(),
-            planar: Vec::new(),
+            input: FrameInput::new(c.width, c.height, c.format),
         })
     }
 
@@ -65,30 +58,18 @@ impl ReadoutEstimator {
     /// [`Stabilizer::input_buffer`](crate::Stabilizer::input_buffer); then call [`ReadoutEstimator::push_input`](crate::ReadoutEstimator::push_input).
     #[wasm_bindgen(js_name = inputBuffer)]
     pub fn input_buffer(&mut self) -> js_sys::Uint8Array {
-        let len = self.format.buffer_len(self.width, self.height);
-        self.input.resize(len, 0);
-        // SAFETY: as for `Stabilizer::input_buffer`.
-        unsafe { js_sys::Uint8Array::view(&self.input) }
+        self.input.view()
     }
 
     /// Tracks the frame in [`ReadoutEstimator::input_buffer`](crate::ReadoutEstimator::input_buffer) at `t` seconds.
     #[wasm_bindgen(js_name = pushInput)]
     pub fn push_input(&mut self, t: f64) -> Result<(), JsError> {
-        let Self {
-            inner,
-            width,
-            height,
-            format,
-            input,
-            planar,
-        } = self;
-        track(inner, (*format, *width, *height), input, planar, t)
+        track(&mut self.inner, &mut self.input, None, t)
     }
 
     /// Tracks a frame in this estimator's format at `t` seconds.
     pub fn push(&mut self, data: &[u8], t: f64) -> Result<(), JsError> {
-        let size = (self.format, self.width, self.height);
-        track(&mut self.inner, size, data, &mut self.planar, t)
+        track(&mut self.inner, &mut self.input, Some(data), t)
     }
 
     /// The estimate: `{readout_ms, confident, explained, motion_deg, frames}`.
@@ -121,20 +102,18 @@ impl ReadoutEstimator {
     }
 }
 
-/// Tracks the frame `data` (`format`, `width x height`; NV12 de-interleaved
-/// into `planar`) at `t` seconds with `est`, unless it is finished.
+/// Tracks the frame `data` (`None`: the one in `input`'s buffer) at `t`
+/// seconds with `est`, unless it is finished.
 fn track(
     est: &mut Option<amc_core::readout::ReadoutEstimator>,
-    (format, width, height): (InputFormat, usize, usize),
-    data: &[u8],
-    planar: &mut Vec<u8>,
+    input: &mut FrameInput,
+    data: Option<&[u8]>,
     t: f64,
 ) -> Result<(), JsError> {
     let est = est
         .as_mut()
         .ok_or_else(|| JsError::new("the estimate is finished: make a new ReadoutEstimator"))?;
-    args::with_frame(format, width, height, data, planar, |frame| {
-        Ok(est.push(frame, t)?)
-    })
-    .map_err(err)
+    input
+        .with_frame(data, |frame| Ok(est.push(frame, t)?))
+        .map_err(err)
 }
