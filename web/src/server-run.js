@@ -85,7 +85,11 @@ export async function runOnServer(file) {
       rows = rowsFromCsv(text);
     } catch { /* no telemetry: no plot, no CSV */ }
     if (stop()) return;
-    $('status-text').textContent = `Done on the server: ${st.frames_done} frames.`;
+    // What the server warns about (fov auto fell back to 70°, readout auto to 0), as a local run says it.
+    const warnings = (st.metrics && st.metrics.warnings) || [];
+    $('status-text').textContent = `Done on the server: ${st.frames_done} frames.` +
+      warnings.map((w) => ` Warning: ${w.replace(/^warning: /, '')}`).join('');
+    document.body.dataset.serverWarnings = String(warnings.length);
     document.body.dataset.frames = st.frames_done;
     showResult({
       blob: new Blob([blob], { type: mime }), mime, name: file.name, original: null,

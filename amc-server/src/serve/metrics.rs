@@ -1,4 +1,6 @@
-//! `GET /metrics`: the service's state in the Prometheus text format.
+//! `GET /metrics`: the service's state, in OpenMetrics 1.0 for a scraper
+//! that asks for it (Prometheus does) and in Prometheus' classic text format
+//! otherwise ([`Metrics::response`]).
 //!
 //! ```text
 //! amc_jobs{state}                      jobs by state (queued, running, done, failed, cancelled)
@@ -199,7 +201,8 @@ impl Metrics {
         self.rejected.get_or_create(&StatusLabel { status }).inc();
     }
 
-    /// The text exposition.
+    /// The exposition in OpenMetrics 1.0 (a counter's family is named
+    /// without `_total`, its sample with it; `# EOF` ends it).
     pub fn encode(&self) -> String {
         self.sample();
         let mut out = String::new();
@@ -209,19 +212,150 @@ impl Metrics {
         out
     }
 
-    /// `GET /metrics`' answer: [`Metrics::encode`] as Prometheus' text format.
-    pub fn response(&self) -> Response {
-        let mut res = self.encode().into_response();
-        res.headers_mut().insert(
-            header::CONTENT_TYPE,
-            HeaderValue::from_static("text/plain; version=0.0.4; charset=utf-8"),
-        );
+    /// `GET /metrics`' answer, in the format the scraper asks for: OpenMetrics
+    /// when its `Accept` prefers `application/openmetrics-text` (Prometheus
+    /// does), else Prometheus' classic text format 0.0.4 (curl, a person,
+    /// older scrapers). Each with the Content-Type that says which.
+    pub fn response(&self, accept: Option<&HeaderValue>) -> Response {
+        let openmetrics = accept
+            .and_then(|a| a.to_str().ok())
+            .is_some_and(prefers_openmetrics);
+        let text = self.encode();
+        let (body, content_type) = if openmetrics {
+            (text, OPENMETRICS)
+        } else {
+            (classic_text(&text), CLASSIC_TEXT)
+        };
+        let mut res = body.into_response();
+        let h = res.headers_mut();
+        h.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
+        h.insert(header::VARY, HeaderValue::from_static("accept"));
         res
     }
+}
+
+/// The Content-Type of OpenMetrics 1.0.
+pub const OPENMETRICS: &str = "application/openmetrics-text; version=1.0.0; charset=utf-8";
+/// The Content-Type of Prometheus' classic text format.
+pub const CLASSIC_TEXT: &str = "text/plain; version=0.0.4; charset=utf-8";
+
+/// Whether an `Accept` header ranks `application/openmetrics-text` above
+/// (or with) the classic text (`text/plain`, `text/*`, `*/*`).
+fn prefers_openmetrics(accept: &str) -> bool {
+    let (mut openmetrics, mut text) = (0.0f32, 0.0f32);
+    for range in accept.split(',') {
+        let mut parts = range.split(';').map(str::trim);
+        let media = parts.next().unwrap_or("").to_ascii_lowercase();
+        let q = parts
+            .find_map(|p| p.strip_prefix("q="))
+            .map_or(Some(1.0), |q| q.trim().parse::<f32>().ok())
+            .unwrap_or(0.0);
+        match media.as_str() {
+            "application/openmetrics-text" => openmetrics = openmetrics.max(q),
+            "text/plain" | "text/*" | "*/*" => text = text.max(q),
+            _ => {}
+        }
+    }
+    openmetrics > 0.0 && openmetrics >= text
+}
+
+/// Prometheus' classic text format from the OpenMetrics text: a counter's
+/// `# HELP` and `# TYPE` name its samples (`amc_frames_processed_total`), as
+/// that format requires; no `# UNIT`, no `# EOF`. Samples are written alike
+/// in both.
+fn classic_text(openmetrics: &str) -> String {
+    let counters: std::collections::HashSet<&str> = openmetrics
+        .lines()
+        .filter_map(|l| l.strip_prefix("# TYPE ")?.strip_suffix(" counter"))
+        .collect();
+    let mut out = String::with_capacity(openmetrics.len() + 16 * counters.len());
+    for line in openmetrics.lines() {
+        if line == "# EOF" || line.starts_with("# UNIT ") {
+            continue;
+        }
+        let meta = ["# HELP ", "# TYPE "]
+            .into_iter()
+            .find_map(|p| Some((p, line.strip_prefix(p)?)));
+        match meta {
+            Some((prefix, rest)) => {
+                let (name, tail) = match rest.split_once(' ') {
+                    Some((name, tail)) => (name, Some(tail)),
+                    None => (rest, None),
+                };
+                out.push_str(prefix);
+                out.push_str(name);
+                if counters.contains(name) && !name.ends_with("_total") {
+                    out.push_str("_total");
+                }
+                if let Some(tail) = tail {
+                    out.push(' ');
+                    out.push_str(tail);
+                }
+            }
+            None => out.push_str(line),
+        }
+        out.push('\n');
+    }
+    out
 }
 
 impl Default for Metrics {
     fn default() -> Self {
         Self::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn openmetrics_only_for_a_scraper_that_prefers_it() {
+        // Prometheus 2 and 3.
+        assert!(prefers_openmetrics(
+            "application/openmetrics-text;version=1.0.0,application/openmetrics-text;version=0.0.1;q=0.75,text/plain;version=0.0.4;q=0.5,*/*;q=0.1"
+        ));
+        assert!(prefers_openmetrics(
+            "application/openmetrics-text;version=1.0.0;escaping=allow-utf-8,text/plain;version=1.0.0;q=0.8,*/*;q=0.6"
+        ));
+        for accept in [
+            "*/*",
+            "text/plain",
+            "text/plain;version=0.0.4",
+            "text/plain, application/openmetrics-text;q=0.5",
+            "application/openmetrics-text;q=0",
+            "application/json",
+        ] {
+            assert!(!prefers_openmetrics(accept), "{accept}");
+        }
+    }
+
+    #[test]
+    fn the_classic_text_names_counters_as_their_samples() {
+        let m = Metrics::new();
+        m.reject(400);
+        let om = m.encode();
+        assert!(om.contains("# TYPE amc_frames_processed counter\n"), "{om}");
+        assert!(om.ends_with("# EOF\n"), "{om}");
+        let classic = classic_text(&om);
+        for name in ["amc_frames_processed", "amc_requests_rejected"] {
+            assert!(
+                classic.contains(&format!("# TYPE {name}_total counter\n"))
+                    && classic.contains(&format!("# HELP {name}_total ")),
+                "{classic}"
+            );
+        }
+        assert!(classic.contains("amc_requests_rejected_total{status=\"400\"} 1\n"));
+        assert!(
+            classic.contains("# TYPE amc_live_viewers gauge\n"),
+            "{classic}"
+        );
+        assert!(!classic.contains("# EOF"), "{classic}");
+        // Everything else is as OpenMetrics writes it.
+        assert_eq!(
+            classic.lines().count() + 1,
+            om.lines().count(),
+            "{om}\n{classic}"
+        );
     }
 }

@@ -18,10 +18,11 @@
 //! Layers, each using only those below it: `config` (flags, limits) and
 //! `problem`, `options`, `storage`, `metrics` at the bottom; `live` (its hub)
 //! and `jobs` (its store); `state` (what handlers share); `work`, `intake`;
-//! the handlers (`stabilize`, `jobs`, `live`, `ops`, `openapi`); `router`
-//! (routes and fallbacks); `run` (the process: logs, runtime, listener,
+//! the handlers (`stabilize`, `jobs`, `live`, `ops`, `openapi`); `access`
+//! (each request's log line); `router` (routes and fallbacks); `run` (the process: logs, runtime, listener,
 //! shutdown). This file only declares and re-exports.
 
+pub(crate) mod access;
 pub(crate) mod config;
 #[doc(hidden)]
 pub mod fuzzing;

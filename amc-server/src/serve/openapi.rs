@@ -101,10 +101,14 @@ fn id_parameter() -> Value {
 /// The document.
 pub fn spec() -> Value {
     let mut stabilize_ok = Map::new();
-    let headers: Map<String, Value> = SUMMARY_HEADERS
+    let mut headers: Map<String, Value> = SUMMARY_HEADERS
         .iter()
         .map(|h| (h.to_string(), json!({"schema": {"type": "string"}})))
         .collect();
+    headers.insert(
+        "x-amc-warning".into(),
+        json!({"schema": {"type": "string"}, "description": "What the user should know about the run (fov=auto fell back to 70 deg, readout_ms=auto fell back to 0): one X-Amc-Warning field line per warning, each a whole sentence (which may hold commas); none when there is nothing to say"}),
+    );
     stabilize_ok.insert("200".into(), json!({
         "description": "The stabilized video (H.264 MP4 or VP9 WebM, the input's audio kept); the clip's summary metrics in X-Amc-* headers",
         "headers": headers,
@@ -123,6 +127,7 @@ pub fn spec() -> Value {
     );
     upload_errors(&mut jobs_created);
     let not_found = problem("No such job (unknown, expired or removed)");
+    let not_done = problem("The job is not done: queued or running (its files come once it is done), or cancelled or failed (it has none, and never will; a failed job's detail says why)");
     json!({
         "openapi": "3.1.0",
         "info": {
@@ -192,7 +197,7 @@ pub fn spec() -> Value {
                 "responses": {
                     "200": {"description": "The video", "content": {"video/mp4": {}, "video/webm": {}}},
                     "404": not_found,
-                    "409": problem("The job is not done"),
+                    "409": not_done,
                     "503": unavailable()
                 }
             }},
@@ -203,7 +208,7 @@ pub fn spec() -> Value {
                 "responses": {
                     "200": {"description": "CSV", "content": {"text/csv": {}}},
                     "404": not_found,
-                    "409": problem("The job is not done"),
+                    "409": not_done,
                     "503": unavailable()
                 }
             }},
@@ -234,8 +239,8 @@ pub fn spec() -> Value {
             }},
             "/metrics": {"get": {
                 "operationId": "getMetrics",
-                "summary": "Prometheus text format: jobs by state, queue depth, retries, job durations, frames processed, processing rate, live viewers, frames dropped",
-                "responses": {"200": {"description": "Metrics", "content": {"text/plain": {}}}, "503": unavailable()}
+                "summary": "OpenMetrics or Prometheus text, as asked: jobs by state, queue depth, retries, job durations, frames processed, processing rate, live viewers, frames dropped",
+                "responses": {"200": {"description": "Metrics: OpenMetrics 1.0 (application/openmetrics-text; version=1.0.0) when the Accept header prefers it, as Prometheus' does; else Prometheus' text format 0.0.4 (text/plain; version=0.0.4)", "content": {"text/plain": {}, "application/openmetrics-text": {}}}, "503": unavailable()}
             }},
             "/openapi.json": {"get": {
                 "operationId": "getOpenApi",
@@ -274,7 +279,7 @@ pub fn spec() -> Value {
                 "valid_fraction": {"type": "number", "description": "Mean share of pixels covered by every averaged frame"},
                 "min_valid_fraction": {"type": "number", "description": "Lowest per-frame share of fully covered pixels"},
                 "readout_ms": {"type": "number", "minimum": 0, "maximum": 100, "description": "Rolling-shutter readout time used, ms (0 = global shutter): readout_ms, the lens file's, or the estimate of readout_ms=auto"},
-                "warnings": {"type": "array", "items": {"type": "string"}, "description": "What the user should know about the run (readout_ms=auto fell back to 0)"}
+                "warnings": {"type": "array", "items": {"type": "string"}, "description": "What the user should know about the run: fov=auto fell back to 70 deg, readout_ms=auto fell back to 0 (the CLI's warnings)"}
             }},
             "JobMotion": {"type": "object", "properties": {
                 "rms_speed_est_dps": {"type": "number", "description": "RMS angular speed of the camera (estimated), deg/s"},

@@ -1,11 +1,11 @@
 //! Operations endpoints: `GET /healthz` (readiness) and `GET /metrics`
-//! (Prometheus text).
+//! (OpenMetrics or Prometheus text, as the scraper asks).
 
 use super::jobs::JobState;
 use super::metrics::StateLabel;
 use super::state::AppState;
 use axum::extract::State;
-use axum::http::StatusCode;
+use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use std::collections::HashMap;
@@ -63,7 +63,7 @@ pub(crate) fn health(check: Result<(), String>, fields: serde_json::Value) -> Re
 }
 
 /// `GET /metrics`.
-pub async fn prometheus(State(state): State<Arc<AppState>>) -> Response {
+pub async fn prometheus(State(state): State<Arc<AppState>>, headers: HeaderMap) -> Response {
     let counts: HashMap<JobState, usize> = match &state.cluster {
         None => state.jobs.counts(),
         Some(cluster) => match cluster.queue.counts().await {
@@ -94,5 +94,5 @@ pub async fn prometheus(State(state): State<Arc<AppState>>) -> Response {
         .queue_depth
         .set(counts.get(&JobState::Queued).copied().unwrap_or(0) as i64);
     state.metrics.disk_used.set(state.disk.used() as i64);
-    state.metrics.response()
+    state.metrics.response(headers.get(header::ACCEPT))
 }

@@ -74,6 +74,11 @@ impl From<crate::cluster::ClusterError> for ApiError {
     }
 }
 
+/// Why a request was refused (its problem's `detail`), carried on the
+/// response for the request's log line.
+#[derive(Clone, Debug)]
+pub struct Refusal(pub String);
+
 #[derive(Serialize)]
 struct Problem<'a> {
     #[serde(rename = "type")]
@@ -122,11 +127,6 @@ impl ApiError {
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         let status = self.status();
-        if status.is_server_error() && status != StatusCode::SERVICE_UNAVAILABLE {
-            tracing::error!(error = %self, "request failed");
-        } else {
-            tracing::info!(status = status.as_u16(), error = %self, "request refused");
-        }
         let kind = format!("/problems/{}", self.kind());
         let body = Problem {
             kind: &kind,
@@ -136,6 +136,8 @@ impl IntoResponse for ApiError {
         };
         let json = serde_json::to_vec(&body).unwrap_or_default();
         let mut res = (status, json).into_response();
+        // The request's one log line (`super::access`) says why.
+        res.extensions_mut().insert(Refusal(body.detail));
         res.headers_mut().insert(
             header::CONTENT_TYPE,
             HeaderValue::from_static("application/problem+json"),

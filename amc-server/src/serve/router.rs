@@ -16,7 +16,6 @@ use axum::Router;
 use std::sync::Arc;
 use tower_http::catch_panic::CatchPanicLayer;
 use tower_http::services::ServeDir;
-use tower_http::trace::TraceLayer;
 
 /// The router, separate from [`super::run`] so tests can drive it without a socket.
 pub fn app(state: Arc<AppState>) -> Router {
@@ -33,19 +32,17 @@ pub fn app(state: Arc<AppState>) -> Router {
         .route("/healthz", get(ops::healthz))
         .route("/metrics", get(ops::prometheus))
         .route("/openapi.json", get(openapi::document));
-    let index = state.web_dir.join("index.html");
-    let router = if index.is_file() {
-        // The page's files; anything else is an unknown endpoint (problem+json 404).
-        api.fallback_service(
-            ServeDir::new(&state.web_dir).not_found_service(no_page.into_service()),
-        )
-    } else {
-        api.fallback(no_page)
-    };
-    router
+    // The page's files, looked up per request (a page built after start-up
+    // is served at once); anything else, and `/` while the page is not
+    // built, goes to `no_page` (a note, or problem+json 404), whatever the
+    // method.
+    let page = ServeDir::new(&state.web_dir)
+        .call_fallback_on_method_not_allowed(true)
+        .fallback(no_page.into_service());
+    api.fallback_service(page)
         .method_not_allowed_fallback(method_not_allowed)
         .layer(CatchPanicLayer::custom(super::panics::panic_response))
-        .layer(TraceLayer::new_for_http())
+        .layer(axum::middleware::from_fn(super::access::log))
         .with_state(state)
 }
 
@@ -54,8 +51,9 @@ async fn no_page(uri: axum::http::Uri) -> Response {
     if uri.path() == "/" || uri.path() == "/index.html" {
         return Html(
             "<!doctype html><title>amc</title><h1>amc serve</h1>\
-             <p>The web page is not built: run <code>bash web/build.sh</code> and start \
-             <code>amc serve</code> from the repository root (or pass <code>--web-dir</code>).</p>\
+             <p>The web page is not built: run <code>bash web/build.sh</code> in the repository, \
+             then reload this page (<code>amc serve</code> serves the folder given by \
+             <code>--web-dir</code>, by default <code>web/dist</code> of the folder it was started in).</p>\
              <p>The API is described at <a href=\"/openapi.json\">/openapi.json</a>.</p>",
         )
         .into_response();

@@ -147,6 +147,15 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
         // Tests and scripts read this line to find the port.
         println!("listening on http://{addr}");
         tracing::info!(%addr, work_dir = %work_dir.display(), web_dir = %args.web_dir.display(), workers = state.limits.workers, "amc serve started");
+        if !args.web_dir.join("index.html").is_file() {
+            let dir = std::path::absolute(&args.web_dir).unwrap_or_else(|_| args.web_dir.clone());
+            tracing::warn!(
+                "the web page is not built: {} has no index.html. Build it with `bash web/build.sh` \
+                 in the repository (it writes web/dist), or pass --web-dir with a built page; \
+                 until then / shows a note, and the page is served as soon as it is built",
+                dir.display()
+            );
+        }
         let ticker = {
             let state = state.clone();
             tokio::spawn(async move {

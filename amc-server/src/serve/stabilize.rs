@@ -153,13 +153,18 @@ fn summary_headers(h: &mut HeaderMap, s: &RunSummary) {
     );
     put("x-amc-saccades", motion.saccades.to_string());
     put("x-amc-readout-ms", format!("{}", s.readout_ms));
-    if !s.warnings.is_empty() {
-        put("x-amc-warning", s.warnings.join("; "));
-    }
     // The image metrics cost about as much as stabilizing; `metrics=false` skips them.
     if let Some(m) = &s.metrics {
         put("x-amc-rms-normal-flow", format!("{:.5}", m.rms_normal_flow));
         put("x-amc-rms-frame-change", format!("{:.6}", m.rms_change));
         put("x-amc-sharpness", format!("{:.6}", m.sharpness));
+    }
+    // One `X-Amc-Warning` line per warning, in the order they arose: a
+    // warning's text has commas and semicolons of its own, so no joined
+    // value could be split again.
+    for w in &s.warnings {
+        if let Ok(v) = HeaderValue::from_str(w) {
+            h.append(HeaderName::from_static("x-amc-warning"), v);
+        }
     }
 }

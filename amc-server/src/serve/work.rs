@@ -10,6 +10,7 @@ use super::problem::{count, ApiError};
 use amc_core::{AmcError, LensSpec};
 use amc_engine::{
     self as engine, LensNote, ResolvedLens, RunConfig, RunControl, RunError, RunSummary,
+    FALLBACK_FOV_DEG,
 };
 use amc_video::{self as video, Inspection, VideoError};
 use std::path::{Path, PathBuf};
@@ -149,15 +150,28 @@ pub fn stabilize(
         &opts,
     )
     .map_err(|e| run_error(e, &spec.input))?;
-    let warning = readout
-        .note
-        .is_warning()
-        .then(|| readout.message())
-        .flatten();
-    match (&warning, readout.message()) {
-        (Some(w), _) => tracing::warn!(input = %spec.input.display(), "{w}"),
-        (None, Some(line)) => tracing::info!(input = %spec.input.display(), "{line}"),
-        (None, None) => {}
+    let mut warnings = Vec::new();
+    let input = spec.input.display();
+    match &lens.note {
+        LensNote::FellBack => {
+            let w = lens_fallback_warning();
+            tracing::warn!(%input, "{w}");
+            warnings.push(w);
+        }
+        LensNote::Estimated { hfov_deg, frames } => tracing::info!(
+            %input,
+            "estimated horizontal field of view: {hfov_deg:.1} deg (from {frames} frames)"
+        ),
+        LensNote::Given => {}
+    }
+    match (readout.note.is_warning(), readout.message()) {
+        (true, Some(line)) => {
+            let w = without_warning_word(&line);
+            tracing::warn!(%input, "{w}");
+            warnings.push(w);
+        }
+        (false, Some(line)) => tracing::info!(%input, "{line}"),
+        (_, None) => {}
     }
     params.shutter.readout_ms = readout.readout_ms;
     let lens = lens.camera;
@@ -179,7 +193,7 @@ pub fn stabilize(
     })
     .map_err(|e| run_error(e, &spec.input))
     .and_then(|mut summary| {
-        summary.warnings.extend(warning);
+        summary.warnings.extend(warnings);
         if summary.looks_truncated() {
             return Err(ApiError::Unsupported(format!(
                 "the video is truncated or damaged: only {} of the {} it declares could be decoded",
@@ -189,6 +203,23 @@ pub fn stabilize(
         }
         Ok(summary)
     })
+}
+
+/// What a client is told when `fov=auto` could not pin the focal length
+/// down: the CLI's warning, in the service's terms.
+fn lens_fallback_warning() -> String {
+    format!(
+        "the footage does not pin down the focal length (translation or little rotation); \
+         assuming a {FALLBACK_FOV_DEG} deg horizontal field of view: pass fov=DEG (or send a \
+         lens file) for best results"
+    )
+}
+
+/// A warning as the service carries it: in a list of warnings (the job's
+/// `warnings`, `X-Amc-Warning`, a WARN log line), without the CLI's
+/// leading `warning: `.
+fn without_warning_word(line: &str) -> String {
+    line.strip_prefix("warning: ").unwrap_or(line).to_string()
 }
 
 /// How a failed run is answered, by variant: problems with the upload are

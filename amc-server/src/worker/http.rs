@@ -1,6 +1,7 @@
 //! The worker's operations endpoints: `GET /healthz` (ffmpeg, the
 //! database and the bucket) and `GET /metrics` (the job table's counts and
-//! this worker's runs, in the Prometheus text format). Anything else is a
+//! this worker's runs, in OpenMetrics or Prometheus' text format, as the
+//! scraper asks). Anything else is a
 //! problem+json 404.
 
 use super::state::WorkerState;
@@ -9,6 +10,7 @@ use crate::serve::metrics::StateLabel;
 use crate::serve::ops::health;
 use crate::serve::problem::ApiError;
 use axum::extract::State;
+use axum::http::{header, HeaderMap};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use axum::Router;
@@ -25,6 +27,7 @@ pub(super) fn app(state: Arc<WorkerState>) -> Router {
                 uri.path()
             ))
         })
+        .layer(axum::middleware::from_fn(crate::serve::access::log))
         .with_state(state)
 }
 
@@ -46,7 +49,7 @@ async fn healthz(State(state): State<Arc<WorkerState>>) -> Response {
     )
 }
 
-async fn metrics(State(state): State<Arc<WorkerState>>) -> Response {
+async fn metrics(State(state): State<Arc<WorkerState>>, headers: HeaderMap) -> Response {
     let counts = match state.cluster.queue.counts().await {
         Ok(c) => c,
         Err(e) => return ApiError::from(e).into_response(),
@@ -64,5 +67,5 @@ async fn metrics(State(state): State<Arc<WorkerState>>) -> Response {
         }
     }
     m.job_retries.set(counts.retries);
-    m.response()
+    m.response(headers.get(header::ACCEPT))
 }

@@ -205,10 +205,7 @@ async fn file(state: &AppState, id: &str, which: JobFile) -> Result<Response, Ap
     let path = {
         let inner = lock(&job.inner);
         if inner.state != JobState::Done {
-            return Err(ApiError::Conflict(format!(
-                "job {id} is {}; its files exist once it is done",
-                inner.state.name()
-            )));
+            return Err(which.not_there(&job.id, inner.state, inner.error.as_deref()));
         }
         match &inner.scratch {
             Some(s) => s.file(&which.name(job.format)),

@@ -140,11 +140,9 @@ pub async fn list(
 /// Streams a finished job's output or telemetry from the bucket.
 pub async fn file(cluster: &Cluster, id: &str, which: JobFile) -> Result<Response, ApiError> {
     let row = row(cluster, id).await?;
-    if row.state != JobState::Done.name() {
-        return Err(ApiError::Conflict(format!(
-            "job {id} is {}; its files exist once it is done",
-            row.state
-        )));
+    let state = JobState::parse(&row.state).unwrap_or(JobState::Failed);
+    if state != JobState::Done {
+        return Err(which.not_there(&row.id, state, row.error.as_deref()));
     }
     let format = OutputFormat::from_extension(&row.format).unwrap_or(OutputFormat::Mp4);
     let key = match which {

@@ -4,6 +4,7 @@
 //! the shared job table (`--queue`).
 
 use crate::serve::options::OutputFormat;
+use crate::serve::problem::ApiError;
 use amc_engine::RunSummary;
 use axum::body::Body;
 use axum::http::{header, HeaderValue};
@@ -27,6 +28,34 @@ impl JobFile {
             JobFile::Output => format!("output.{}", format.extension()),
             JobFile::Telemetry => "telemetry.csv".into(),
         }
+    }
+
+    /// What the file is, in a message.
+    fn noun(self) -> &'static str {
+        match self {
+            JobFile::Output => "output",
+            JobFile::Telemetry => "telemetry",
+        }
+    }
+
+    /// The answer (409) for this file of job `id`, which is in `state`, not
+    /// done: it comes once the job is done, or (cancelled, failed: `error`)
+    /// never.
+    pub fn not_there(self, id: &str, state: JobState, error: Option<&str>) -> ApiError {
+        let noun = self.noun();
+        ApiError::Conflict(match state {
+            JobState::Queued | JobState::Running | JobState::Done => format!(
+                "job {id} is {}: its {noun} exists once it is done",
+                state.name()
+            ),
+            JobState::Cancelled => format!(
+                "job {id} was cancelled: it has no {noun}, and never will (submit the clip again)"
+            ),
+            JobState::Failed => format!(
+                "job {id} failed{}: it has no {noun}, and never will",
+                error.map(|e| format!(" ({e})")).unwrap_or_default()
+            ),
+        })
     }
 
     fn content_type(self, format: OutputFormat) -> &'static str {
@@ -144,7 +173,8 @@ pub struct JobMetrics {
     /// The rolling-shutter readout used, milliseconds (0 = global shutter).
     #[serde(default)]
     pub readout_ms: f64,
-    /// Warnings about the run (`readout_ms=auto` fell back to 0).
+    /// Warnings about the run: each fallback the CLI warns about (`fov=auto`
+    /// fell back to 70 deg, `readout_ms=auto` to 0), without its `warning: `.
     #[serde(default)]
     pub warnings: Vec<String>,
 }
