@@ -2,8 +2,8 @@
 //! warped through their rotations and averaged into the output, plane by
 //! plane for planar frames.
 
+use super::buffered::Buffered;
 use super::rendering::Rendering;
-use super::Buffered;
 use crate::so3::Rot;
 use nalgebra::Matrix3;
 use std::collections::VecDeque;

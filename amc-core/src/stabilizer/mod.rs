@@ -19,6 +19,7 @@
 //! settings, `params.rs` its [`StabilizerParams`].
 
 mod average;
+mod buffered;
 mod params;
 mod push;
 mod rendering;
@@ -29,9 +30,9 @@ mod tracking;
 mod view;
 
 use crate::image::{Frame, PixelFormat};
-use crate::shutter::{IntraFrame, RollingProjector};
+use crate::shutter::RollingProjector;
 use crate::so3::Rot;
-use crate::tracker::TrackInfo;
+use buffered::Buffered;
 use rendering::Rendering;
 use std::collections::VecDeque;
 use tracking::Tracking;
@@ -57,19 +58,4 @@ pub struct Stabilizer {
     /// Render output `j` while tracking frame `j + 1 + lookahead` (on the
     /// caller's rayon pool with the `parallel` feature).
     pipelined: bool,
-}
-
-pub(super) struct Buffered {
-    pub(super) frame: Frame,
-    pub(super) index: u64,
-    pub(super) t: f64,
-    pub(super) r_est: Rot,
-    /// Its motion during the readout (zero with a global shutter).
-    pub(super) intra: IntraFrame,
-    /// Its rows' readout rotations as rendered (`Tracked::rendered`),
-    /// tabulated (empty with a global shutter).
-    pub(super) rows: RollingProjector,
-    pub(super) info: TrackInfo,
-    /// Forward-filtered view at this frame.
-    pub(super) view_fwd: Rot,
 }

@@ -2,9 +2,10 @@
 //! the lookahead lets out is rendered (beside the next frame's tracking when
 //! pipelined).
 
+use super::buffered::Buffered;
 use super::telemetry::Telemetry;
 use super::tracking::Tracked;
-use super::{Buffered, Stabilizer};
+use super::Stabilizer;
 use crate::error::AmcError;
 use crate::image::{Frame, FrameRef};
 use crate::shutter::RollingProjector;

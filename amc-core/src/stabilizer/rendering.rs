@@ -1,8 +1,8 @@
 //! The rendering stage: the ring's frames in, stabilized frames out.
 
+use super::buffered::Buffered;
 use super::params::StabilizerParams;
 use super::telemetry::Telemetry;
-use super::Buffered;
 use crate::camera::CameraModel;
 use crate::framing::{zoom_matrix, Border, Framer, Zoom};
 use crate::image::Frame;

@@ -9,8 +9,8 @@
 
 use super::irls::{irls_terms, outer_products, IrlsTerms, CHUNK};
 use super::residuals::residuals;
-use super::rolling::WarmStart;
-use super::step::Pose;
+use super::state::Pose;
+use super::state::WarmStart;
 use super::Tracker;
 use crate::image::GrayImage;
 use crate::lanes;

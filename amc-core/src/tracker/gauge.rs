@@ -4,34 +4,6 @@ use super::Tracker;
 use crate::shutter::{IntraFrame, INTRA_TERMS};
 use crate::so3::Tangent;
 
-/// The gauge of the readout motion.
-///
-/// Aligning frame `j` to template `k` sees the *difference* of their readout
-/// motions: if both frames turn alike during their readouts, their rows are
-/// displaced alike and the two images still differ by a pure rotation (to
-/// first order). So the estimates inherit the template's error, template after
-/// template, from the first frame's (unknown, taken as zero). What pins the
-/// absolute value down is time: the rotation across a readout is the readout
-/// time times the angular velocity, and summed over many frames the
-/// velocities at the frames' mid-readouts and the pose-to-pose rates
-/// `log(R_{j-1}^T R_j) / dt` agree (the latter sum to the net rotation; the
-/// former sample the same motion), up to a bounded difference. So over a
-/// block of `K` frames
-/// ```text
-/// c_phi = mean_j (phi_j - tau omega_j),     c_psi = mean_j psi_j,     c_chi = mean_j chi_j
-/// ```
-/// is the gauge error (to `tau |theta| / (K dt)`: 0.02 deg for 15 ms, 1.5 deg
-/// of shake and a 1 s block), and is removed. Blocks start short
-/// ([`GAUGE_FIRST_BLOCK`] frames) so the first frames' error goes early, and
-/// double up to [`GAUGE_BLOCK`].
-#[derive(Clone, Copy, Debug, Default)]
-pub(super) struct Gauge {
-    /// Sums of `phi - tau omega` and of the higher terms.
-    pub(super) sums: [Tangent; INTRA_TERMS],
-    pub(super) count: usize,
-    pub(super) block: usize,
-}
-
 /// First block of the gauge check, frames.
 pub(super) const GAUGE_FIRST_BLOCK: usize = 8;
 

@@ -6,19 +6,11 @@
 //! as a jump between two frames nor adds up, template after template.
 
 use super::recover::suspect;
-use super::step::Pose;
+use super::state::Handover;
+use super::state::Pose;
 use super::Tracker;
 use crate::pyramid::Pyramid;
-use crate::shutter::IntraFrame;
-use crate::so3::{self, Rot};
-
-/// The outgoing template's orientation and gauge, kept for one frame after a
-/// reset ([`Tracker::hand_over`]).
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Handover {
-    pub(super) r_0k: Rot,
-    pub(super) gauge_tpl: IntraFrame,
-}
+use crate::so3;
 
 impl Tracker {
     /// Tracks the first frame after a reset against the outgoing template

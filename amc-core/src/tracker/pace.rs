@@ -1,7 +1,7 @@
 //! Which terms of the readout path are estimated, and on which levels: the
 //! model follows the motion's pace.
 
-use super::step::Pose;
+use super::state::Pose;
 use super::Tracker;
 use crate::shutter::{IntraFrame, INTRA_TERMS};
 use crate::so3::{self, Tangent};

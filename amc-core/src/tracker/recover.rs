@@ -7,9 +7,9 @@
 //! estimate.
 
 use super::params::TrackInfo;
-use super::rolling::WarmStart;
 use super::solve::MIN_VALID_SHARE;
-use super::step::Pose;
+use super::state::Pose;
+use super::state::WarmStart;
 use super::Tracker;
 use crate::pyramid::Pyramid;
 use crate::so3::{self, Tangent};

@@ -3,7 +3,7 @@
 
 use super::irls::CHUNK;
 use super::landing::{path_at, rotate_small, row_times_into};
-use super::template::LevelTemplate;
+use super::state::LevelTemplate;
 use super::Tracker;
 use crate::image::GrayImage;
 use crate::shutter::{IntraFrame, RowTime};

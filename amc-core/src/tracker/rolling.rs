@@ -35,7 +35,8 @@ use super::eval::Eval;
 use super::irls::{irls_terms, outer_products, IrlsTerms, CHUNK};
 use super::landing::{land_at, row_times_into};
 use super::residuals::residuals;
-use super::step::Pose;
+use super::state::Pose;
+use super::state::WarmStart;
 use super::Tracker;
 use crate::image::GrayImage;
 use crate::lanes;
@@ -47,42 +48,6 @@ use crate::shutter::{RowTime, INTRA_TERMS};
 /// the landing rows and the robust weights the matrix is made of move with
 /// the pose (see `docs/core-history.md#tracker-matrix-refresh-px`).
 pub(super) const MATRIX_REFRESH_PX: f64 = 0.3;
-
-/// What a rolling-shutter evaluation after the first at one level starts
-/// from (a "warm" one; see [`Tracker::evaluate_rolling_with`]).
-///
-/// - Where each template point landed in the current frame at the level's
-///   last evaluation, and how its fixed-point iteration converged there.
-///   Between the evaluations of one level the pose moves by a Gauss-Newton
-///   step, so a point's landing moves by about that step. One fixed-point
-///   step from the last landing, extrapolated with the first evaluation's
-///   contraction, then leaves `~ |d kappa| / (1 - kappa)^2` of that move,
-///   where the first evaluation, starting from the mid-readout projection,
-///   needs two steps and the extrapolation: half the projections.
-/// - The level's first Gauss-Newton matrix (its moments up to `s^(2 terms)`,
-///   two thirds of the evaluation's sums with a cubic path). The iteration's
-///   fixed point is where the gradient vanishes whatever the matrix, and
-///   near it the weights and rows the matrix is made of barely move; after a
-///   step longer than [`MATRIX_REFRESH_PX`] the matrix is summed again.
-///
-/// The same evaluations per frame and the same accuracy (see
-/// `docs/core-history.md#tracker-warm-start`).
-#[derive(Clone, Debug, Default)]
-pub(super) struct WarmStart {
-    /// Whether the fields hold the level's first evaluation.
-    pub(super) valid: bool,
-    /// Whether the next evaluation sums the matrix afresh (and keeps it).
-    pub(super) refresh: bool,
-    /// Where each point landed at the level's last evaluation, pixels.
-    pub(super) u: Vec<f32>,
-    pub(super) v: Vec<f32>,
-    /// Aitken's gain `kappa / (1 - kappa)` of each point's fixed-point
-    /// iteration, measured by the level's first evaluation.
-    pub(super) gain: Vec<f32>,
-    /// The level's first Gauss-Newton matrix ([`Eval::h`], [`Eval::hs`]).
-    pub(super) h: [f64; 6],
-    pub(super) hs: [[f64; 6]; 2 * INTRA_TERMS],
-}
 
 impl Tracker {
     /// [`Tracker::evaluate_global`] through a rolling shutter: each template

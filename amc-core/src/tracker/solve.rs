@@ -9,9 +9,10 @@
 
 use super::eval::Eval;
 use super::params::TrackInfo;
-use super::rolling::{WarmStart, MATRIX_REFRESH_PX};
+use super::rolling::MATRIX_REFRESH_PX;
 use super::shutter_prior::ReadoutPrior;
-use super::step::Pose;
+use super::state::Pose;
+use super::state::WarmStart;
 use super::Tracker;
 use crate::image::GrayImage;
 use crate::pyramid::Pyramid;

@@ -18,8 +18,9 @@
 
 use super::eval::Eval;
 use super::shutter_prior::ReadoutPrior;
+use super::state::Pose;
 use crate::shutter::{IntraFrame, INTRA_TERMS};
-use crate::so3::{self, Rot, Tangent};
+use crate::so3::{self, Tangent};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// Weight of the readout path's step in the convergence test: its terms
@@ -28,14 +29,6 @@ use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 /// still far below what the estimate can resolve (see
 /// `docs/core-history.md#tracker-intra-tolerance-scale`).
 pub(super) const INTRA_TOLERANCE_SCALE: f64 = 0.1;
-
-/// A frame's pose relative to the template: the mid-readout rotation
-/// `R_{k,j}` and the motion during the readout.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Pose {
-    pub(super) r: Rot,
-    pub(super) intra: IntraFrame,
-}
 
 /// One Gauss-Newton step: the rotation's (inverse compositional) and the
 /// intra-frame motion's (additive; zero when it is not estimated).

@@ -7,6 +7,7 @@
 
 use super::intrinsics::Intrinsics;
 use super::rectify::rectify_template;
+use super::state::LevelTemplate;
 use super::vote::is_static;
 use super::Tracker;
 use crate::image::GrayImage;
@@ -16,27 +17,6 @@ use crate::shutter::IntraFrame;
 /// Gradient magnitude (per pixel, intensity units) under which a pixel carries
 /// no usable alignment information: ~0.5/255, the 8-bit quantisation step.
 pub(super) const MIN_GRADIENT: f32 = 0.5 / 255.0;
-
-/// Precomputed template data of one pyramid level (structure of arrays).
-#[derive(Clone, Debug, Default)]
-pub(super) struct LevelTemplate {
-    pub(super) k: Option<Intrinsics>,
-    /// Normalized ray coordinates `(x, y)` of each selected template pixel.
-    pub(super) xs: Vec<f32>,
-    pub(super) ys: Vec<f32>,
-    /// Rolling shutter: `xs`, `ys` and these are the ray rectified into the
-    /// template's mid-readout camera (empty with a global shutter).
-    pub(super) zs: Vec<f32>,
-    /// Template intensity.
-    pub(super) tv: Vec<f32>,
-    /// Steepest-descent images, one per rotation axis (an array per axis, so
-    /// that the loops over points load them as vectors).
-    pub(super) sd: [Vec<f32>; 3],
-    /// Pixel index `v * width + u` in the level image.
-    pub(super) loc: Vec<u32>,
-    /// Width of the level image, pixels.
-    pub(super) width: usize,
-}
 
 impl Tracker {
     /// Makes `pyr` the template: selects pixels and precomputes steepest descent.

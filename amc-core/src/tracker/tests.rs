@@ -3,7 +3,7 @@
 //! own camera model from a smooth texture on the sphere of view directions.
 
 use super::gauge::GAUGE_FIRST_BLOCK;
-use super::step::Pose;
+use super::state::Pose;
 use super::{Tracker, TrackerParams};
 use crate::camera::CameraModel;
 use crate::image::GrayImage;

@@ -7,15 +7,15 @@
 //!   Flapping-wing shake at 12-20 Hz sampled at 60 fps reverses within 2-3
 //!   frames, so a constant-velocity guess alone can be worse than none.
 
-use super::gauge::Gauge;
-use super::handover::Handover;
 use super::intrinsics::Intrinsics;
 use super::pace::{PACE_GAIN, START_PATH_GAIN};
 use super::params::{TrackInfo, TrackerParams};
 use super::recover::suspect;
-use super::rolling::WarmStart;
-use super::step::Pose;
-use super::template::LevelTemplate;
+use super::state::Gauge;
+use super::state::Handover;
+use super::state::LevelTemplate;
+use super::state::Pose;
+use super::state::WarmStart;
 use super::Tracker;
 use crate::camera::CameraModel;
 use crate::error::AmcError;

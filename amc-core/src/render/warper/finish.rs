@@ -1,7 +1,8 @@
 //! Finishing an output row: the kernel's sums (and the scalar reference past
 //! them) into bytes and coverage.
 
-use super::rows::{Pass, RowScratch};
+use super::buffers::RowScratch;
+use super::rows::Pass;
 use crate::render::kernels::{average, Kernel};
 use crate::render::robust::weighted_average;
 

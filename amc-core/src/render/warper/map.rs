@@ -1,6 +1,7 @@
 //! Each frame's map from output rows to source coordinates: an exact
 //! homography for a pinhole source, else a grid of exact nodes.
 
+use super::buffers::RowMap;
 use super::{Warper, GRID_STEP, ROLLING_GRID_STEP};
 use crate::render::grid;
 use crate::shutter::{LandingGrid, RollingProjector};
@@ -15,18 +16,6 @@ pub(super) const NODE_TOLERANCE_PX: f64 = 1e-3;
 
 // Both steps fit the grid fill's table of in-cell offsets.
 const _: () = assert!(GRID_STEP <= grid::MAX_STEP && ROLLING_GRID_STEP <= grid::MAX_STEP);
-
-/// How one frame's source coordinates are produced along output rows.
-#[derive(Clone, Debug, Default)]
-pub(super) struct RowMap {
-    /// Homography `K_src M K_out^-1` (pinhole sources, global shutter).
-    pub(super) h: Matrix3<f32>,
-    /// Exact source coordinates at the grid nodes (distorted sources, and any
-    /// source through a rolling shutter).
-    pub(super) grid: Vec<[f32; 2]>,
-    /// Whether this map is the grid (else the homography).
-    pub(super) gridded: bool,
-}
 
 impl Warper {
     /// Prepares `map` for rotation `m` (output ray -> source ray) and the

@@ -22,6 +22,7 @@
 //! are rendered in bands on the current rayon pool (each band with row buffers
 
 mod average;
+mod buffers;
 mod chroma;
 mod downsample;
 mod finish;
@@ -39,10 +40,8 @@ use super::params::Interpolation;
 use super::robust::Deghost;
 use crate::camera::CameraModel;
 use crate::shutter::{LandingGrid, RollingProjector};
-use map::RowMap;
+use buffers::{Fine, RowMap, RowScratch};
 use nalgebra::{Matrix3, Vector3};
-use rows::RowScratch;
-use supersample::Fine;
 
 pub use chroma::chroma_camera;
 

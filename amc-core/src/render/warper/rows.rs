@@ -1,48 +1,13 @@
 //! The row engine: a render's frames sampled along each output row by the
 //! row kernels, in bands on the rayon pool with the `parallel` feature.
 
-use super::map::RowMap;
+use super::buffers::{RowMap, RowScratch};
 use super::{Warper, MAX_FRAMES};
 use crate::render::kernels::{
     merge_row_gray_scalar, merge_row_scalar, Geometry, HomographyRow, RowCoords, FRAME_PADDING,
 };
 use crate::render::robust::Deghost;
 use nalgebra::Matrix3;
-
-/// Per-row working buffers: one set per band of rows being rendered.
-#[derive(Clone, Debug, Default)]
-pub(super) struct RowScratch {
-    /// Source coordinates `(xs[f][u], ys[f][u])` of the current row per frame (NaN: none).
-    pub(super) xs: Vec<Vec<f32>>,
-    pub(super) ys: Vec<Vec<f32>>,
-    /// Per-channel sums of the vectorized path (1 or 3 used).
-    pub(super) sums: [Vec<u32>; 3],
-    /// Frames covering each pixel of the row.
-    pub(super) count: Vec<u32>,
-    /// Ghost-free averaging: the weights' sum per pixel (`sums` then holds
-    /// the weighted sums).
-    pub(super) weight: Vec<u32>,
-}
-
-impl RowScratch {
-    /// Sizes the buffers for `frames` frames of rows `width` wide (with the
-    /// weights when `merged`).
-    pub(super) fn fit(&mut self, frames: usize, width: usize, tables: bool, merged: bool) {
-        if tables {
-            self.xs.resize_with(frames, Vec::new);
-            self.ys.resize_with(frames, Vec::new);
-            for t in self.xs.iter_mut().chain(self.ys.iter_mut()) {
-                t.resize(width, 0.0);
-            }
-        }
-        for buf in self.sums.iter_mut().chain(std::iter::once(&mut self.count)) {
-            buf.resize(width, 0);
-        }
-        if merged {
-            self.weight.resize(width, 0);
-        }
-    }
-}
 
 /// What is fixed for every row of one render: the frames, their maps, the
 /// kernel's share of each row.

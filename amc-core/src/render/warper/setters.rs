@@ -1,7 +1,6 @@
 //! Building a warper, and the settings of its renders.
 
-use super::rows::RowScratch;
-use super::supersample::Fine;
+use super::buffers::{Fine, RowScratch};
 use super::{Warper, GRID_STEP, ROLLING_GRID_STEP};
 use crate::camera::CameraModel;
 use crate::render::kernels::Kernel;

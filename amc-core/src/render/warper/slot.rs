@@ -1,8 +1,8 @@
 //! One frame warped alone: the scalar reference ([`Warper::warp`]) and the
 //! saccade slots, interleaved or one plane.
 
+use super::buffers::RowMap;
 use super::downsample::box_down_slot;
-use super::map::RowMap;
 use super::supersample::Target;
 use super::Warper;
 use crate::image::FrameRef;

@@ -3,45 +3,9 @@
 //! each output pixel is one sample, else into the fine buffers ([`Fine`])
 //! whose `S x S` blocks are then averaged into the caller's.
 
+use super::buffers::Fine;
 use super::downsample::box_down;
 use super::Warper;
-use crate::render::accumulator::WarpedFrame;
-
-/// The supersampled renders of a warper with `S > 1`, before their `S x S`
-/// blocks are averaged into the caller's buffers (kept: a warmed-up render
-/// allocates nothing).
-#[derive(Clone, Debug, Default)]
-pub(super) struct Fine {
-    /// Image (interleaved or one plane) and its second plane (U and V pairs).
-    pub(super) image: Vec<u8>,
-    pub(super) image_b: Vec<u8>,
-    /// Covering frames per fine pixel.
-    pub(super) coverage: Vec<u8>,
-    /// A saccade slot's samples and coverage (interleaved or one plane).
-    pub(super) slot: WarpedFrame,
-}
-
-impl Fine {
-    /// The image, `len` values, and its coverage.
-    pub(super) fn image(&mut self, len: usize) -> (&mut [u8], &mut Vec<u8>) {
-        self.image.resize(len, 0);
-        (&mut self.image, &mut self.coverage)
-    }
-
-    /// Both planes of a pair, `len` values each, and their coverage.
-    pub(super) fn pair(&mut self, len: usize) -> (&mut [u8], &mut [u8], &mut Vec<u8>) {
-        self.image.resize(len, 0);
-        self.image_b.resize(len, 0);
-        (&mut self.image, &mut self.image_b, &mut self.coverage)
-    }
-
-    /// The slot's first `len` values and coverage flags (one plane).
-    pub(super) fn plane_slot(&mut self, len: usize) -> (&mut [u16], &mut [u8]) {
-        self.slot.value.resize(len, 0);
-        self.slot.covered.resize(len, 0);
-        (&mut self.slot.value[..len], &mut self.slot.covered[..len])
-    }
-}
 
 /// Where a render on the render grid writes.
 pub(super) enum Target<'f, O> {

@@ -1,6 +1,6 @@
 //! Unit tests of the warper's maps.
 
-use super::map::RowMap;
+use super::buffers::RowMap;
 use super::Warper;
 use crate::camera::CameraModel;
 use crate::shutter::{project_rolling, IntraFrame};

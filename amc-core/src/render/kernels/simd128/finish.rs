@@ -8,7 +8,7 @@ use core::arch::wasm32::*;
 ///
 /// # Safety
 /// The sums must hold at least `n8` values and `out` at least `4 * n8` bytes.
-pub(in crate::render::kernels) unsafe fn finish_row_rgba(
+pub(crate) unsafe fn finish_row_rgba(
     acc_r: &[u32],
     acc_g: &[u32],
     acc_b: &[u32],
@@ -60,7 +60,7 @@ pub(in crate::render::kernels) unsafe fn finish_row_rgba(
 /// # Safety
 /// `sum` and `count` must hold at least `n8` values, `out` and `coverage` at
 /// least `n8` bytes.
-pub(in crate::render::kernels) unsafe fn finish_row_gray(
+pub(crate) unsafe fn finish_row_gray(
     sum: &[u32],
     count: &[u32],
     out: &mut [u8],

@@ -16,7 +16,7 @@ use core::arch::wasm32::*;
 /// ([`FRAME_PADDING`](super::super::FRAME_PADDING) covers it); coordinate
 /// tables and the outputs must have at least `n8` elements (`n8` a multiple of
 /// 4).
-pub(in crate::render::kernels) unsafe fn accumulate_row_gray(
+pub(crate) unsafe fn accumulate_row_gray(
     datas: &[&[u8]],
     g: KernelGeometry,
     coords: &[RowCoords<'_>],
@@ -54,7 +54,7 @@ pub(in crate::render::kernels) unsafe fn accumulate_row_gray(
 /// # Safety
 /// As [`accumulate_row_gray`], for both planes' data.
 #[allow(clippy::too_many_arguments)]
-pub(in crate::render::kernels) unsafe fn accumulate_row_gray_pair(
+pub(crate) unsafe fn accumulate_row_gray_pair(
     datas_a: &[&[u8]],
     datas_b: &[&[u8]],
     g: KernelGeometry,
@@ -112,7 +112,7 @@ pub(super) unsafe fn sample_gray4(
 /// # Safety
 /// As [`accumulate_row_gray`], and `datas` must not be empty.
 #[allow(clippy::too_many_arguments)]
-pub(in crate::render::kernels) unsafe fn merge_row_gray(
+pub(crate) unsafe fn merge_row_gray(
     datas: &[&[u8]],
     g: KernelGeometry,
     coords: &[RowCoords<'_>],

@@ -21,7 +21,7 @@ use core::arch::wasm32::*;
 /// [`FRAME_PADDING`](super::super::FRAME_PADDING) bytes; coordinate tables and
 /// the outputs must have at least `n8` elements (`n8` a multiple of 4).
 #[allow(clippy::too_many_arguments)]
-pub(in crate::render::kernels) unsafe fn accumulate_row(
+pub(crate) unsafe fn accumulate_row(
     datas: &[&[u8]],
     g: KernelGeometry,
     coords: &[RowCoords<'_>],
@@ -202,7 +202,7 @@ pub(super) unsafe fn sample_rgb4(
 /// # Safety
 /// As [`accumulate_row`], and `datas` must not be empty.
 #[allow(clippy::too_many_arguments)]
-pub(in crate::render::kernels) unsafe fn merge_row(
+pub(crate) unsafe fn merge_row(
     datas: &[&[u8]],
     g: KernelGeometry,
     coords: &[RowCoords<'_>],
