@@ -89,6 +89,16 @@ const GYROFLOW: &str = r#"{
 const PROJECT: &str = r#"{"model": "opencv", "width": 800, "height": 600, "fx": 600.5, "fy": 601.25,
         "cx": 399.5, "cy": 299.5, "skew": 0.25, "dist": [-0.28, 0.07, 0.0001, -0.0002]}"#;
 
+/// The Kannala-Brandt (OpenCV fisheye) distortion with coefficients `k`.
+fn fisheye(k: [f64; 4]) -> Distortion {
+    Distortion::Fisheye {
+        k1: k[0],
+        k2: k[1],
+        k3: k[2],
+        k4: k[3],
+    }
+}
+
 #[test]
 fn project_format() {
     let cam = parse_lens(PROJECT).expect("valid");
@@ -118,12 +128,7 @@ fn project_format() {
     let fish = r#"{"model":"fisheye","width":640,"height":480,"fx":300,"fy":300,"cx":319.5,"cy":239.5,"dist":[0.05,-0.01,0.002,-0.0005]}"#;
     assert_eq!(
         parse_lens(fish).expect("valid").distortion,
-        Distortion::Fisheye {
-            k1: 0.05,
-            k2: -0.01,
-            k3: 0.002,
-            k4: -0.0005
-        }
+        fisheye([0.05, -0.01, 0.002, -0.0005])
     );
 }
 
@@ -197,15 +202,7 @@ fn opencv_yaml() {
     let yaml = "%YAML:1.0\nimage_size: [ 640, 480 ]\nfisheye: true\ncamera_matrix: [[300., 0., 320.], [0., 301., 240.], [0., 0., 1.]]\ndistortion_coefficients: [[0.1], [0.01], [-0.002], [0.0003]]\n";
     let cam = parse_lens(yaml).expect("valid");
     assert_eq!((cam.width, cam.height), (640, 480));
-    assert_eq!(
-        cam.distortion,
-        Distortion::Fisheye {
-            k1: 0.1,
-            k2: 0.01,
-            k3: -0.002,
-            k4: 0.0003
-        }
-    );
+    assert_eq!(cam.distortion, fisheye([0.1, 0.01, -0.002, 0.0003]));
 }
 
 #[test]
@@ -216,15 +213,7 @@ fn opencv_json() {
         (cam.fx, cam.fy, cam.cx, cam.cy, cam.skew),
         (900.0, 910.0, 640.0, 360.0, 0.5)
     );
-    assert_eq!(
-        cam.distortion,
-        Distortion::Fisheye {
-            k1: 0.05,
-            k2: -0.01,
-            k3: 0.002,
-            k4: -0.0005
-        }
-    );
+    assert_eq!(cam.distortion, fisheye([0.05, -0.01, 0.002, -0.0005]));
     // 4 coefficients without a fisheye marker are k1 k2 p1 p2.
     let radtan = OPENCV_JSON.replace(
         "\"distortion_model\": \"fisheye\"",
@@ -252,15 +241,7 @@ fn gyroflow_profile() {
         (cam.fx, cam.fy, cam.cx, cam.cy, cam.skew),
         (1195.2, 1194.8, 1351.5, 1013.6, 0.0)
     );
-    assert_eq!(
-        cam.distortion,
-        Distortion::Fisheye {
-            k1: 0.0405,
-            k2: 0.0213,
-            k3: -0.0094,
-            k4: 0.0017
-        }
-    );
+    assert_eq!(cam.distortion, fisheye([0.0405, 0.0213, -0.0094, 0.0017]));
     let other = GYROFLOW.replace(
         "\"distortion_model\": null",
         "\"distortion_model\": \"poly5\"",

@@ -32,6 +32,8 @@
 //! estimated from the footage (`crate::readout`, above the stabilizer).
 
 mod ease;
+#[cfg(test)]
+pub(crate) mod fixtures;
 mod landing;
 mod motion;
 mod params;

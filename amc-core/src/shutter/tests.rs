@@ -1,7 +1,7 @@
 //! Identities of the rolling-shutter model.
 
+use super::fixtures;
 use super::*;
-use crate::camera::CameraModel;
 use crate::so3::{self, Tangent};
 use nalgebra::{Matrix3, Vector3};
 
@@ -9,16 +9,8 @@ use nalgebra::{Matrix3, Vector3};
 /// own time, sees the ray there (pinhole and fisheye).
 #[test]
 fn projection_lands_on_its_own_rows_time() {
-    let cams = [
-        CameraModel::pinhole_hfov(320, 180, 90.0).unwrap(),
-        CameraModel::fisheye_hfov(320, 180, 150.0, [0.05, -0.01, 0.002, -0.0005]).unwrap(),
-    ];
-    let intra = IntraFrame {
-        phi: Tangent::new(0.08, -0.12, 0.05),
-        psi: Tangent::new(-0.02, 0.03, 0.01),
-        chi: Tangent::new(0.01, -0.005, 0.004),
-        xi: Tangent::new(-0.004, 0.002, 0.003),
-    };
+    let cams = fixtures::cameras();
+    let intra = fixtures::readout_motion();
     let m: Matrix3<f64> = *so3::exp(&Tangent::new(0.1, -0.2, 0.05)).matrix();
     for cam in &cams {
         for &(x, y) in &[(0.0, 0.0), (0.4, -0.3), (-0.5, 0.4), (0.2, 0.5)] {

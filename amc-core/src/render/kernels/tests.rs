@@ -27,13 +27,8 @@ fn every_kernel_matches_scalar() {
             .collect();
         let datas: Vec<&[u8]> = frames.iter().map(|f| f.as_slice()).collect();
         let geom = Geometry {
-            channels,
-            stride: w * channels,
-            max_x0: w - 2,
-            max_y0: h - 2,
-            max_x: (w - 1) as f32,
-            max_y: (h - 1) as f32,
             cubic,
+            ..Geometry::plane(w, h, channels)
         };
         let table = |r: &mut dyn FnMut() -> u32, size: usize| -> Vec<f32> {
             (0..n)

@@ -1,7 +1,6 @@
 //! The average of several interleaved frames (RGB, RGBA) into the view.
 
 use super::finish::{finish_merged_rgb_row, finish_rgb_row};
-use super::supersample::Target;
 use super::{Warper, MAX_FRAMES};
 use crate::image::FrameRef;
 use crate::render::kernels::Geometry;
@@ -30,10 +29,7 @@ impl Warper {
         let complete = self.supersample_render(
             (out, coverage),
             |w, target| {
-                let (out, coverage) = match target {
-                    Target::Caller(buffers) => buffers,
-                    Target::Fine(fine) => fine.image(fine_len),
-                };
+                let (out, coverage) = target.image(fine_len);
                 let ow = w.out.width;
                 let (maps, n_frames) = w.begin_render(rotations, coverage);
                 // Hoist each frame's pixels out of the per-pixel loop.

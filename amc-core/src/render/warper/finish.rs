@@ -151,12 +151,7 @@ pub(super) fn finish_merged_rgb_row(
             px[3] = 255;
         }
     }
-    let mut complete = 0usize;
-    for (c, &k) in cov_row.iter_mut().zip(&n[..ow]) {
-        *c = k as u8;
-        complete += (*c == full) as usize;
-    }
-    complete
+    write_coverage(cov_row, &n[..ow], full)
 }
 
 /// Writes one single-channel output row from
@@ -178,8 +173,16 @@ pub(super) fn finish_merged_gray_row(
     for ((o, &s), &k) in out_row[..ow].iter_mut().zip(sum).zip(w) {
         *o = weighted_average(s, k, fill);
     }
-    for (c, &k) in cov_row.iter_mut().zip(n) {
+    write_coverage(cov_row, n, full)
+}
+
+/// Writes a merged row's coverage (`counts`: frames per pixel, at most
+/// [`MAX_FRAMES`](super::MAX_FRAMES)); returns the pixels all `full` frames cover.
+fn write_coverage(cov_row: &mut [u8], counts: &[u32], full: u8) -> usize {
+    let mut complete = 0usize;
+    for (c, &k) in cov_row.iter_mut().zip(counts) {
         *c = k as u8;
+        complete += (*c == full) as usize;
     }
-    n.iter().filter(|&&k| k == full as u32).count()
+    complete
 }

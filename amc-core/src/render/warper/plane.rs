@@ -31,10 +31,7 @@ impl Warper {
         self.supersample_render(
             (out, coverage),
             |w, target| {
-                let (out, coverage) = match target {
-                    Target::Caller(buffers) => buffers,
-                    Target::Fine(fine) => fine.image(fine_len),
-                };
+                let (out, coverage) = target.image(fine_len);
                 let ow = w.out.width;
                 let (maps, n_frames) = w.begin_render(rotations, coverage);
                 let mut datas: [&[u8]; MAX_FRAMES] = [&[]; MAX_FRAMES];

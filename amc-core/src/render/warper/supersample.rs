@@ -16,6 +16,16 @@ pub(super) enum Target<'f, O> {
     Fine(&'f mut Fine),
 }
 
+impl<'f: 'o, 'o> Target<'f, (&'o mut [u8], &'o mut Vec<u8>)> {
+    /// The image (`len` values when fine) and coverage a render writes.
+    pub(super) fn image(self, len: usize) -> (&'o mut [u8], &'o mut Vec<u8>) {
+        match self {
+            Target::Caller(buffers) => buffers,
+            Target::Fine(fine) => fine.image(len),
+        }
+    }
+}
+
 impl Warper {
     /// Runs `render` on the render grid: into the caller's buffers `out` with
     /// one sample per output pixel (`S = 1`, the output is the plain render),

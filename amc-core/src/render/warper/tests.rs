@@ -3,6 +3,7 @@
 use super::buffers::RowMap;
 use super::Warper;
 use crate::camera::CameraModel;
+use crate::shutter::fixtures;
 use crate::shutter::{project_rolling, IntraFrame};
 use crate::shutter::{LandingGrid, RollingProjector};
 use crate::so3::{self, Tangent};
@@ -14,16 +15,8 @@ use nalgebra::{Matrix3, Vector2};
 /// row's start and next to nodes out of view.
 #[test]
 fn grid_nodes_are_the_rolling_fixed_point() {
-    let cams = [
-        CameraModel::pinhole_hfov(320, 180, 90.0).unwrap(),
-        CameraModel::fisheye_hfov(320, 180, 150.0, [0.05, -0.01, 0.002, -0.0005]).unwrap(),
-    ];
-    let intra = IntraFrame {
-        phi: Tangent::new(0.08, -0.12, 0.05),
-        psi: Tangent::new(-0.02, 0.03, 0.01),
-        chi: Tangent::new(0.01, -0.005, 0.004),
-        xi: Tangent::new(-0.004, 0.002, 0.003),
-    };
+    let cams = fixtures::cameras();
+    let intra = fixtures::readout_motion();
     for src in &cams {
         let out = CameraModel::pinhole_hfov(240, 136, 70.0).unwrap();
         let warper = Warper::new(src, &out);

@@ -2,6 +2,29 @@
 
 use core::arch::wasm32::*;
 
+/// `1 / (256 n)` per lane (infinite where `n = 0`): the finishers' scale.
+#[inline(always)]
+unsafe fn scale_of(n: v128) -> v128 {
+    f32x4_div(
+        f32x4_splat(1.0),
+        f32x4_mul(f32x4_splat(256.0), f32x4_convert_i32x4(n)),
+    )
+}
+
+/// The scalar `(sum as f32 * k + 0.5) as u8` per lane for `sum < 2^24` (exact
+/// as f32; the rounded values are integral and in 0..=255, NaN where `k` is
+/// infinite, which the caller masks).
+#[inline(always)]
+unsafe fn round_scaled(sum: v128, k: v128) -> v128 {
+    let x = f32x4_convert_i32x4(sum);
+    let t = f32x4_trunc(f32x4_add(f32x4_mul(x, k), f32x4_splat(0.5)));
+    let v = i32x4_sub(
+        f32x4_add(t, f32x4_splat(8_388_608.0)),
+        i32x4_splat(0x4B00_0000),
+    );
+    i32x4_min(v, i32x4_splat(255))
+}
+
 /// Finishes `n8` pixels (a multiple of 4) of an RGBA output row from the
 /// kernel's sums: `round(sum / (256 n))` per channel, alpha 255, exactly the
 /// scalar `(sum as f32 * (1 / (256 n)) + 0.5) as u8` (0 where `n = 0`).
@@ -17,27 +40,16 @@ pub(crate) unsafe fn finish_row_rgba(
     n8: usize,
 ) {
     debug_assert!(n8 % 4 == 0 && out.len() >= 4 * n8);
-    let one = f32x4_splat(1.0);
-    let c256 = f32x4_splat(256.0);
-    let half = f32x4_splat(0.5);
-    let magic = f32x4_splat(8_388_608.0);
-    let magic_bits = i32x4_splat(0x4B00_0000);
-    let max = i32x4_splat(255);
     let alpha = i32x4_splat(0xFF00_0000_u32 as i32);
     let zero = i32x4_splat(0);
     let mut u = 0;
     while u < n8 {
         let n = v128_load(count.as_ptr().add(u) as *const v128);
-        let k = f32x4_div(one, f32x4_mul(c256, f32x4_convert_i32x4(n)));
+        let k = scale_of(n);
         let covered = i32x4_ne(n, zero);
-        // Sums are below 2^24 (64 frames of 255 * 256): exact as f32; the
-        // rounded values are integral and in 0..=255 (NaN where n = 0, masked).
-        let ch = |p: *const u32| {
-            let x = f32x4_convert_i32x4(v128_load(p.add(u) as *const v128));
-            let t = f32x4_trunc(f32x4_add(f32x4_mul(x, k), half));
-            let v = i32x4_sub(f32x4_add(t, magic), magic_bits);
-            v128_and(i32x4_min(v, max), covered)
-        };
+        // Sums are below 2^24 (64 frames of 255 * 256); NaN where n = 0, masked.
+        let ch =
+            |p: *const u32| v128_and(round_scaled(v128_load(p.add(u) as *const v128), k), covered);
         let r = ch(acc_r.as_ptr());
         let g = ch(acc_g.as_ptr());
         let b = ch(acc_b.as_ptr());
@@ -71,12 +83,6 @@ pub(crate) unsafe fn finish_row_gray(
 ) -> usize {
     debug_assert!(n8 % 4 == 0 && sum.len() >= n8 && count.len() >= n8);
     debug_assert!(out.len() >= n8 && coverage.len() >= n8);
-    let one = f32x4_splat(1.0);
-    let c256 = f32x4_splat(256.0);
-    let half = f32x4_splat(0.5);
-    let magic = f32x4_splat(8_388_608.0);
-    let magic_bits = i32x4_splat(0x4B00_0000);
-    let max = i32x4_splat(255);
     let zero = i32x4_splat(0);
     let (fill, full) = (i32x4_splat(fill as i32), i32x4_splat(full as i32));
     // Byte 0 of each 32-bit lane, packed into the low 4 bytes.
@@ -90,13 +96,9 @@ pub(crate) unsafe fn finish_row_gray(
     let mut u = 0;
     while u < n8 {
         let n = v128_load(count.as_ptr().add(u) as *const v128);
-        let k = f32x4_div(one, f32x4_mul(c256, f32x4_convert_i32x4(n)));
-        // Sums are below 2^24 (64 frames of 255 * 256): exact as f32; the
-        // rounded values are integral and in 0..=255 (NaN where n = 0,
-        // replaced by `fill`).
-        let x = f32x4_convert_i32x4(v128_load(sum.as_ptr().add(u) as *const v128));
-        let t = f32x4_trunc(f32x4_add(f32x4_mul(x, k), half));
-        let v = i32x4_min(i32x4_sub(f32x4_add(t, magic), magic_bits), max);
+        // Sums are below 2^24 (64 frames of 255 * 256); NaN where n = 0,
+        // replaced by `fill`.
+        let v = round_scaled(v128_load(sum.as_ptr().add(u) as *const v128), scale_of(n));
         let v = v128_bitselect(fill, v, i32x4_eq(n, zero));
         v128_store32_lane::<0>(bytes(v), out.as_mut_ptr().add(u) as *mut u32);
         v128_store32_lane::<0>(bytes(n), coverage.as_mut_ptr().add(u) as *mut u32);
