@@ -72,11 +72,20 @@ impl Warper {
                     let vals = &mut slot.value[3 * v * ow..3 * (v + 1) * ow];
                     let cov = &mut slot.covered[v * ow..(v + 1) * ow];
                     let [r, g, b] = &scratch.sums;
-                    for u in 0..pass.n8 {
-                        vals[3 * u] = r[u] as u16;
-                        vals[3 * u + 1] = g[u] as u16;
-                        vals[3 * u + 2] = b[u] as u16;
-                        cov[u] = scratch.count[u] as u8;
+                    // Zipped slices, so that the loop needs no bounds checks
+                    // and vectorizes whatever it is inlined into.
+                    let n8 = pass.n8;
+                    let sums = r[..n8].iter().zip(&g[..n8]).zip(&b[..n8]);
+                    let sums = sums.zip(&scratch.count[..n8]);
+                    for ((px, c), (((&r, &g), &b), &k)) in vals[..3 * n8]
+                        .chunks_exact_mut(3)
+                        .zip(&mut cov[..n8])
+                        .zip(sums)
+                    {
+                        px[0] = r as u16;
+                        px[1] = g as u16;
+                        px[2] = b as u16;
+                        *c = k as u8;
                     }
                     for u in pass.n8..ow {
                         if let Some(rgb) =
@@ -143,9 +152,14 @@ impl Warper {
                     .enumerate()
                 {
                     w.accumulate_row(&pass, None, v, &mut scratch, true);
-                    for u in 0..pass.n8 {
-                        vals[u] = scratch.sums[0][u] as u16;
-                        cov[u] = scratch.count[u] as u8;
+                    // Zipped slices, so that the loop needs no bounds checks
+                    // and vectorizes whatever it is inlined into.
+                    let n8 = pass.n8;
+                    let sums = scratch.sums[0][..n8].iter().zip(&scratch.count[..n8]);
+                    for ((val, c), (&s, &k)) in vals[..n8].iter_mut().zip(&mut cov[..n8]).zip(sums)
+                    {
+                        *val = s as u16;
+                        *c = k as u8;
                     }
                     for u in pass.n8..ow {
                         let s = pass
