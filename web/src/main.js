@@ -11,6 +11,7 @@ import { initPlayer } from './player.js';
 import { buildForm } from './settings.js';
 import { readableList, EXTENSIONS } from './formats.js';
 import { connectLive, disconnectLive } from './live.js';
+import { initAuth } from './auth.js';
 
 // --- Input: pick or drop ---------------------------------------------------
 // The containers the page reads, named once (formats.js); anything else is offered to the server.
@@ -30,7 +31,11 @@ document.addEventListener('drop', (e) => { e.preventDefault(); if (!drop.contain
 $('cancel').onclick = () => { if (state.cancel) state.cancel(); state.cancel = null; };
 $('server-btn').onclick = () => runOnServer(state.file);
 
-// The settings form: every option of the CLI, from the core's table.
+// The settings form: every option of the CLI, from the core's table. It is never
+// submitted (Enter in a field would reload the page); wired here, not by an
+// inline handler, which the server's Content-Security-Policy forbids.
+$('settings').addEventListener('submit', (e) => e.preventDefault());
+initAuth();
 init().then(() => buildForm(options(), resolveOptions))
   .catch((e) => showError(`The page could not load its WebAssembly module (amc-wasm): ${e && e.message ? e.message : e}`));
 initPlayer();

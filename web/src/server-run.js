@@ -3,7 +3,10 @@
 // output and the job's telemetry.csv (plot, download). When the browser cannot
 // play the user's file either, a second job (mode none, no averaging, no
 // crop) makes a copy it can play for the Original slot and the compare views.
+// Every call goes through authFetch (auth.js): the API key of a server that
+// wants one, asked for on its first 401.
 import { $, state, setPageState, showError, reset } from './state.js';
+import { authFetch, ApiError } from './auth.js';
 import { settings, serverQuery, refuseSettings, formReady } from './settings.js';
 import { showResult, setOriginal, playable } from './result.js';
 import { rowsFromCsv } from './telemetry.js';
@@ -15,6 +18,11 @@ async function problem(res) {
 
 class JobError extends Error {}
 
+// What each call needs of a key (a 403's message names the action and the role).
+const SUBMIT = { what: 'submit jobs', role: 'submit' };
+const JOBS = { what: 'see jobs', role: 'submit' };
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
 /** Submits a job; returns its URL (`/jobs/{id}`). */
 async function submit(file, query, lensFile) {
   let res;
@@ -22,9 +30,9 @@ async function submit(file, query, lensFile) {
     const fd = new FormData();
     fd.append('video', file, file.name);
     fd.append('lens', lensFile, lensFile.name);
-    res = await fetch(`/jobs?${query}`, { method: 'POST', body: fd });
+    res = await authFetch(`/jobs?${query}`, { method: 'POST', body: fd, ...SUBMIT });
   } else {
-    res = await fetch(`/jobs?${query}`, { method: 'POST', body: file, headers: { 'Content-Type': file.type || 'application/octet-stream' } });
+    res = await authFetch(`/jobs?${query}`, { method: 'POST', body: file, headers: { 'Content-Type': file.type || 'application/octet-stream' }, ...SUBMIT });
   }
   if (res.status !== 202 && !res.ok) throw new JobError(`server refused the job: ${await problem(res)}`);
   const job = await res.json();
@@ -36,7 +44,16 @@ async function waitFor(loc, onStatus, stop) {
   for (;;) {
     await new Promise((r) => setTimeout(r, 300));
     if (stop()) return null;
-    const r = await fetch(loc);
+    let r;
+    try {
+      r = await authFetch(loc, JOBS);
+    } catch (e) {
+      // Too many requests: wait as the server asks, then poll again.
+      if (!(e instanceof ApiError && e.status === 429)) throw e;
+      $('status-text').textContent = `Server: ${e.message}…`;
+      await sleep(1000 * e.retryAfter);
+      continue;
+    }
     if (!r.ok) throw new JobError(`job status: ${await problem(r)}`);
     const st = await r.json();
     if (stop()) return null;
@@ -47,7 +64,7 @@ async function waitFor(loc, onStatus, stop) {
 }
 
 async function fetchBlob(url, what) {
-  const r = await fetch(url);
+  const r = await authFetch(url, JOBS);
   if (!r.ok) throw new JobError(`${what}: ${await problem(r)}`);
   return r.blob();
 }
@@ -66,10 +83,11 @@ export async function runOnServer(file) {
   $('status-text').textContent = `Uploading ${file.name} to the server…`;
   let cancelled = false, loc = null;
   const stop = () => cancelled || state.run !== run;
-  state.cancel = () => { cancelled = true; if (loc) fetch(loc, { method: 'DELETE' }).catch(() => {}); showError('Cancelled.'); };
+  const remove = (loc) => authFetch(loc, { method: 'DELETE', what: 'cancel jobs', role: 'submit' }).catch(() => {});
+  state.cancel = () => { cancelled = true; if (loc) remove(loc); showError('Cancelled.'); };
   try {
     loc = await submit(file, serverQuery(s), s.lensFile);
-    if (stop()) { fetch(loc, { method: 'DELETE' }).catch(() => {}); return; }
+    if (stop()) { remove(loc); return; }
     const st = await waitFor(loc, (st) => {
       if (st.frames_total) { $('progress').max = st.frames_total; $('progress').value = st.frames_done; }
       $('status-text').textContent = `Server: ${st.state}, frame ${st.frames_done}${st.frames_total ? ' / ' + st.frames_total : ''}`;
@@ -101,7 +119,10 @@ export async function runOnServer(file) {
     state.cancel = null;
     await showOriginal(file, s, run);
   } catch (e) {
-    if (!stop()) showError(e instanceof JobError ? e.message : `server job: ${e.message || e}`);
+    if (stop()) return;
+    // A refusal of the key (none given, a role missing, too many requests) is the server's answer to the job.
+    if (e instanceof ApiError) showError(`server refused the job: ${e.message}`);
+    else showError(e instanceof JobError ? e.message : `server job: ${e.message || e}`);
   }
 }
 

@@ -20,6 +20,8 @@ export const state = {
   urls: [],
   /** The Live tab's WebSocket and its recent telemetry messages. */
   ws: null,
+  /** Whether the Live tab wants the feed (connecting, connected or waiting to reconnect). */
+  liveOn: false,
   liveHist: [],
 };
 

@@ -1,11 +1,15 @@
 // End to end in headless Chromium against `amc serve` (serving web/dist):
 // the page stabilizes cup.mp4 in the browser; clips it cannot read (HEVC, AVI,
 // not a video) are offered to the job API; its settings are the CLI's options;
-// the Live tab shows a looped source. Screenshots land in web/test-artifacts/.
+// the Live tab shows a looped source; against a server with API keys
+// (`--auth-keys`) the page asks for a key and watches the feed through
+// tickets; no page breaks the server's Content-Security-Policy. Screenshots
+// land in web/test-artifacts/.
 // Run: node --test --test-concurrency=1 test/e2e.test.mjs   (after ./build.sh)
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { execFileSync } from 'node:child_process';
+import { createHash, randomBytes } from 'node:crypto';
 import { mkdtempSync, readFileSync, renameSync, rmSync, writeFileSync } from 'node:fs';
 import { cpus, tmpdir } from 'node:os';
 import { join } from 'node:path';
@@ -13,11 +17,16 @@ import { startServer, launch, shot, ffprobeFrames, rmsFrameChange, streamTypes, 
 
 const cup = join(dataDir, 'cup', 'cup.mp4');
 let server, browser, tmp;
+/** Whether the test gives the pages their Content-Security-Policy (a server that sends none: a build before it did). */
+let injectCsp = false;
 
 before(async () => {
   tmp = mkdtempSync(join(tmpdir(), 'amc-e2e-'));
   server = await startServer(['--live-source', cup, '--live-loop']);
-  browser = await launch();
+  injectCsp = !(await fetch(`${server.url}/`)).headers.get('content-security-policy');
+  // A page the test serves (below) has no network address, so Chromium's local
+  // network access checks would refuse its WebSocket to 127.0.0.1: off then.
+  browser = await launch(injectCsp ? ['--disable-features=LocalNetworkAccessChecks'] : []);
 });
 
 after(async () => {
@@ -26,12 +35,51 @@ after(async () => {
   if (tmp) rmSync(tmp, { recursive: true, force: true });
 });
 
-async function newPage() {
+// The Content-Security-Policy `amc serve` sends with the page (issue "Locked doors").
+const CSP = "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; worker-src 'self' blob:; " +
+  "connect-src 'self' ws: wss: blob: data:; img-src 'self' blob: data:; media-src 'self' blob:; style-src 'self'; " +
+  "font-src 'self'; object-src 'none'; base-uri 'none'; frame-ancestors 'none'; form-action 'self'";
+/** Every CSP violation of every page of the run (checked by the last test). */
+const cspViolations = [];
+/** Who set the policy of the pages' files: 'server' (its own header), 'test' (a server without one). */
+const cspFrom = new Set();
+
+/**
+ * Reports what breaks the page's policy into `sink`: the
+ * `securitypolicyviolation` events and Chromium's "Refused to…" console
+ * messages (the page's and its workers'). The page's HTML and scripts get the
+ * policy as a header from the server or, where the server sends none (a
+ * build before it did), from the test: the same header, never a meta tag.
+ */
+async function watchCsp(page, srv, sink = cspViolations) {
+  const origin = new URL(srv.url).origin;
+  const note = (v) => sink.push({ page: page.url(), ...v });
+  await page.exposeFunction('__amcCspViolation', note);
+  await page.addInitScript(() => document.addEventListener('securitypolicyviolation', (e) => window.__amcCspViolation({
+    directive: e.violatedDirective, blocked: e.blockedURI, source: `${e.sourceFile}:${e.lineNumber}`, sample: e.sample,
+  })));
+  const onConsole = (m) => { if (/Content[- ]Security[- ]Policy/i.test(m.text())) note({ console: m.text() }); };
+  page.on('console', onConsole);
+  page.on('worker', (w) => w.on('console', onConsole));
+  if (!injectCsp) { cspFrom.add('server'); return; }
+  await page.route((u) => u.origin === origin && (u.pathname === '/' || /\.(html|m?js)$/.test(u.pathname)), async (route) => {
+    const res = await route.fetch();
+    const headers = res.headers();
+    headers['content-security-policy'] = CSP;
+    cspFrom.add('test');
+    await route.fulfill({ response: res, headers });
+  });
+}
+
+/** A page of `srv` with its settings form built; `setup(page)` runs before it loads (routes). */
+async function newPage(srv = server, setup = null) {
   const page = await browser.newPage({ acceptDownloads: true, viewport: { width: 1280, height: 900 } });
   const errors = [];
   page.on('pageerror', (e) => errors.push(e.message));
   page.on('response', (r) => { if (r.status() === 404) errors.push(`404 ${r.url()}`); });
-  await page.goto(server.url + '/');
+  await watchCsp(page, srv);
+  if (setup) await setup(page);
+  await page.goto(srv.url + '/');
   // The settings form is built from the core's option table once amc-wasm is loaded.
   await page.waitForSelector('#settings[data-ready]', { state: 'attached', timeout: 30000 });
   return { page, errors };
@@ -566,6 +614,8 @@ test("the settings: a few plain choices first; every CLI option under Advanced w
 
 test('Live tab: frames and telemetry from the looped source', async () => {
   const { page } = await newPage();
+  const sockets = [];
+  page.on('websocket', (ws) => sockets.push(ws.url()));
   await page.click('[data-testid=live-tab]');
   await page.waitForFunction(() => Number(document.querySelector('[data-testid=live-canvas]').dataset.frames) >= 10, null, { timeout: 60000 });
   const telemetry = await page.textContent('#live-telemetry');
@@ -583,5 +633,266 @@ test('Live tab: frames and telemetry from the looped source', async () => {
   const legendText = await page.textContent('[data-testid=live-legend]');
   assert.match(legendText, /camera \(estimate\) speed.*view speed/);
   await shot(page, 'live');
+  // Through a ticket (a server without keys still gives one), or plain /live where the server has no tickets (404).
+  assert.equal(sockets.length, 1, sockets.join(' '));
+  assert.match(sockets[0], /^ws:\/\/127\.0\.0\.1:\d+\/live(\?ticket=[0-9a-f]{64})?$/);
   await page.close();
+});
+
+// --- API keys and tickets ------------------------------------------------------
+
+const sha256 = (text) => createHash('sha256').update(text).digest('hex');
+const problemJson = (status, title, detail, headers = {}) => ({
+  status, headers, contentType: 'application/problem+json', body: JSON.stringify({ type: 'about:blank', title, status, detail }),
+});
+const UNAUTHORIZED = (detail) => problemJson(401, 'Unauthorized', detail, { 'WWW-Authenticate': 'Bearer realm="amc"' });
+
+/** A 2 s MJPEG AVI the page cannot read: it goes to the job API. */
+function aviClip(name) {
+  const avi = join(tmp, name);
+  execFileSync('ffmpeg', ['-v', 'error', '-y', '-f', 'lavfi', '-i', 'testsrc=size=320x240:rate=30', '-t', '2', '-c:v', 'mjpeg', avi]);
+  return avi;
+}
+
+/** Picks `file`, which the page cannot read, and takes the offer of the server. */
+async function toServer(page, file) {
+  await page.setInputFiles('[data-testid=file-input]', []); // the same file again is no change
+  await page.setInputFiles('[data-testid=file-input]', file);
+  await page.waitForSelector('[data-testid=server-fallback]', { state: 'visible', timeout: 60000 });
+  await page.click('[data-testid=server-fallback]');
+}
+
+/** Waits for the key dialog, types `key` and presses OK. */
+async function giveKey(page, key) {
+  await page.waitForSelector('#key-dialog[open]', { timeout: 30000 });
+  await page.fill('[data-testid=key-input]', key);
+  await page.click('[data-testid=key-ok]');
+}
+
+/** The key as the page holds it: { session, local (every localStorage value) }. */
+const keyStore = (page) => page.evaluate(() => ({
+  session: sessionStorage.getItem('amc-api-key'),
+  local: Object.keys(localStorage).map((k) => `${k}=${localStorage.getItem(k)}`),
+}));
+
+test('API key dialog (the job API answering 401, 403 and 429 by route): asked on the first call, a refused key asks again, the key goes on every call and stays in sessionStorage', async () => {
+  const avi = aviClip('keyed.avi');
+  const { page, errors } = await newPage();
+  const KEY = `amc_${randomBytes(16).toString('hex')}`;
+  const seen = [], urls = [];
+  page.on('request', (r) => urls.push(r.url()));
+  let answer = 'check';
+  await page.route((u) => u.pathname === '/openapi.json' || u.pathname.startsWith('/jobs'), async (route) => {
+    const req = route.request();
+    const auth = await req.headerValue('authorization');
+    seen.push({ method: req.method(), path: new URL(req.url()).pathname, auth });
+    if (answer === 'check' && auth !== `Bearer ${KEY}`) return route.fulfill(UNAUTHORIZED(auth ? 'this key is not valid' : 'an API key is needed'));
+    if (answer === '403' && req.method() === 'POST') return route.fulfill(problemJson(403, 'Forbidden', 'this key (tenant "t", roles view) may not use /jobs: it needs the role submit (or admin)'));
+    if (answer === '429') return route.fulfill(problemJson(429, 'Too Many Requests', 'too many requests for this key', { 'Retry-After': '7' }));
+    return route.continue();
+  });
+  // No key stored: nothing to forget.
+  assert.equal(await page.isVisible('[data-testid=forget-key]'), false);
+  await toServer(page, avi);
+  // The first API call (a bodiless check before the upload) is answered 401: the page's own dialog asks.
+  await page.waitForSelector('#key-dialog[open]', { timeout: 30000 });
+  assert.match(await page.textContent('#key-dialog'), /This server needs an API key \(ask its operator; amc keys new\)/);
+  assert.equal(await page.getAttribute('[data-testid=key-input]', 'type'), 'password');
+  assert.equal(await page.isVisible('[data-testid=key-error]'), false);
+  assert.equal(seen.filter((x) => x.method === 'POST').length, 0, 'the clip is not uploaded before there is a key');
+  await shot(page, 'key-1-asked');
+  // A wrong key: the dialog says so and asks again.
+  await giveKey(page, 'not-the-key');
+  await page.waitForSelector('[data-testid=key-error]', { state: 'visible', timeout: 10000 });
+  assert.match(await page.textContent('[data-testid=key-error]'), /^The server did not accept this key\. Try another/);
+  assert.equal(await page.inputValue('[data-testid=key-input]'), '', 'the refused key is not shown again');
+  await shot(page, 'key-2-refused');
+  await page.fill('[data-testid=key-input]', KEY);
+  await page.click('[data-testid=key-ok]');
+  await waitState(page, ['done', 'error']);
+  assert.equal(await state(page), 'done', await page.textContent('#error'));
+  assert.equal(ffprobeFrames(await download(page, 'keyed-stabilized.mp4')).frames, 60);
+  // The Original slot's copy (a second job) too.
+  await page.waitForFunction(() => { const o = document.getElementById('orig'); return !o.hidden && o.readyState >= 2; }, null, { timeout: 60000 });
+  // Once given, the key went on every call: the upload, the polls, the output, the telemetry.
+  const after = seen.slice(seen.findIndex((x) => x.auth === `Bearer ${KEY}`));
+  assert.ok(after.every((x) => x.auth === `Bearer ${KEY}`), JSON.stringify(after));
+  for (const [m, p] of [['POST', /^\/jobs$/], ['GET', /^\/jobs\/[^/]+$/], ['GET', /\/output$/], ['GET', /\/telemetry\.csv$/]]) {
+    assert.ok(after.some((x) => x.method === m && p.test(x.path)), `${m} ${p} with the key`);
+  }
+  assert.equal(after.filter((x) => x.method === 'POST').length, 2, 'each clip uploaded once');
+  // Kept for this tab only, never in a URL.
+  assert.deepEqual(await keyStore(page), { session: KEY, local: [] });
+  assert.deepEqual(urls.filter((u) => u.includes(KEY)), []);
+  assert.equal(await page.isVisible('[data-testid=forget-key]'), true);
+  // 403: the key lacks a role.
+  answer = '403';
+  await toServer(page, avi);
+  await page.waitForSelector('#error', { state: 'visible', timeout: 30000 });
+  assert.equal(await page.textContent('#error'), 'server refused the job: this key may not submit jobs (role submit or admin missing)');
+  // 429: too many requests.
+  answer = '429';
+  await toServer(page, avi);
+  await page.waitForFunction(() => /too many/.test(document.getElementById('error').textContent), null, { timeout: 30000 });
+  assert.equal(await page.textContent('#error'), 'server refused the job: too many requests, retry in 7 s');
+  await shot(page, 'key-3-429');
+  // Forget the key: the next call asks again; Cancel ends the job with a message.
+  answer = 'check';
+  await page.click('[data-testid=forget-key]');
+  assert.equal(await page.isVisible('[data-testid=forget-key]'), false);
+  assert.deepEqual(await keyStore(page), { session: null, local: [] });
+  await toServer(page, avi);
+  await page.waitForSelector('#key-dialog[open]', { timeout: 30000 });
+  await page.click('[data-testid=key-cancel]');
+  await page.waitForFunction(() => /API key/.test(document.getElementById('error').textContent), null, { timeout: 10000 });
+  assert.match(await page.textContent('#error'), /^server refused the job: this server needs an API key, and none was given/);
+  assert.equal(await page.isVisible('#key-dialog'), false);
+  assert.deepEqual(errors.filter((e) => !e.startsWith('404')), []);
+  await page.close();
+});
+
+test('Live tab (ticket endpoint and socket by route): a ticket, asked with the key, before each connection and each reconnection; the key never in a URL; no ticket endpoint (404): a plain /live', async () => {
+  const jpeg = join(tmp, 'live.jpg');
+  execFileSync('ffmpeg', ['-v', 'error', '-y', '-f', 'lavfi', '-i', 'testsrc=size=160x120', '-frames:v', '1', '-c:v', 'mjpeg', '-f', 'image2', jpeg]);
+  const frame = readFileSync(jpeg);
+  const KEY = `amc_${randomBytes(16).toString('hex')}`;
+  const tickets = [], sockets = [], urls = [];
+  let issued = 0, ticketAnswer = 'check';
+  const { page } = await newPage(server, async (page) => {
+    page.on('request', (r) => urls.push(r.url()));
+    await page.route((u) => u.pathname === '/live/ticket', async (route) => {
+      const req = route.request();
+      const auth = await req.headerValue('authorization');
+      tickets.push({ method: req.method(), auth });
+      if (ticketAnswer === '404') return route.fulfill(problemJson(404, 'Not Found', 'no such endpoint: /live/ticket'));
+      if (auth !== `Bearer ${KEY}`) return route.fulfill(UNAUTHORIZED('an API key is needed'));
+      issued++;
+      return route.fulfill({ status: 200, contentType: 'application/json', body: JSON.stringify({ ticket: issued.toString(16).padStart(64, 'a'), expires_in_s: 30 }) });
+    });
+    // The feed: a telemetry message and a frame, then (the first time) the socket drops.
+    await page.routeWebSocket((u) => u.pathname === '/live', (ws) => {
+      sockets.push(ws.url());
+      const n = sockets.length;
+      setTimeout(() => {
+        ws.send(JSON.stringify({ frame: n, t: n, speed_est_dps: 10, speed_view_dps: 2, valid: 1, saccade: false, latency_ms: 5 }));
+        ws.send(frame);
+        if (n === 1) setTimeout(() => ws.close({ code: 1001, reason: 'going away' }), 300);
+      }, 200);
+    });
+  });
+  await page.click('[data-testid=live-tab]');
+  await giveKey(page, KEY);
+  await page.waitForFunction(() => Number(document.querySelector('[data-testid=live-canvas]').dataset.frames) >= 2, null, { timeout: 20000 });
+  const origin = server.url.replace(/^http/, 'ws');
+  assert.deepEqual(sockets, [`${origin}/live?ticket=${'1'.padStart(64, 'a')}`, `${origin}/live?ticket=${'2'.padStart(64, 'a')}`], 'a new ticket for the reconnection');
+  assert.deepEqual(tickets.map((t) => `${t.method} ${t.auth}`), ['POST null', `POST Bearer ${KEY}`, `POST Bearer ${KEY}`]);
+  assert.deepEqual(urls.concat(sockets).filter((u) => u.includes(KEY)), []);
+  assert.deepEqual(await keyStore(page), { session: KEY, local: [] });
+  // A server without tickets: the plain /live.
+  ticketAnswer = '404';
+  await page.click('#tab-clip');
+  await page.click('[data-testid=live-tab]');
+  await page.waitForFunction(() => Number(document.querySelector('[data-testid=live-canvas]').dataset.frames) >= 3, null, { timeout: 20000 });
+  assert.equal(sockets[2], `${origin}/live`);
+  await page.close();
+});
+
+test('amc serve --auth-keys: the API wants a key, the page asks for it on its first call, a wrong key asks again; the job and the live feed (through tickets) run with it; a key without the role is told so', async () => {
+  const keys = { alice: `amc_${randomBytes(32).toString('hex')}`, viewer: `amc_${randomBytes(32).toString('hex')}` };
+  const keysFile = join(tmp, 'keys.txt');
+  writeFileSync(keysFile, `# test keys\nalice submit,view,publish ${sha256(keys.alice)}\nviewer view ${sha256(keys.viewer)}\n`);
+  const srv = await startServer(['--auth-keys', keysFile, '--live-source', cup, '--live-loop']);
+  try {
+    // The page's files and /healthz are public and the page comes with its policy; the API is not.
+    const home = await fetch(`${srv.url}/`);
+    assert.equal(home.status, 200);
+    assert.match(home.headers.get('content-security-policy') || '', /script-src 'self' 'wasm-unsafe-eval'/, 'the server sends the page its CSP');
+    assert.equal((await fetch(`${srv.url}/main.js`)).status, 200);
+    const api = await fetch(`${srv.url}/jobs`);
+    assert.equal(api.status, 401);
+    assert.equal(api.headers.get('www-authenticate'), 'Bearer realm="amc"');
+    assert.match(api.headers.get('content-type'), /application\/problem\+json/);
+
+    const avi = aviClip('auth.avi');
+    const { page, errors } = await newPage(srv);
+    const urls = [], sockets = [], apiCalls = [];
+    page.on('request', (r) => {
+      urls.push(r.url());
+      const path = new URL(r.url()).pathname;
+      if (/^\/(jobs|live|openapi\.json)/.test(path)) apiCalls.push(r);
+    });
+    page.on('websocket', (ws) => sockets.push(ws.url()));
+    await toServer(page, avi);
+    await page.waitForSelector('#key-dialog[open]', { timeout: 30000 });
+    await shot(page, 'auth-1-asked');
+    await giveKey(page, `amc_${'0'.repeat(64)}`);
+    await page.waitForSelector('[data-testid=key-error]', { state: 'visible', timeout: 10000 });
+    assert.match(await page.textContent('[data-testid=key-error]'), /The server did not accept this key/);
+    await page.fill('[data-testid=key-input]', keys.alice);
+    await page.click('[data-testid=key-ok]');
+    await waitState(page, ['done', 'error']);
+    assert.equal(await state(page), 'done', await page.textContent('#error'));
+    assert.equal(ffprobeFrames(await download(page, 'auth-stabilized.mp4')).frames, 60);
+    await page.waitForFunction(() => { const o = document.getElementById('orig'); return !o.hidden && o.readyState >= 2; }, null, { timeout: 60000 });
+    // The live feed: a ticket, then the socket with it; again after switching away and back (a new ticket).
+    await page.click('[data-testid=live-tab]');
+    await page.waitForFunction(() => Number(document.querySelector('[data-testid=live-canvas]').dataset.frames) >= 5, null, { timeout: 60000 });
+    await page.click('#tab-clip');
+    await page.click('[data-testid=live-tab]');
+    await page.waitForFunction(() => Number(document.querySelector('[data-testid=live-canvas]').dataset.frames) >= 10, null, { timeout: 60000 });
+    await shot(page, 'auth-2-live');
+    assert.equal(sockets.length, 2, sockets.join(' '));
+    for (const u of sockets) assert.match(u, /\/live\?ticket=[0-9a-f]{64}$/);
+    assert.notEqual(sockets[0], sockets[1], 'a fresh ticket per connection');
+    // The key: in sessionStorage and the Authorization header only.
+    assert.deepEqual(await keyStore(page), { session: keys.alice, local: [] });
+    assert.deepEqual(urls.concat(sockets).filter((u) => u.includes(keys.alice)), []);
+    assert.ok(!srv.log().includes(keys.alice), "the key is not in the server's log");
+    const withKey = [];
+    for (const r of apiCalls) withKey.push(`${r.method()} ${new URL(r.url()).pathname} ${(await r.allHeaders()).authorization === `Bearer ${keys.alice}`}`);
+    assert.ok(withKey.some((x) => /^POST \/jobs true$/.test(x)), withKey.join('\n'));
+    assert.ok(withKey.some((x) => /^POST \/live\/ticket true$/.test(x)), withKey.join('\n'));
+    assert.deepEqual(withKey.filter((x) => / \/jobs\/\S+ false$/.test(x)), [], 'every poll and download with the key');
+    assert.deepEqual(errors.filter((e) => !e.startsWith('404')), []);
+    await page.close();
+
+    // A key with only the view role: the live feed works, a job is refused, naming the role.
+    const { page: viewer } = await newPage(srv);
+    await viewer.click('[data-testid=live-tab]');
+    await giveKey(viewer, keys.viewer);
+    await viewer.waitForFunction(() => Number(document.querySelector('[data-testid=live-canvas]').dataset.frames) >= 3, null, { timeout: 60000 });
+    await viewer.click('#tab-clip');
+    await toServer(viewer, avi);
+    await viewer.waitForSelector('#error', { state: 'visible', timeout: 30000 });
+    assert.match(await viewer.textContent('#error'), /^server refused the job: this key may not submit jobs \(role submit\b.*missing\)/);
+    assert.equal(await viewer.isVisible('#key-dialog'), false, 'a 403 does not ask for another key');
+    await shot(viewer, 'auth-3-forbidden');
+    await viewer.close();
+  } finally {
+    await srv.stop();
+  }
+});
+
+test('no page of this run broke the Content-Security-Policy (the check itself sees a violation)', async () => {
+  writeFileSync(join(artifacts, 'csp.json'), JSON.stringify({ policyFrom: [...cspFrom], violations: cspViolations }, null, 1));
+  // The check works: an inline style and an inline script are reported.
+  const page = await browser.newPage();
+  const probe = [];
+  await watchCsp(page, server, probe);
+  await page.goto(`${server.url}/`);
+  await page.evaluate(() => {
+    const d = document.createElement('div');
+    d.innerHTML = '<span style="color: red">x</span>';
+    document.body.append(d);
+    const s = document.createElement('script');
+    s.textContent = 'window.inlineRan = true';
+    document.body.append(s);
+  });
+  await new Promise((r) => setTimeout(r, 500));
+  assert.equal(await page.evaluate(() => window.inlineRan), undefined, 'the inline script was blocked');
+  assert.ok(probe.some((v) => /style-src/.test(v.directive || v.console)), JSON.stringify(probe));
+  assert.ok(probe.some((v) => /script-src/.test(v.directive || v.console)), JSON.stringify(probe));
+  await page.close();
+  assert.ok(cspFrom.size > 0, 'the pages had a policy');
+  assert.deepEqual(cspViolations, []);
 });
