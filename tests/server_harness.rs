@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 /// A running server; killed (SIGTERM, then SIGKILL) when dropped.
 pub struct Server {
     pub child: Child,
-    /// `http://127.0.0.1:PORT`
+    /// `http://127.0.0.1:PORT` (`https://` with `--tls-cert`)
     pub base: String,
     pub addr: String,
     /// The parent given as `--work-dir` (the server makes its own folder inside).
@@ -22,29 +22,34 @@ pub struct Server {
 impl Server {
     /// Starts `amc serve --addr 127.0.0.1:0 --work-dir TMP ARGS...` and waits until it listens.
     pub fn start(args: &[&str]) -> Server {
-        Self::launch("serve", args, None)
+        Self::launch("serve", args, None, &[])
+    }
+
+    /// [`Server::start`] with extra environment variables (`RUST_LOG`, say).
+    pub fn start_with_env(args: &[&str], env: &[(&str, &str)]) -> Server {
+        Self::launch("serve", args, None, env)
     }
 
     /// Starts `amc worker --addr 127.0.0.1:0 --work-dir TMP ARGS...` (its
     /// `/healthz` and `/metrics`) and waits until it listens.
     pub fn worker(args: &[&str]) -> Server {
-        Self::launch("worker", args, None)
+        Self::launch("worker", args, None, &[])
     }
 
     /// [`Server::worker`] with `--work-dir DIR` (another worker's, say).
     pub fn worker_in(dir: &Path, args: &[&str]) -> Server {
         let mut all = vec!["--work-dir", dir.to_str().expect("UTF-8 path")];
         all.extend_from_slice(args);
-        Self::launch("worker", &all, None)
+        Self::launch("worker", &all, None, &[])
     }
 
     /// [`Server::worker`] confined to one CPU core (`taskset -c CORE`), its
     /// ffmpeg children included.
     pub fn worker_on_core(core: usize, args: &[&str]) -> Server {
-        Self::launch("worker", args, Some(core))
+        Self::launch("worker", args, Some(core), &[])
     }
 
-    fn launch(command: &str, args: &[&str], core: Option<usize>) -> Server {
+    fn launch(command: &str, args: &[&str], core: Option<usize>, env: &[(&str, &str)]) -> Server {
         let work_parent = tempfile::tempdir().expect("temp dir");
         let stderr_log = work_parent.path().with_extension("log");
         let log = std::fs::File::create(&stderr_log).expect("log file");
@@ -63,6 +68,7 @@ impl Server {
         }
         let mut child = cmd
             .args(args)
+            .envs(env.iter().copied())
             .current_dir(super::workspace_root())
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
@@ -82,7 +88,11 @@ impl Server {
                 panic!("amc {command} did not start: {line:?}\n{log}")
             })
             .to_string();
-        let addr = base.trim_start_matches("http://").to_string();
+        // `https://` with `--tls-cert`.
+        let addr = base
+            .trim_start_matches("http://")
+            .trim_start_matches("https://")
+            .to_string();
         Server {
             child,
             base,
@@ -373,6 +383,31 @@ pub fn post(url: &str, content_type: &str, body: &[u8]) -> Reply {
     reply(req.send(body).unwrap_or_else(|e| panic!("POST {url}: {e}")))
 }
 
+/// `method url` with extra headers (`Authorization`, say); `body` is sent
+/// only with POST and PUT.
+pub fn request(method: &str, url: &str, headers: &[(&str, &str)], body: &[u8]) -> Reply {
+    let agent = agent();
+    macro_rules! with_headers {
+        ($req:expr) => {{
+            let mut req = $req;
+            for (k, v) in headers {
+                req = req.header(*k, *v);
+            }
+            req
+        }};
+    }
+    let result = match method {
+        "GET" => with_headers!(agent.get(url)).call(),
+        "HEAD" => with_headers!(agent.head(url)).call(),
+        "DELETE" => with_headers!(agent.delete(url)).call(),
+        "OPTIONS" => with_headers!(agent.options(url)).call(),
+        "POST" => with_headers!(agent.post(url)).send(body),
+        "PUT" => with_headers!(agent.put(url)).send(body),
+        other => panic!("request: unsupported method {other}"),
+    };
+    reply(result.unwrap_or_else(|e| panic!("{method} {url}: {e}")))
+}
+
 /// A multipart form of (name, filename, content type, bytes) parts: its
 /// Content-Type (with the boundary) and its body.
 pub fn multipart_body(parts: &[(&str, &str, &str, &[u8])]) -> (String, Vec<u8>) {
@@ -424,10 +459,31 @@ pub fn websocket(
     path: &str,
     read_timeout: Duration,
 ) -> Result<tungstenite::WebSocket<TcpStream>, String> {
+    websocket_with(addr, path, &[], read_timeout)
+}
+
+/// [`websocket`] with extra headers on the upgrade request (`Authorization`, `Origin`).
+pub fn websocket_with(
+    addr: &str,
+    path: &str,
+    headers: &[(&str, &str)],
+    read_timeout: Duration,
+) -> Result<tungstenite::WebSocket<TcpStream>, String> {
+    use tungstenite::client::IntoClientRequest;
+    use tungstenite::http::{HeaderName, HeaderValue};
+    let mut req = format!("ws://{addr}{path}")
+        .into_client_request()
+        .map_err(|e| e.to_string())?;
+    for (k, v) in headers {
+        req.headers_mut().insert(
+            HeaderName::from_bytes(k.as_bytes()).map_err(|e| e.to_string())?,
+            HeaderValue::from_str(v).map_err(|e| e.to_string())?,
+        );
+    }
     let stream = TcpStream::connect(addr).map_err(|e| e.to_string())?;
     stream.set_read_timeout(Some(read_timeout)).ok();
     stream.set_nodelay(true).ok();
-    match tungstenite::client(format!("ws://{addr}{path}"), stream) {
+    match tungstenite::client(req, stream) {
         Ok((ws, _)) => Ok(ws),
         Err(tungstenite::HandshakeError::Failure(tungstenite::Error::Http(res))) => {
             Err(format!("HTTP {}", res.status().as_u16()))

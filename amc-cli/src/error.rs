@@ -43,6 +43,9 @@ pub enum CliError {
     /// `amc worker` without the job table it works for.
     #[error("amc worker needs --queue postgres://... and --store s3://BUCKET (the same as the amc serve replicas')")]
     WorkerNeedsCluster,
+    /// `amc keys new` with a bad tenant or role.
+    #[error("{0}")]
+    Keys(String),
     /// A ground-truth file.
     #[error(transparent)]
     Gt(#[from] gt::GtError),

@@ -10,7 +10,7 @@ mod signals;
 use amc_engine::{self as engine, LensNote, RunConfig, FALLBACK_FOV_DEG};
 use amc_eval::{compare, demo, eval, synth};
 use amc_server::serve;
-use args::{Cli, Command, StabilizeArgs};
+use args::{Cli, Command, KeysCommand, StabilizeArgs};
 use clap::Parser;
 use error::CliError;
 use std::path::PathBuf;
@@ -269,7 +269,49 @@ fn run(cli: Cli, control: &engine::RunControl) -> Result<(), CliError> {
         Command::Serve(a) => Ok(serve::run(&a.config()?)?),
         Command::Worker(a) => Ok(amc_server::worker::run(&a.config()?)?),
         Command::Compare(a) => Ok(compare::run(&a.config()?)?),
+        Command::Keys(a) => match a.command {
+            KeysCommand::New {
+                tenant,
+                roles,
+                append,
+            } => {
+                let (key, line) =
+                    amc_server::auth::new_key(&tenant, &roles).map_err(CliError::Keys)?;
+                if let Some(path) = &append {
+                    append_line(path, &line)?;
+                }
+                // Stdout: the key, then (without --append) the file's line,
+                // one a line so scripts can take either; how to use them on stderr.
+                println!("{key}");
+                match &append {
+                    Some(p) => {
+                        eprintln!("The key above is shown once: give it to its user (`Authorization: Bearer KEY`).");
+                        eprintln!("Added to {}: {line}", p.display());
+                    }
+                    None => {
+                        println!("{line}");
+                        eprintln!(
+                            "The first line is the key, shown once: give it to its user (`Authorization: Bearer KEY`).\n\
+                             The second is the line for the --auth-keys file (it holds only the key's SHA-256)."
+                        );
+                    }
+                }
+                Ok(())
+            }
+        },
     }
+}
+
+/// Appends a keys file's line (the file made owner-only if new).
+fn append_line(path: &std::path::Path, line: &str) -> Result<(), CliError> {
+    use std::io::Write;
+    let mut open = std::fs::OpenOptions::new();
+    open.create(true).append(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::mode(&mut open, 0o600);
+    let io = |e: std::io::Error| CliError::Keys(format!("{}: {e}", path.display()));
+    let mut f = open.open(path).map_err(io)?;
+    writeln!(f, "{line}").map_err(io)
 }
 
 fn main() -> ExitCode {

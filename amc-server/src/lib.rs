@@ -2,10 +2,11 @@
 //!
 //! [`serve`] is the axum service (REST jobs, the live WebSocket feed, the
 //! page); [`worker`] runs queued jobs in cluster mode; [`cluster`] is the job
-//! store in PostgreSQL with videos in S3. Runs go through `amc-engine`; the
+//! store in PostgreSQL with videos in S3; [`auth`] is who may ask what. Runs go through `amc-engine`; the
 //! command line (`amc-cli`) is the only place clap lives. See
 //! `docs/ARCHITECTURE.md`.
 
+pub mod auth;
 pub mod cluster;
 pub mod serve;
 pub mod worker;

@@ -4,10 +4,12 @@
 //! [`crate::options::StabilizerFlags`], generated from the core's one
 //! definition of each option.
 
+mod access;
 mod common;
 mod compare;
 mod demo;
 mod eval;
+mod keys;
 mod serve;
 mod stabilize;
 mod synth;
@@ -15,10 +17,12 @@ mod synth;
 mod tests;
 mod worker;
 
+pub use access::{AccessFlags, KeysFlags};
 pub use common::{LensFlags, RunFlags};
 pub use compare::CompareArgs;
 pub use demo::DemoArgs;
 pub use eval::EvalArgs;
+pub use keys::{KeysArgs, KeysCommand};
 pub use serve::{ClusterFlags, ServeArgs};
 pub use stabilize::StabilizeArgs;
 pub use synth::SynthArgs;
@@ -52,4 +56,6 @@ pub enum Command {
     Worker(WorkerArgs),
     /// Compare our modes with ffmpeg's vid.stab and deshake: speed and quality, one report.
     Compare(CompareArgs),
+    /// API keys for `amc serve --auth-keys` (`amc keys new TENANT ROLES`).
+    Keys(KeysArgs),
 }

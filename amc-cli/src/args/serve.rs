@@ -109,6 +109,9 @@ pub struct ServeArgs {
     /// in this process).
     #[command(flatten)]
     pub cluster: ClusterFlags,
+    /// Keys, tenants, rates, CORS, TLS, connection limits.
+    #[command(flatten)]
+    pub access: super::AccessFlags,
 }
 
 /// Where jobs are kept when the service runs on several machines: one
@@ -184,7 +187,10 @@ impl ClusterFlags {
 impl ServeArgs {
     /// The library's settings.
     pub fn config(self) -> Result<amc_server::serve::ServeConfig, CliError> {
+        let (auth, listen) = self.access.config();
         Ok(amc_server::serve::ServeConfig {
+            auth,
+            listen,
             cluster: self.cluster.config(self.job_ttl)?,
             addr: self.addr,
             web_dir: self.web_dir,

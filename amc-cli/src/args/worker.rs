@@ -39,6 +39,9 @@ pub struct WorkerArgs {
     /// The shared job table and bucket (required).
     #[command(flatten)]
     pub cluster: ClusterFlags,
+    /// Keys for /metrics (the replicas' --auth-keys file; needs admin).
+    #[command(flatten)]
+    pub keys: super::KeysFlags,
 }
 
 impl WorkerArgs {
@@ -59,6 +62,7 @@ impl WorkerArgs {
             ffmpeg_timeout: self.ffmpeg_timeout,
             name: self.name,
             log_json: self.log_json,
+            auth: self.keys.config(),
         })
     }
 }

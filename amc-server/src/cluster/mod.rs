@@ -13,6 +13,7 @@ mod config;
 mod error;
 pub mod queue;
 pub mod store;
+mod tickets;
 
 pub use config::{redact, ClusterConfig, StoreConfig};
 pub use error::ClusterError;
@@ -60,10 +61,11 @@ impl Cluster {
         let store = &self.store;
         let expired = self
             .queue
-            .expire(self.config.job_ttl, SWEEP_BATCH, |id| async move {
-                store.delete_job(&id).await.map(|_| ())
+            .expire(self.config.job_ttl, SWEEP_BATCH, |id, tenant| async move {
+                store.delete_job(&tenant, &id).await.map(|_| ())
             })
             .await?;
+        self.queue.expire_tickets().await?;
         Ok((failed, expired))
     }
 }

@@ -36,11 +36,14 @@ fn migrator() -> Migrator {
         )
     };
     Migrator {
-        migrations: Cow::Owned(vec![migration(
-            1,
-            "jobs",
-            include_str!("../../migrations/0001_jobs.sql"),
-        )]),
+        migrations: Cow::Owned(vec![
+            migration(1, "jobs", include_str!("../../migrations/0001_jobs.sql")),
+            migration(
+                2,
+                "tenants",
+                include_str!("../../migrations/0002_tenants.sql"),
+            ),
+        ]),
         ..Migrator::DEFAULT
     }
 }
@@ -50,7 +53,7 @@ fn migrator() -> Migrator {
 const ACQUIRE_TIMEOUT: Duration = Duration::from_secs(3);
 
 /// The columns every read returns, in [`JobRow`]'s shape.
-const COLUMNS: &str = "id, seq, state, extract(epoch from created_at)::float8 AS created, \
+const COLUMNS: &str = "id, tenant, seq, state, extract(epoch from created_at)::float8 AS created, \
     format, frames_total, frames_done, attempts, error, metrics::text AS metrics, \
     motion::text AS motion, input_key, output_key, telemetry_key, \
     (lease_until IS NULL OR lease_until < now()) AS released";
@@ -59,6 +62,8 @@ const COLUMNS: &str = "id, seq, state, extract(epoch from created_at)::float8 AS
 #[derive(Clone, Debug)]
 pub struct JobRow {
     pub id: String,
+    /// The tenant whose key submitted it (`local` without keys).
+    pub tenant: String,
     /// Order of acceptance (the listing's cursor).
     pub seq: i64,
     /// `queued`, `running`, `done`, `failed` or `cancelled`.
@@ -88,6 +93,7 @@ impl JobRow {
     fn of(row: &PgRow) -> Result<Self, sqlx::Error> {
         Ok(Self {
             id: row.try_get("id")?,
+            tenant: row.try_get("tenant")?,
             seq: row.try_get("seq")?,
             state: row.try_get("state")?,
             created: row.try_get("created")?,
@@ -109,6 +115,7 @@ impl JobRow {
 /// A job to insert.
 pub struct NewJob<'a> {
     pub id: &'a str,
+    pub tenant: &'a str,
     /// The request's query string (the worker parses it again).
     pub options: &'a str,
     pub format: &'a str,
@@ -123,6 +130,8 @@ pub struct NewJob<'a> {
 #[derive(Clone, Debug)]
 pub struct Claim {
     pub id: String,
+    /// Its tenant: the prefix of its objects.
+    pub tenant: String,
     /// This claim's number (1, 2, ...): part of the claim's identity.
     pub attempt: i32,
     pub options: String,
@@ -205,8 +214,8 @@ impl Queue {
 
     pub async fn insert(&self, job: &NewJob<'_>) -> Result<JobRow, ClusterError> {
         let sql = format!(
-            "INSERT INTO amc_jobs (id, options, format, lens, width, height, input_key, frames_total) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8) RETURNING {COLUMNS}"
+            "INSERT INTO amc_jobs (id, options, format, lens, width, height, input_key, frames_total, tenant) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9) RETURNING {COLUMNS}"
         );
         let row = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(job.id)
@@ -217,6 +226,7 @@ impl Queue {
             .bind(job.height)
             .bind(job.input_key)
             .bind(job.frames_total)
+            .bind(job.tenant)
             .fetch_one(&self.pool)
             .await
             .map_err(ClusterError::db("queueing a job"))?;
@@ -236,20 +246,23 @@ impl Queue {
             .map_err(ClusterError::db("reading a job"))
     }
 
-    /// Up to `limit` jobs accepted before `before` (a `seq`; `None`: the
-    /// newest), newest first, and whether there are more.
+    /// Up to `limit` jobs of `tenant` (`None`: every tenant's) accepted
+    /// before `before` (a `seq`; `None`: the newest), newest first, and
+    /// whether there are more.
     pub async fn page(
         &self,
+        tenant: Option<&str>,
         limit: usize,
         before: Option<i64>,
     ) -> Result<(Vec<JobRow>, bool), ClusterError> {
         let sql = format!(
             "SELECT {COLUMNS} FROM amc_jobs WHERE ($1::bigint IS NULL OR seq < $1) \
-             ORDER BY seq DESC LIMIT $2"
+             AND ($3::text IS NULL OR tenant = $3) ORDER BY seq DESC LIMIT $2"
         );
         let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(before)
             .bind(limit as i64 + 1)
+            .bind(tenant)
             .fetch_all(&self.pool)
             .await
             .map_err(ClusterError::db("listing jobs"))?;
@@ -261,6 +274,17 @@ impl Queue {
         let more = jobs.len() > limit;
         jobs.truncate(limit);
         Ok((jobs, more))
+    }
+
+    /// Jobs of `tenant` queued or running (its `--max-jobs-per-tenant`).
+    pub async fn active(&self, tenant: &str) -> Result<i64, ClusterError> {
+        sqlx::query_scalar(
+            "SELECT count(*) FROM amc_jobs WHERE tenant = $1 AND state IN ('queued', 'running')",
+        )
+        .bind(tenant)
+        .fetch_one(&self.pool)
+        .await
+        .map_err(ClusterError::db("counting a tenant's jobs"))
     }
 
     /// Cancels a queued or running job; `None` if it had already finished
@@ -289,7 +313,7 @@ impl Queue {
         remove_objects: F,
     ) -> Result<bool, ClusterError>
     where
-        F: FnOnce(String) -> Fut,
+        F: FnOnce(String, String) -> Fut,
         Fut: std::future::Future<Output = Result<(), ClusterError>>,
     {
         let mut tx = self
@@ -298,17 +322,20 @@ impl Queue {
             .await
             .map_err(ClusterError::db("removing a job"))?;
         let found = sqlx::query(
-            "SELECT id FROM amc_jobs WHERE id = $1 \
+            "SELECT id, tenant FROM amc_jobs WHERE id = $1 \
              AND state IN ('done', 'failed', 'cancelled') FOR UPDATE",
         )
         .bind(id)
         .fetch_optional(&mut *tx)
         .await
         .map_err(ClusterError::db("removing a job"))?;
-        if found.is_none() {
+        let Some(found) = found else {
             return Ok(false);
-        }
-        remove_objects(id.to_string()).await?;
+        };
+        let tenant: String = found
+            .try_get("tenant")
+            .map_err(ClusterError::db("removing a job"))?;
+        remove_objects(id.to_string(), tenant).await?;
         sqlx::query("DELETE FROM amc_jobs WHERE id = $1")
             .bind(id)
             .execute(&mut *tx)
@@ -330,7 +357,7 @@ impl Queue {
         remove_objects: F,
     ) -> Result<usize, ClusterError>
     where
-        F: Fn(String) -> Fut,
+        F: Fn(String, String) -> Fut,
         Fut: std::future::Future<Output = Result<(), ClusterError>>,
     {
         let mut tx = self
@@ -339,7 +366,7 @@ impl Queue {
             .await
             .map_err(ClusterError::db("expiring jobs"))?;
         let rows = sqlx::query(
-            "SELECT id FROM amc_jobs WHERE finished_at < now() - make_interval(secs => $1) \
+            "SELECT id, tenant FROM amc_jobs WHERE finished_at < now() - make_interval(secs => $1) \
              AND state IN ('done', 'failed', 'cancelled') \
              AND (lease_until IS NULL OR lease_until < now()) \
              ORDER BY finished_at LIMIT $2 FOR UPDATE SKIP LOCKED",
@@ -354,7 +381,10 @@ impl Queue {
             let id: String = row
                 .try_get("id")
                 .map_err(ClusterError::db("expiring jobs"))?;
-            match remove_objects(id.clone()).await {
+            let tenant: String = row
+                .try_get("tenant")
+                .map_err(ClusterError::db("expiring jobs"))?;
+            match remove_objects(id.clone(), tenant).await {
                 Ok(()) => removed.push(id),
                 // Left for the next sweep; the others still go.
                 Err(e) => {
@@ -411,7 +441,7 @@ impl Queue {
                      AND attempts < $3 \
                    ORDER BY seq LIMIT 1 FOR UPDATE SKIP LOCKED) c \
              WHERE j.id = c.id \
-             RETURNING j.id, j.attempts, j.options, j.format, j.lens, j.width, j.height, \
+             RETURNING j.id, j.tenant, j.attempts, j.options, j.format, j.lens, j.width, j.height, \
                  j.input_key, j.frames_total",
         )
         .bind(worker)
@@ -424,6 +454,7 @@ impl Queue {
         let claim = |r: &PgRow| -> Result<Claim, sqlx::Error> {
             Ok(Claim {
                 id: r.try_get("id")?,
+                tenant: r.try_get("tenant")?,
                 attempt: r.try_get("attempts")?,
                 options: r.try_get("options")?,
                 format: r.try_get("format")?,

@@ -101,19 +101,25 @@ impl Store {
         }
     }
 
+    /// A job's objects sit under its tenant's prefix (tenant names are
+    /// checked to be safe as path segments: `auth::valid_tenant`).
+    fn job_key(&self, tenant: &str, id: &str, rel: &str) -> String {
+        self.key(&format!("tenants/{tenant}/jobs/{id}{rel}"))
+    }
+
     /// Where a job's upload goes.
-    pub fn input_key(&self, id: &str) -> String {
-        self.key(&format!("jobs/{id}/input"))
+    pub fn input_key(&self, tenant: &str, id: &str) -> String {
+        self.job_key(tenant, id, "/input")
     }
 
     /// Where one claim of a job writes its output.
-    pub fn output_key(&self, id: &str, attempt: i32, extension: &str) -> String {
-        self.key(&format!("jobs/{id}/{attempt}/output.{extension}"))
+    pub fn output_key(&self, tenant: &str, id: &str, attempt: i32, extension: &str) -> String {
+        self.job_key(tenant, id, &format!("/{attempt}/output.{extension}"))
     }
 
     /// Where one claim of a job writes its telemetry.
-    pub fn telemetry_key(&self, id: &str, attempt: i32) -> String {
-        self.key(&format!("jobs/{id}/{attempt}/telemetry.csv"))
+    pub fn telemetry_key(&self, tenant: &str, id: &str, attempt: i32) -> String {
+        self.job_key(tenant, id, &format!("/{attempt}/telemetry.csv"))
     }
 
     /// Streams a local file into `key` (a multipart upload when it is large).
@@ -185,8 +191,8 @@ impl Store {
     }
 
     /// Deletes every object of a job (its upload and every attempt's results).
-    pub async fn delete_job(&self, id: &str) -> Result<usize, ClusterError> {
-        let prefix = self.key(&format!("jobs/{id}"));
+    pub async fn delete_job(&self, tenant: &str, id: &str) -> Result<usize, ClusterError> {
+        let prefix = self.job_key(tenant, id, "");
         let keys: Vec<_> = self
             .inner
             .list(Some(&Key::from(prefix.as_str())))

@@ -77,6 +77,10 @@ pub struct ServeConfig {
     /// (`--queue`, `--store`) for `amc worker`s to run, instead of in this
     /// process: any replica then answers for any job.
     pub cluster: Option<crate::cluster::ClusterConfig>,
+    /// Keys, tenants and their limits, CORS (docs/security.md).
+    pub auth: crate::auth::AuthConfig,
+    /// Connections: limits, header timeout, TLS.
+    pub listen: super::listen::ListenConfig,
 }
 
 /// The service's limits, from the flags.
@@ -145,6 +149,20 @@ pub enum ServiceError {
         /// Why.
         source: std::io::Error,
     },
+    /// The keys file cannot be used.
+    #[error(transparent)]
+    Keys(#[from] crate::auth::KeysError),
+    /// A non-loopback address without keys.
+    #[error(
+        "refusing to serve {addr} without keys: anyone who can reach it could use every endpoint \
+         (jobs, the live feed, metrics). Give --auth-keys FILE (lines `TENANT ROLES SHA256HEX`; \
+         make a key with `amc keys new TENANT ROLES`), or --insecure-no-auth if a gateway in front \
+         of the service checks who is asking, or listen on a loopback address (127.0.0.1)"
+    )]
+    Unprotected {
+        /// The address asked for.
+        addr: SocketAddr,
+    },
     /// The listening socket or the runtime failed.
     #[error("{what}: {source}")]
     Network {
@@ -195,6 +213,20 @@ pub(crate) fn check<T: PartialOrd + std::fmt::Display>(
 }
 
 impl ServeConfig {
+    /// Checks the access and connection flags: keys (or a loopback
+    /// address, or `--insecure-no-auth`), limits, TLS files both or neither.
+    pub fn check_access(&self) -> Result<(), ServiceError> {
+        self.auth.validate()?;
+        self.listen.validate()?;
+        if self.auth.keys_file.is_none()
+            && !self.auth.insecure_no_auth
+            && !self.addr.ip().is_loopback()
+        {
+            return Err(ServiceError::Unprotected { addr: self.addr });
+        }
+        Ok(())
+    }
+
     /// Checks the flags and turns them into limits.
     pub fn limits(&self) -> Result<Limits, ServeError> {
         let workers = self.workers.unwrap_or_else(default_workers);

@@ -2,6 +2,8 @@
 //! options (or 400), the upload (or 400/413/415) and its inspection (or 415/422).
 
 use super::options::JobOptions;
+use crate::auth::limits::TenantSlot;
+use crate::auth::Principal;
 use super::problem::{count, ApiError};
 use super::state::AppState;
 use super::storage::Scratch;
@@ -26,6 +28,9 @@ pub struct Intake {
     pub scratch: Scratch,
     pub upload: Upload,
     pub inspection: Inspection,
+    /// The tenant's slot (with keys: `--max-jobs-per-tenant`), held until
+    /// the work is done or handed to the shared job table.
+    pub tenant_slot: Option<TenantSlot>,
 }
 
 /// An accepted upload to be processed on this replica. Dropped, its scratch
@@ -42,6 +47,7 @@ pub struct LocalWork {
     pub scratch: Scratch,
     /// Holds the request's place among those the service takes at once.
     pub admission: OwnedSemaphorePermit,
+    pub tenant_slot: Option<TenantSlot>,
 }
 
 impl Intake {
@@ -56,6 +62,7 @@ impl Intake {
             scratch,
             upload,
             inspection,
+            tenant_slot,
         } = self;
         let bytes = upload.bytes;
         let spec = WorkSpec::for_upload(&scratch, upload, options, &inspection, with_telemetry);
@@ -66,6 +73,7 @@ impl Intake {
             frames: inspection.info.frame_count,
             scratch,
             admission,
+            tenant_slot,
         }
     }
 }
@@ -73,10 +81,14 @@ impl Intake {
 /// Admits, parses and receives `request`. When it is refused before its
 /// body was read, the rest of the body is read and discarded in the
 /// background so the client gets the answer rather than a reset connection.
-pub async fn accept(state: &Arc<AppState>, request: Request) -> Result<Intake, ApiError> {
+pub async fn accept(
+    state: &Arc<AppState>,
+    who: &Principal,
+    request: Request,
+) -> Result<Intake, ApiError> {
     let (parts, body) = request.into_parts();
     let mut body = Some(body.into_data_stream());
-    let result = accept_parts(state, &parts, &mut body).await;
+    let result = accept_parts(state, who, &parts, &mut body).await;
     if result.is_err() {
         if let Some(rest) = body.take() {
             upload::linger(rest);
@@ -87,10 +99,12 @@ pub async fn accept(state: &Arc<AppState>, request: Request) -> Result<Intake, A
 
 async fn accept_parts(
     state: &Arc<AppState>,
+    who: &Principal,
     parts: &Parts,
     body: &mut Option<BodyDataStream>,
 ) -> Result<Intake, ApiError> {
     let options = JobOptions::from_query(parts.uri.query())?;
+    let tenant_slot = state.auth.take_slot(who)?;
     let admission = state.admission.clone().try_acquire_owned().map_err(|_| {
         ApiError::Saturated(format!(
             "the service is busy: {} being processed or queued (--workers {} plus --max-queued {}); try again shortly",
@@ -120,5 +134,6 @@ async fn accept_parts(
         scratch,
         upload,
         inspection,
+        tenant_slot,
     })
 }

@@ -6,8 +6,12 @@
 //! | `POST /jobs`, `GET /jobs`, `GET/DELETE /jobs/{id}`, `GET /jobs/{id}/output`, `GET /jobs/{id}/telemetry.csv` | batch jobs |
 //! | `GET /live` (WebSocket) | the stabilized live feed: a JPEG then a JSON telemetry message per frame |
 //! | `GET /live/ingest` (WebSocket) | a publisher's JPEG frames, when there is no `--live-source` |
+//! | `POST /live/ticket` | a single-use ticket for a browser's WebSocket (`?ticket=`) |
 //! | `GET /healthz`, `GET /metrics`, `GET /openapi.json` | operations |
 //! | `GET /` | the web page (`--web-dir`) |
+//!
+//! With `--auth-keys`, every route but `/healthz` and the page's files needs
+//! a key with the route's role (`crate::auth`, docs/security.md).
 //!
 //! CPU work runs on blocking threads, at most `--workers` at once (a
 //! semaphore); at most `--workers + --max-queued` clips are accepted at once and
@@ -19,11 +23,14 @@
 //! `problem`, `options`, `storage`, `metrics` at the bottom; `live` (its hub)
 //! and `jobs` (its store); `state` (what handlers share); `work`, `intake`;
 //! the handlers (`stabilize`, `jobs`, `live`, `ops`, `openapi`); `access`
-//! (each request's log line); `router` (routes and fallbacks); `run` (the process: logs, runtime, listener,
-//! shutdown). This file only declares and re-exports.
+//! (each request's log line), `headers` (CSP, CORS); `router` (routes,
+//! fallbacks, layers); `listen` (connections: limits, header timeouts, TLS);
+//! `run` (the process: logs, runtime, shutdown). This file only declares and re-exports.
 
 pub(crate) mod access;
 pub(crate) mod config;
+mod headers;
+mod listen;
 #[doc(hidden)]
 pub mod fuzzing;
 pub(crate) mod intake;
@@ -46,6 +53,7 @@ mod upload;
 pub(crate) mod work;
 
 pub use config::{Limits, ServeConfig, ServeError, ServiceError};
+pub use listen::ListenConfig;
 pub use live::LiveConfig;
 pub use options::{JobOptions, OutputFormat};
 pub use router::app;

@@ -93,6 +93,12 @@ fn job_state() -> Value {
     json!({"type": "string", "enum": ["queued", "running", "done", "failed", "cancelled"]})
 }
 
+fn ticket_parameter() -> Value {
+    json!({"name": "ticket", "in": "query", "required": false,
+           "description": "A single-use ticket from POST /live/ticket, for browsers (which cannot send the Authorization header on a WebSocket)",
+           "schema": {"type": "string"}})
+}
+
 fn id_parameter() -> Value {
     json!({"name": "id", "in": "path", "required": true, "description": "Job id: 32 hex digits",
            "schema": {"type": "string", "pattern": "^[0-9a-f]{32}$"}})
@@ -128,7 +134,7 @@ pub fn spec() -> Value {
     upload_errors(&mut jobs_created);
     let not_found = problem("No such job (unknown, expired or removed)");
     let not_done = problem("The job is not done: queued or running (its files come once it is done), or cancelled or failed (it has none, and never will; a failed job's detail says why)");
-    json!({
+    let mut doc = json!({
         "openapi": "3.1.0",
         "info": {
             "title": "amc serve",
@@ -212,8 +218,20 @@ pub fn spec() -> Value {
                     "503": unavailable()
                 }
             }},
+            "/jobs/{id}/telemetry": {"get": {
+                "operationId": "getJobTelemetryAlias",
+                "summary": "The same as /jobs/{id}/telemetry.csv",
+                "parameters": [id_parameter()],
+                "responses": {
+                    "200": {"description": "CSV", "content": {"text/csv": {}}},
+                    "404": not_found,
+                    "409": not_done,
+                    "503": unavailable()
+                }
+            }},
             "/live": {"get": {
                 "operationId": "watchLive",
+                "parameters": [ticket_parameter()],
                 "summary": "WebSocket for viewers of the live feed: per stabilized frame, one binary message (JPEG) then one text message (LiveTelemetry JSON). Slow viewers skip frames. With no viewer the feed is paused; the first viewer resumes it.",
                 "responses": {
                     "101": {"description": "Switching to the WebSocket protocol"},
@@ -222,11 +240,23 @@ pub fn spec() -> Value {
             }},
             "/live/ingest": {"get": {
                 "operationId": "publishLive",
+                "parameters": [ticket_parameter()],
                 "summary": "WebSocket for one publisher: each binary message is one JPEG frame of the feed to stabilize (dropped undecoded while no viewer watches)",
                 "responses": {
                     "101": {"description": "Switching to the WebSocket protocol"},
                     "426": problem("Not a WebSocket upgrade request"),
                     "409": problem("Another publisher is connected, or the feed comes from --live-source")
+                }
+            }},
+            "/live/ticket": {"post": {
+                "operationId": "createLiveTicket",
+                "summary": "A single-use ticket for browsers, which cannot set headers on a WebSocket: it opens /live?ticket=... (with the role view) or /live/ingest?ticket=... (publish) once, within expires_in_s, as the key's tenant and roles",
+                "responses": {
+                    "200": {"description": "The ticket", "content": {"application/json": {"schema": {
+                        "type": "object", "required": ["ticket", "expires_in_s"], "properties": {
+                            "ticket": {"type": "string"},
+                            "expires_in_s": {"type": "integer"}
+                        }}}}}
                 }
             }},
             "/healthz": {"get": {
@@ -248,7 +278,13 @@ pub fn spec() -> Value {
                 "responses": {"200": {"description": "OpenAPI 3.1", "content": {"application/json": {}}}}
             }}
         },
-        "components": {"schemas": {
+        "security": [{"bearer": []}],
+        "components": {
+        "securitySchemes": {
+            "bearer": {"type": "http", "scheme": "bearer", "description": "An API key from `amc keys new`, where the service runs with --auth-keys (without it, on loopback, none is needed)"},
+            "ticket": {"type": "apiKey", "in": "query", "name": "ticket", "description": "A single-use ticket from POST /live/ticket (WebSocket endpoints only)"}
+        },
+        "schemas": {
             "Problem": {"type": "object", "properties": {
                 "type": {"type": "string"}, "title": {"type": "string"},
                 "status": {"type": "integer"}, "detail": {"type": "string"}
@@ -316,7 +352,56 @@ pub fn spec() -> Value {
                 "latency_ms": {"type": "number"}, "width": {"type": "integer"}, "height": {"type": "integer"}
             }}
         }}
-    })
+    });
+    declare_access(&mut doc);
+    doc
+}
+
+/// The answers of the access check on every operation but `/healthz`
+/// (which needs no key): 401, 403 (a key without the role; a WebSocket
+/// from another site's page) and 429 (failed keys, a key's rate, a tenant's
+/// jobs). The WebSocket endpoints take a ticket as well as a key.
+fn declare_access(doc: &mut Value) {
+    let Some(paths) = doc.get_mut("paths").and_then(Value::as_object_mut) else {
+        return;
+    };
+    for (path, item) in paths.iter_mut() {
+        let Some(ops) = item.as_object_mut() else { continue };
+        for op in ops.values_mut() {
+            if path == "/healthz" {
+                op["security"] = json!([]);
+                continue;
+            }
+            if path == "/live" || path == "/live/ingest" {
+                op["security"] = json!([{"bearer": []}, {"ticket": []}]);
+            }
+            let Some(responses) = op.get_mut("responses").and_then(Value::as_object_mut) else {
+                continue;
+            };
+            responses.insert(
+                "401".into(),
+                json!({
+                    "description": "No key, or a wrong key or ticket (with --auth-keys)",
+                    "headers": {"WWW-Authenticate": {"schema": {"type": "string"}, "description": "Bearer realm=\"amc\""}},
+                    "content": {"application/problem+json": {"schema": {"$ref": "#/components/schemas/Problem"}}}
+                }),
+            );
+            if path != "/openapi.json" {
+                responses.insert(
+                    "403".into(),
+                    problem("The key lacks the role this endpoint needs (the detail names it), or a WebSocket upgrade from another site's page"),
+                );
+            }
+            responses.insert(
+                "429".into(),
+                json!({
+                    "description": "Too many wrong keys from this address (--auth-failures), this key over --key-rate, or its tenant at --max-jobs-per-tenant",
+                    "headers": {"Retry-After": {"schema": {"type": "integer"}, "description": "Seconds to wait"}},
+                    "content": {"application/problem+json": {"schema": {"$ref": "#/components/schemas/Problem"}}}
+                }),
+            );
+        }
+    }
 }
 
 pub async fn document() -> Json<Value> {

@@ -35,6 +35,16 @@ pub enum ApiError {
     /// A video over the size or duration limits, or one the stabilizer cannot process.
     #[error("{0}")]
     Unprocessable(String),
+    /// No key, a wrong key or a used ticket: 401 with `WWW-Authenticate: Bearer`.
+    #[error("{0}")]
+    Unauthorized(String),
+    /// A valid key without the endpoint's role, or a foreign `Origin`.
+    #[error("{0}")]
+    Forbidden(String),
+    /// A key over its rate, an address over its failed keys, a tenant at
+    /// its jobs: 429 with `Retry-After`.
+    #[error("{detail}")]
+    TooManyRequests { detail: String, retry_after_s: u64 },
     #[error("{0}")]
     NoRoute(String),
     #[error("{0}")]
@@ -95,6 +105,9 @@ impl ApiError {
             ApiError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::Unsupported(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             ApiError::Unprocessable(_) => StatusCode::UNPROCESSABLE_ENTITY,
+            ApiError::Unauthorized(_) => StatusCode::UNAUTHORIZED,
+            ApiError::Forbidden(_) => StatusCode::FORBIDDEN,
+            ApiError::TooManyRequests { .. } => StatusCode::TOO_MANY_REQUESTS,
             ApiError::JobNotFound(_) | ApiError::NoRoute(_) => StatusCode::NOT_FOUND,
             ApiError::MethodNotAllowed(_) => StatusCode::METHOD_NOT_ALLOWED,
             ApiError::UpgradeRequired(_) => StatusCode::UPGRADE_REQUIRED,
@@ -113,6 +126,9 @@ impl ApiError {
             ApiError::Unsupported(_) => "unsupported-media",
             ApiError::Unprocessable(_) => "unprocessable-video",
             ApiError::JobNotFound(_) => "job-not-found",
+            ApiError::Unauthorized(_) => "unauthorized",
+            ApiError::Forbidden(_) => "forbidden",
+            ApiError::TooManyRequests { .. } => "too-many-requests",
             ApiError::NoRoute(_) => "not-found",
             ApiError::MethodNotAllowed(_) => "method-not-allowed",
             ApiError::UpgradeRequired(_) => "upgrade-required",
@@ -127,6 +143,11 @@ impl ApiError {
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         let status = self.status();
+        let retry_after = match &self {
+            ApiError::TooManyRequests { retry_after_s, .. } => Some(*retry_after_s),
+            _ if status == StatusCode::SERVICE_UNAVAILABLE => Some(RETRY_AFTER_SECS),
+            _ => None,
+        };
         let kind = format!("/problems/{}", self.kind());
         let body = Problem {
             kind: &kind,
@@ -146,9 +167,15 @@ impl IntoResponse for ApiError {
             res.headers_mut()
                 .insert(header::UPGRADE, HeaderValue::from_static("websocket"));
         }
-        if status == StatusCode::SERVICE_UNAVAILABLE {
+        if let Some(secs) = retry_after {
             res.headers_mut()
-                .insert(header::RETRY_AFTER, HeaderValue::from(RETRY_AFTER_SECS));
+                .insert(header::RETRY_AFTER, HeaderValue::from(secs));
+        }
+        if status == StatusCode::UNAUTHORIZED {
+            res.headers_mut().insert(
+                header::WWW_AUTHENTICATE,
+                HeaderValue::from_static("Bearer realm=\"amc\""),
+            );
         }
         res
     }

@@ -25,10 +25,12 @@ pub fn app(state: Arc<AppState>) -> Router {
         .route("/jobs/{id}", get(jobs::get).delete(jobs::delete))
         .route("/jobs/{id}/output", get(jobs::output))
         .route("/jobs/{id}/telemetry.csv", get(jobs::telemetry))
+        .route("/jobs/{id}/telemetry", get(jobs::telemetry))
         // Uploads are streamed to disk under our own limit.
         .layer(DefaultBodyLimit::disable())
         .route("/live", get(live::viewer))
         .route("/live/ingest", get(live::ingest))
+        .route("/live/ticket", post(live::ticket))
         .route("/healthz", get(ops::healthz))
         .route("/metrics", get(ops::prometheus))
         .route("/openapi.json", get(openapi::document));
@@ -39,11 +41,24 @@ pub fn app(state: Arc<AppState>) -> Router {
     let page = ServeDir::new(&state.web_dir)
         .call_fallback_on_method_not_allowed(true)
         .fallback(no_page.into_service());
-    api.fallback_service(page)
+    let cors = super::headers::cors(&state.auth.config.cors_origins);
+    // Innermost first: the access check sees every request but the CORS
+    // preflights; the log line names each request, refused ones included.
+    let router = api
+        .fallback_service(page)
         .method_not_allowed_fallback(method_not_allowed)
+        .layer(axum::middleware::from_fn_with_state(
+            state.auth.clone(),
+            crate::auth::gate::check,
+        ))
         .layer(CatchPanicLayer::custom(super::panics::panic_response))
-        .layer(axum::middleware::from_fn(super::access::log))
-        .with_state(state)
+        .layer(axum::middleware::from_fn(super::headers::secure))
+        .layer(axum::middleware::from_fn(super::access::log));
+    let router = match cors {
+        Some(cors) => router.layer(cors),
+        None => router,
+    };
+    router.with_state(state)
 }
 
 /// `/` when the page is not built, and unknown paths.

@@ -4,6 +4,7 @@
 use super::config::{ServeConfig, ServeError, ServiceError};
 use super::router::app;
 use super::state::AppState;
+use crate::auth::{Auth, Tickets};
 use crate::cluster::{redact, Cluster};
 use std::io::IsTerminal;
 use std::sync::Arc;
@@ -82,6 +83,8 @@ pub fn init_logs(json: bool) {
 
 /// Runs the service until Ctrl-C or SIGTERM.
 pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
+    args.check_access()?;
+    let tls = args.listen.tls()?;
     let limits = args.limits()?;
     let live = args.live()?;
     amc_video::ffmpeg_available()?;
@@ -127,7 +130,12 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
             }
             None => None,
         };
-        let state = AppState::new(limits, work_dir.clone(), args.web_dir.clone(), live, cluster)
+        let tickets = match &cluster {
+            Some(c) => Tickets::Shared(c.queue.clone()),
+            None => Tickets::local(),
+        };
+        let auth = Arc::new(Auth::new(args.auth.clone(), tickets).map_err(ServiceError::from)?);
+        let state = AppState::new(limits, work_dir.clone(), args.web_dir.clone(), live, cluster, auth)
             .map_err(|source| ServiceError::Io {
                 path: work_dir.clone(),
                 source,
@@ -145,8 +153,14 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
                 source,
             })?;
         // Tests and scripts read this line to find the port.
-        println!("listening on http://{addr}");
-        tracing::info!(%addr, work_dir = %work_dir.display(), web_dir = %args.web_dir.display(), workers = state.limits.workers, "amc serve started");
+        let scheme = if tls.is_some() { "https" } else { "http" };
+        println!("listening on {scheme}://{addr}");
+        if state.auth.enabled() {
+            tracing::info!(keys = state.auth.key_count(), file = %args.auth.keys_file.as_deref().unwrap_or(std::path::Path::new("")).display(), "requests need an API key");
+        } else if !addr.ip().is_loopback() {
+            tracing::warn!(%addr, "serving without keys (--insecure-no-auth): whoever reaches this address may use every endpoint");
+        }
+        tracing::info!(%addr, tls = tls.is_some(), work_dir = %work_dir.display(), web_dir = %args.web_dir.display(), workers = state.limits.workers, "amc serve started");
         if !args.web_dir.join("index.html").is_file() {
             let dir = std::path::absolute(&args.web_dir).unwrap_or_else(|_| args.web_dir.clone());
             tracing::warn!(
@@ -165,6 +179,7 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
                 loop {
                     tick.tick().await;
                     state.metrics.sample();
+                    state.auth.tick();
                     if last_sweep.elapsed() >= sweep_every {
                         last_sweep = tokio::time::Instant::now();
                         sweep(&state).await;
@@ -173,23 +188,19 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
             })
         };
         let shutdown_state = state.clone();
-        let served = axum::serve(listener, app(state.clone()))
-            .with_graceful_shutdown(async move {
-                shutdown_signal().await;
-                tracing::info!("shutting down: cancelling jobs, closing live connections");
-                shutdown_state.shutdown.send_replace(true);
-                shutdown_state.jobs.cancel_all();
-                shutdown_state.live.stop();
-            })
-            .await;
+        let shutdown = async move {
+            shutdown_signal().await;
+            tracing::info!("shutting down: cancelling jobs, closing live connections");
+            shutdown_state.shutdown.send_replace(true);
+            shutdown_state.jobs.cancel_all();
+            shutdown_state.live.stop();
+        };
+        super::listen::serve(listener, app(state.clone()), &args.listen, tls, shutdown, Duration::from_secs(30)).await;
         ticker.abort();
         state.tasks.close();
         let _ = tokio::time::timeout(Duration::from_secs(30), state.tasks.wait()).await;
         state.jobs.clear();
-        served.map_err(|source| ServiceError::Network {
-            what: "the server failed".into(),
-            source,
-        })
+        Ok::<(), ServeError>(())
     })?;
     drop(owned_dir);
     tracing::info!("stopped; work directory removed");

@@ -59,7 +59,8 @@ pub async fn handler(State(state): State<Arc<AppState>>, request: Request) -> Re
 }
 
 async fn stabilize(state: &Arc<AppState>, request: Request) -> Result<Response, ApiError> {
-    let local = intake::accept(state, request)
+    let who = crate::auth::gate::principal(&request)?;
+    let local = intake::accept(state, &who, request)
         .await?
         .into_local(state, false);
     let format = local.spec.options.format;
@@ -83,7 +84,7 @@ async fn stabilize(state: &Arc<AppState>, request: Request) -> Result<Response, 
     let len = file.metadata().await.map(|m| m.len()).ok();
     // The scratch folder (and the admission permit) live as long as the
     // body streams, and go when it ends or the client disconnects.
-    let keep = (local.scratch, local.admission);
+    let keep = (local.scratch, local.admission, local.tenant_slot);
     let stream = tokio_util::io::ReaderStream::new(file).map(move |chunk| {
         let _ = &keep;
         chunk

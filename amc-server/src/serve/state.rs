@@ -8,6 +8,7 @@ use super::live::{LiveConfig, LiveHub};
 use super::metrics::Metrics;
 use super::problem::ApiError;
 use super::storage::DiskBudget;
+use crate::auth::Auth;
 use crate::cluster::Cluster;
 use axum::response::{IntoResponse, Response};
 use std::path::PathBuf;
@@ -31,6 +32,8 @@ pub struct AppState {
     /// there instead, and `amc worker`s run them.
     pub cluster: Option<Cluster>,
     pub live: Arc<LiveHub>,
+    /// Keys, tickets and limits (docs/security.md).
+    pub auth: Arc<Auth>,
     pub metrics: Arc<Metrics>,
     /// Every spawned task and blocking worker, awaited on shutdown.
     pub tasks: TaskTracker,
@@ -61,6 +64,7 @@ impl AppState {
         web_dir: PathBuf,
         live: LiveConfig,
         cluster: Option<Cluster>,
+        auth: Arc<Auth>,
     ) -> std::io::Result<Arc<Self>> {
         std::fs::create_dir_all(&work_dir)?;
         let metrics = Arc::new(Metrics::new());
@@ -72,6 +76,7 @@ impl AppState {
             jobs: JobStore::default(),
             cluster,
             live: LiveHub::start(live, metrics.clone()),
+            auth,
             metrics,
             tasks: TaskTracker::new(),
             shutdown: watch::channel(false).0,

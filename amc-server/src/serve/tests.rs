@@ -20,6 +20,13 @@ fn state(dir: &std::path::Path) -> Arc<AppState> {
         dir.join("no-web"),
         LiveConfig::default(),
         None,
+        Arc::new(
+            crate::auth::Auth::new(
+                crate::auth::AuthConfig::default(),
+                crate::auth::Tickets::local(),
+            )
+            .unwrap(),
+        ),
     )
     .unwrap()
 }
@@ -126,8 +133,27 @@ async fn routes_and_errors() {
     assert!(ctype.starts_with("text/html"));
     let (s, _, doc) = call(&app, get("/openapi.json")).await;
     assert_eq!(s, StatusCode::OK);
-    assert_eq!(doc["paths"].as_object().unwrap().len(), 10);
-    assert_eq!(operation_ids(&doc).len(), 12);
+    // The spec names exactly the router's paths (router.rs), each operation once.
+    let mut paths: Vec<&str> = doc["paths"].as_object().unwrap().keys().map(String::as_str).collect();
+    paths.sort_unstable();
+    assert_eq!(
+        paths,
+        [
+            "/healthz",
+            "/jobs",
+            "/jobs/{id}",
+            "/jobs/{id}/output",
+            "/jobs/{id}/telemetry",
+            "/jobs/{id}/telemetry.csv",
+            "/live",
+            "/live/ingest",
+            "/live/ticket",
+            "/metrics",
+            "/openapi.json",
+            "/stabilize",
+        ]
+    );
+    assert_eq!(operation_ids(&doc).len(), 14);
 }
 
 /// Every operation's `operationId`, checked present, camelCase and unique.
@@ -164,6 +190,30 @@ async fn every_stabilizer_option_is_documented_with_its_help() {
             assert_eq!(p["in"], "query");
         }
     }
+}
+
+/// Every operation but `/healthz` is behind the bearer scheme and says so,
+/// with the access check's 401 and 429 (and 403 where a role is needed).
+#[tokio::test]
+async fn every_operation_declares_the_bearer_scheme_and_its_refusals() {
+    let doc = openapi::spec();
+    assert_eq!(doc["components"]["securitySchemes"]["bearer"]["scheme"], "bearer");
+    assert_eq!(doc["security"], serde_json::json!([{"bearer": []}]));
+    for (path, item) in doc["paths"].as_object().unwrap() {
+        for (method, op) in item.as_object().unwrap() {
+            let r = &op["responses"];
+            if path == "/healthz" {
+                assert_eq!(op["security"], serde_json::json!([]), "{path}");
+                assert!(r.get("401").is_none(), "{path}");
+                continue;
+            }
+            for code in ["401", "429"] {
+                assert!(r.get(code).is_some(), "{method} {path} lacks {code}");
+            }
+            assert_eq!(r.get("403").is_some(), path != "/openapi.json", "{method} {path}: 403");
+        }
+    }
+    assert!(doc["paths"]["/live/ticket"]["post"]["responses"]["200"].is_object());
 }
 
 /// The schema says what the service accepts (what schemathesis found it did

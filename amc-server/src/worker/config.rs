@@ -30,6 +30,8 @@ pub struct WorkerConfig {
     pub name: Option<String>,
     /// Log one JSON object per line instead of text.
     pub log_json: bool,
+    /// Keys for `/metrics` (`--auth-keys`, the replicas' file; `admin`).
+    pub auth: crate::auth::AuthConfig,
 }
 
 /// Why a worker could not start or stopped with an error: a bad setting,
@@ -38,6 +40,18 @@ pub struct WorkerConfig {
 pub type WorkerError = ServiceError;
 
 impl WorkerConfig {
+    /// Keys, or a loopback address, or `--insecure-no-auth` (as `amc serve`).
+    pub(super) fn check_access(&self) -> Result<(), WorkerError> {
+        self.auth.validate()?;
+        if self.auth.keys_file.is_none()
+            && !self.auth.insecure_no_auth
+            && !self.addr.ip().is_loopback()
+        {
+            return Err(WorkerError::Unprotected { addr: self.addr });
+        }
+        Ok(())
+    }
+
     pub(super) fn limits(&self) -> Result<Limits, WorkerError> {
         check("threads", self.threads, 1, 256)?;
         check("job-time-limit", self.job_time_limit, 1, 604_800)?;

@@ -17,7 +17,8 @@ use axum::Router;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
-pub(super) fn app(state: Arc<WorkerState>) -> Router {
+/// With `--auth-keys`, `/metrics` needs an `admin` key (as on the replicas).
+pub(super) fn app(state: Arc<WorkerState>, auth: Arc<crate::auth::Auth>) -> Router {
     Router::new()
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
@@ -27,6 +28,10 @@ pub(super) fn app(state: Arc<WorkerState>) -> Router {
                 uri.path()
             ))
         })
+        .layer(axum::middleware::from_fn_with_state(
+            auth,
+            crate::auth::gate::check,
+        ))
         .layer(axum::middleware::from_fn(crate::serve::access::log))
         .with_state(state)
 }

@@ -149,8 +149,8 @@ async fn run_in(
         Ok(s) => s,
         Err(e) => return Ending::Failed(e.to_string()),
     };
-    let output_key = store.output_key(&claim.id, claim.attempt, extension);
-    let telemetry_key = store.telemetry_key(&claim.id, claim.attempt);
+    let output_key = store.output_key(&claim.tenant, &claim.id, claim.attempt, extension);
+    let telemetry_key = store.telemetry_key(&claim.tenant, &claim.id, claim.attempt);
     for (key, path) in [(&output_key, &spec.output), (&telemetry_key, &telemetry)] {
         if let Err(e) = store.put_file(key, path).await {
             let _ = store.delete(&output_key).await;

@@ -18,6 +18,11 @@ const SWEEP_EVERY: Duration = Duration::from_secs(10);
 /// Runs the worker until SIGTERM or Ctrl-C.
 pub fn run(config: &WorkerConfig) -> Result<(), WorkerError> {
     let limits = config.limits()?;
+    config.check_access()?;
+    let auth = Arc::new(crate::auth::Auth::new(
+        config.auth.clone(),
+        crate::auth::Tickets::local(),
+    )?);
     amc_video::ffmpeg_available()?;
     crate::serve::panics::install_hook();
     crate::serve::init_logs(config.log_json);
@@ -74,9 +79,20 @@ pub fn run(config: &WorkerConfig) -> Result<(), WorkerError> {
         });
         let server = {
             let mut stop = stop.clone();
-            let app = http::app(state.clone());
+            let app = http::app(state.clone(), auth.clone());
+            let ticker = auth.clone();
             tokio::spawn(async move {
-                axum::serve(listener, app)
+                let mut tick = tokio::time::interval(Duration::from_secs(1));
+                loop {
+                    tick.tick().await;
+                    ticker.tick();
+                }
+            });
+            tokio::spawn(async move {
+                axum::serve(
+                    listener,
+                    app.into_make_service_with_connect_info::<std::net::SocketAddr>(),
+                )
                     .with_graceful_shutdown(async move {
                         let _ = stop.wait_for(|s| *s).await;
                     })

@@ -12,7 +12,9 @@ use crate::serve::problem::ApiError;
 use crate::serve::state::AppState;
 use crate::serve::work::{self, WorkSpec};
 use axum::body::Body;
-use axum::extract::{Path as UrlPath, Request, State};
+use crate::auth::gate::principal;
+use crate::auth::{Principal, Roles};
+use axum::extract::{Extension, Path as UrlPath, Request, State};
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
@@ -21,6 +23,15 @@ use std::time::Duration;
 
 /// Longest a `DELETE` waits for a running job to unwind (kill ffmpeg, remove files).
 const CANCEL_WAIT: Duration = Duration::from_secs(15);
+
+/// Whose jobs `who` sees: its tenant's, or every tenant's for `admin`.
+pub(super) fn scope(who: &Principal) -> Option<&str> {
+    if who.roles.has(Roles::ADMIN) {
+        None
+    } else {
+        Some(&who.tenant)
+    }
+}
 
 fn new_id() -> String {
     use rand::RngCore;
@@ -45,10 +56,20 @@ pub async fn create(State(state): State<Arc<AppState>>, request: Request) -> Res
 }
 
 async fn create_job(state: &Arc<AppState>, request: Request) -> Result<JobView, ApiError> {
-    let intake = intake::accept(state, request).await?;
+    let who = principal(&request)?;
     if let Some(cluster) = &state.cluster {
-        return shared::create(cluster, new_id(), intake).await;
+        // The shared table counts the tenant's jobs on every replica.
+        if state.auth.enabled() {
+            let max = state.auth.config.max_jobs_per_tenant;
+            let active = cluster.queue.active(&who.tenant).await?;
+            if active >= max as i64 {
+                return Err(crate::auth::too_many_jobs(&who.tenant, active as u64, max));
+            }
+        }
+        let intake = intake::accept(state, &who, request).await?;
+        return shared::create(cluster, new_id(), &who.tenant, intake).await;
     }
+    let intake = intake::accept(state, &who, request).await?;
     let LocalWork {
         spec,
         control,
@@ -56,10 +77,12 @@ async fn create_job(state: &Arc<AppState>, request: Request) -> Result<JobView, 
         frames,
         scratch,
         admission,
+        tenant_slot,
     } = intake.into_local(state, true);
     let id = new_id();
     let job = Arc::new(Job::new(
         id.clone(),
+        who.tenant.clone(),
         spec.options.format,
         frames,
         control,
@@ -72,6 +95,7 @@ async fn create_job(state: &Arc<AppState>, request: Request) -> Result<JobView, 
     state.tasks.spawn(async move {
         run(task_state, job, spec).await;
         drop(admission);
+        drop(tenant_slot);
     });
     Ok(view)
 }
@@ -146,6 +170,7 @@ const PAGE_MAX: usize = 100;
 /// `limit` (1..=100, default 20) per page; `next_cursor` fetches the next.
 pub async fn list(
     State(state): State<Arc<AppState>>,
+    Extension(who): Extension<Principal>,
     uri: axum::http::Uri,
 ) -> Result<Json<JobPage>, ApiError> {
     let mut limit = PAGE_DEFAULT;
@@ -179,29 +204,35 @@ pub async fn list(
         }
     }
     match &state.cluster {
-        Some(cluster) => Ok(Json(shared::list(cluster, limit, cursor).await?)),
-        None => Ok(Json(state.jobs.page(limit, cursor))),
+        Some(cluster) => Ok(Json(shared::list(cluster, scope(&who), limit, cursor).await?)),
+        None => Ok(Json(state.jobs.page(scope(&who), limit, cursor))),
     }
 }
 
 /// `GET /jobs/{id}`.
 pub async fn get(
     State(state): State<Arc<AppState>>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Json<JobView>, ApiError> {
     match &state.cluster {
-        Some(cluster) => Ok(Json(shared::get(cluster, &id).await?)),
-        None => Ok(Json(state.jobs.get(&id)?.view())),
+        Some(cluster) => Ok(Json(shared::get(cluster, scope(&who), &id).await?)),
+        None => Ok(Json(state.jobs.get(&id, scope(&who))?.view())),
     }
 }
 
 /// Streams one of a finished job's files, from this process's scratch
 /// folder or from the shared bucket.
-async fn file(state: &AppState, id: &str, which: JobFile) -> Result<Response, ApiError> {
+async fn file(
+    state: &AppState,
+    who: &Principal,
+    id: &str,
+    which: JobFile,
+) -> Result<Response, ApiError> {
     if let Some(cluster) = &state.cluster {
-        return shared::file(cluster, id, which).await;
+        return shared::file(cluster, scope(who), id, which).await;
     }
-    let job = state.jobs.get(id)?;
+    let job = state.jobs.get(id, scope(who))?;
     let path = {
         let inner = lock(&job.inner);
         if inner.state != JobState::Done {
@@ -225,17 +256,19 @@ async fn file(state: &AppState, id: &str, which: JobFile) -> Result<Response, Ap
 /// `GET /jobs/{id}/output`.
 pub async fn output(
     State(state): State<Arc<AppState>>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Response, ApiError> {
-    file(&state, &id, JobFile::Output).await
+    file(&state, &who, &id, JobFile::Output).await
 }
 
 /// `GET /jobs/{id}/telemetry.csv`.
 pub async fn telemetry(
     State(state): State<Arc<AppState>>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Response, ApiError> {
-    file(&state, &id, JobFile::Telemetry).await
+    file(&state, &who, &id, JobFile::Telemetry).await
 }
 
 /// `DELETE /jobs/{id}`: cancels a queued or running job (200 with its state,
@@ -243,12 +276,13 @@ pub async fn telemetry(
 /// finished one and its files (204).
 pub async fn delete(
     State(state): State<Arc<AppState>>,
+    Extension(who): Extension<Principal>,
     UrlPath(id): UrlPath<String>,
 ) -> Result<Response, ApiError> {
     if let Some(cluster) = &state.cluster {
-        return shared::delete(cluster, &id).await;
+        return shared::delete(cluster, scope(&who), &id).await;
     }
-    let job = state.jobs.get(&id)?;
+    let job = state.jobs.get(&id, scope(&who))?;
     if job.cancel() {
         let mut settled = job.settled.subscribe();
         let _ = tokio::time::timeout(CANCEL_WAIT, settled.wait_for(|s| *s)).await;

@@ -65,7 +65,12 @@ fn summary(row: &JobRow) -> JobSummary {
 }
 
 /// `POST /jobs`: the accepted upload goes into the bucket, the job into the table.
-pub async fn create(cluster: &Cluster, id: String, intake: Intake) -> Result<JobView, ApiError> {
+pub async fn create(
+    cluster: &Cluster,
+    id: String,
+    tenant: &str,
+    intake: Intake,
+) -> Result<JobView, ApiError> {
     let Intake {
         admission,
         options,
@@ -73,11 +78,13 @@ pub async fn create(cluster: &Cluster, id: String, intake: Intake) -> Result<Job
         scratch,
         upload,
         inspection,
+        tenant_slot,
     } = intake;
-    let key = cluster.store.input_key(&id);
+    let key = cluster.store.input_key(tenant, &id);
     cluster.store.put_file(&key, &upload.video).await?;
     let job = NewJob {
         id: &id,
+        tenant,
         options: &query,
         format: options.format.extension(),
         lens: upload.lens.as_deref(),
@@ -100,10 +107,13 @@ pub async fn create(cluster: &Cluster, id: String, intake: Intake) -> Result<Job
     // The local copy goes; the bucket has it.
     drop(scratch);
     drop(admission);
+    drop(tenant_slot);
     Ok(view(&row))
 }
 
-async fn row(cluster: &Cluster, id: &str) -> Result<JobRow, ApiError> {
+/// The job's row, if `tenant` may see it (`None`: every tenant's): another
+/// tenant's job is unknown, exactly as a missing one.
+async fn row(cluster: &Cluster, tenant: Option<&str>, id: &str) -> Result<JobRow, ApiError> {
     let unknown = || ApiError::JobNotFound(id.chars().take(64).collect());
     if !valid_id(id) {
         return Err(unknown());
@@ -113,22 +123,24 @@ async fn row(cluster: &Cluster, id: &str) -> Result<JobRow, ApiError> {
         .queue
         .get(&id.to_ascii_lowercase())
         .await?
+        .filter(|r| tenant.is_none_or(|t| r.tenant == t))
         .ok_or_else(unknown)
 }
 
 /// `GET /jobs/{id}`.
-pub async fn get(cluster: &Cluster, id: &str) -> Result<JobView, ApiError> {
-    Ok(view(&row(cluster, id).await?))
+pub async fn get(cluster: &Cluster, tenant: Option<&str>, id: &str) -> Result<JobView, ApiError> {
+    Ok(view(&row(cluster, tenant, id).await?))
 }
 
 /// `GET /jobs`: a page of jobs, newest first.
 pub async fn list(
     cluster: &Cluster,
+    tenant: Option<&str>,
     limit: usize,
     cursor: Option<u64>,
 ) -> Result<JobPage, ApiError> {
     let before = cursor.map(|c| c.min(i64::MAX as u64) as i64);
-    let (rows, more) = cluster.queue.page(limit, before).await?;
+    let (rows, more) = cluster.queue.page(tenant, limit, before).await?;
     Ok(JobPage {
         next_cursor: more
             .then(|| rows.last().map(|r| r.seq.to_string()))
@@ -138,8 +150,13 @@ pub async fn list(
 }
 
 /// Streams a finished job's output or telemetry from the bucket.
-pub async fn file(cluster: &Cluster, id: &str, which: JobFile) -> Result<Response, ApiError> {
-    let row = row(cluster, id).await?;
+pub async fn file(
+    cluster: &Cluster,
+    tenant: Option<&str>,
+    id: &str,
+    which: JobFile,
+) -> Result<Response, ApiError> {
+    let row = row(cluster, tenant, id).await?;
     let state = JobState::parse(&row.state).unwrap_or(JobState::Failed);
     if state != JobState::Done {
         return Err(which.not_there(&row.id, state, row.error.as_deref()));
@@ -162,8 +179,8 @@ pub async fn file(cluster: &Cluster, id: &str, which: JobFile) -> Result<Respons
 /// `DELETE /jobs/{id}`: cancels a queued or running job (200 with its
 /// state, once its worker has let go of it, or after `CANCEL_WAIT`), or
 /// removes a finished one with its objects (204).
-pub async fn delete(cluster: &Cluster, id: &str) -> Result<Response, ApiError> {
-    let row = row(cluster, id).await?;
+pub async fn delete(cluster: &Cluster, tenant: Option<&str>, id: &str) -> Result<Response, ApiError> {
+    let row = row(cluster, tenant, id).await?;
     if let Some(mut row) = cluster.queue.cancel(&row.id).await? {
         tracing::info!(job = %row.id, "job cancelled by request");
         let start = Instant::now();
@@ -180,8 +197,8 @@ pub async fn delete(cluster: &Cluster, id: &str) -> Result<Response, ApiError> {
     let store = &cluster.store;
     let removed = cluster
         .queue
-        .remove_finished(&row.id, |id| async move {
-            store.delete_job(&id).await.map(|_| ())
+        .remove_finished(&row.id, |id, tenant| async move {
+            store.delete_job(&tenant, &id).await.map(|_| ())
         })
         .await?;
     if !removed {

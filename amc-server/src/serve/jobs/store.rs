@@ -29,6 +29,8 @@ pub struct JobInner {
 /// One job.
 pub struct Job {
     pub id: String,
+    /// The tenant whose key submitted it: only it (and `admin`) sees it.
+    pub tenant: String,
     pub format: OutputFormat,
     pub frames_total: Option<u64>,
     pub control: Arc<RunControl>,
@@ -55,6 +57,7 @@ impl Job {
     /// A new queued job.
     pub fn new(
         id: String,
+        tenant: String,
         format: OutputFormat,
         frames_total: Option<u64>,
         control: Arc<RunControl>,
@@ -63,6 +66,7 @@ impl Job {
         static SEQ: AtomicU64 = AtomicU64::new(0);
         Self {
             id,
+            tenant,
             format,
             frames_total,
             control,
@@ -155,26 +159,33 @@ pub struct JobStore {
 }
 
 impl JobStore {
-    /// A job by id; ids that are not 32 hex digits are never looked up.
-    pub fn get(&self, id: &str) -> Result<Arc<Job>, ApiError> {
+    /// A job by id, if `tenant` may see it (`None`: every tenant's, for
+    /// `admin`): another tenant's job is unknown, exactly as a missing one.
+    /// Ids that are not 32 hex digits are never looked up.
+    pub fn get(&self, id: &str, tenant: Option<&str>) -> Result<Arc<Job>, ApiError> {
         let valid = valid_id(id);
         let unknown = || ApiError::JobNotFound(id.chars().take(64).collect());
         if !valid {
             return Err(unknown());
         }
-        lock(&self.jobs).get(id).cloned().ok_or_else(unknown)
+        lock(&self.jobs)
+            .get(id)
+            .filter(|j| tenant.is_none_or(|t| j.tenant == t))
+            .cloned()
+            .ok_or_else(unknown)
     }
 
     pub fn insert(&self, job: Arc<Job>) {
         lock(&self.jobs).insert(job.id.clone(), job);
     }
 
-    /// Up to `limit` jobs accepted before `before` (a cursor; `None`: the
-    /// newest), newest first.
-    pub fn page(&self, limit: usize, before: Option<u64>) -> JobPage {
+    /// Up to `limit` jobs of `tenant` (`None`: every tenant's) accepted
+    /// before `before` (a cursor; `None`: the newest), newest first.
+    pub fn page(&self, tenant: Option<&str>, limit: usize, before: Option<u64>) -> JobPage {
         let mut jobs: Vec<Arc<Job>> = lock(&self.jobs)
             .values()
             .filter(|j| before.is_none_or(|b| j.seq < b))
+            .filter(|j| tenant.is_none_or(|t| j.tenant == t))
             .cloned()
             .collect();
         jobs.sort_by_key(|j| std::cmp::Reverse(j.seq));
@@ -246,6 +257,7 @@ mod tests {
             let control = Arc::new(RunControl::new(None));
             store.insert(Arc::new(Job::new(
                 id.clone(),
+                if i == 2 { "other" } else { "local" }.to_string(),
                 OutputFormat::Mp4,
                 Some(10),
                 control,
@@ -257,7 +269,7 @@ mod tests {
         let mut seen = Vec::new();
         let mut cursor = None;
         loop {
-            let page = store.page(2, cursor);
+            let page = store.page(None, 2, cursor);
             assert!(page.jobs.len() <= 2);
             seen.extend(page.jobs.iter().map(|j| j.id.clone()));
             match page.next_cursor {
@@ -266,7 +278,13 @@ mod tests {
             }
         }
         assert_eq!(seen, ids);
-        let first = store.page(100, None);
+        let local = store.page(Some("local"), 100, None);
+        assert_eq!(local.jobs.len(), 4, "another tenant's job is not listed");
+        assert!(local.jobs.iter().all(|j| j.id != ids[2]));
+        assert!(store.get(&ids[2], Some("local")).is_err());
+        assert!(store.get(&ids[2], Some("other")).is_ok());
+        assert!(store.get(&ids[2], None).is_ok());
+        let first = store.page(None, 100, None);
         assert_eq!(first.jobs.len(), 5);
         assert!(first.next_cursor.is_none());
         assert_eq!(first.jobs[0].state, JobState::Queued);

@@ -8,13 +8,16 @@
 //! | `jpeg` | JPEG encoding of stabilized frames, decoding of published ones |
 //! | `viewer` | `GET /live`: a viewer's WebSocket |
 //! | `ingest` | `GET /live/ingest`: the publisher's WebSocket |
+//! | `ticket` | `POST /live/ticket`: a browser's single-use ticket for either socket |
 
 mod hub;
 mod ingest;
 mod jpeg;
+mod ticket;
 mod viewer;
 
 pub use hub::{LiveConfig, LiveHub};
 pub use ingest::ingest;
 pub use jpeg::decode_ingest_frame;
+pub use ticket::ticket;
 pub use viewer::viewer;
