@@ -92,5 +92,11 @@ EXPOSE 8080 9090
 # (running jobs cancelled, ffmpeg children killed, scratch files removed; a
 # worker hands its running job back to the queue).
 ENTRYPOINT ["/usr/bin/tini", "--", "amc"]
-# One JSON object per log line (for log collectors; never coloured).
-CMD ["serve", "--addr", "0.0.0.0:8080", "--web-dir", "/srv/amc/web", "--log-json"]
+# One JSON object per log line (for log collectors; never coloured). On a
+# public address amc serve wants keys (docs/security.md): mount the file made
+# by `amc keys new NAME ROLES --append amc_keys` at /run/secrets/amc_keys
+#   docker run -p 8080:8080 -v "$PWD/amc_keys:/run/secrets/amc_keys:ro" amc
+# and give the service a certificate (--tls-cert/--tls-key) or put it behind
+# a TLS-terminating proxy: keys travel in every request.
+CMD ["serve", "--addr", "0.0.0.0:8080", "--web-dir", "/srv/amc/web", "--log-json", \
+     "--auth-keys", "/run/secrets/amc_keys"]

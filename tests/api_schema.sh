@@ -20,9 +20,16 @@ st=$(command -v schemathesis || command -v st || true)
 out=target/schemathesis
 mkdir -p "$out"
 work=$(mktemp -d)
+chmod 700 "$work"
 log="$out/serve.log"
+# With keys, as a public deployment runs: one key with every role for the
+# run (so every operation is reached), and the rate limits opened wide so a
+# fast fuzzer is not answered 429 throughout; `ignored_auth` checks that a
+# request without the key (or with a wrong one) is refused.
+key=$("$amc" keys new schemathesis admin,submit,view,publish --append "$work/keys")
 "$amc" serve --addr 127.0.0.1:0 --work-dir "$work" --workers 1 --max-queued 4 \
-  --max-upload-mb 8 --log-json > "$out/serve.stdout" 2> "$log" &
+  --max-upload-mb 8 --auth-keys "$work/keys" --key-rate 100000 \
+  --max-jobs-per-tenant 1000 --log-json > "$out/serve.stdout" 2> "$log" &
 pid=$!
 cleanup() {
   kill "$pid" 2>/dev/null || true
@@ -39,6 +46,7 @@ done
 echo "schemathesis against $base for ${secs}s"
 set +e
 "$st" --no-color --config-file tests/schemathesis.toml run "$base/openapi.json" \
+  --header "Authorization: Bearer $key" \
   --checks all --max-time "$secs" --workers 2 --max-examples 40 \
   --report junit --report-dir "$out" 2>&1 | tee "$out/run.log" | tail -40
 rc=${PIPESTATUS[0]}

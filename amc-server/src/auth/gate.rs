@@ -231,9 +231,15 @@ mod tests {
     #[test]
     fn only_bearer_tokens_are_keys_and_tickets_only_open_sockets() {
         let bearer = headers(&[(header::AUTHORIZATION, "Bearer abc")]);
-        assert!(matches!(credential(&bearer, None, Need::Jobs), Credential::Key("abc")));
+        assert!(matches!(
+            credential(&bearer, None, Need::Jobs),
+            Credential::Key("abc")
+        ));
         let basic = headers(&[(header::AUTHORIZATION, "Basic abc")]);
-        assert!(matches!(credential(&basic, None, Need::Jobs), Credential::Malformed));
+        assert!(matches!(
+            credential(&basic, None, Need::Jobs),
+            Credential::Malformed
+        ));
         let none = HeaderMap::new();
         assert!(matches!(
             credential(&none, Some("ticket=t"), Need::View),

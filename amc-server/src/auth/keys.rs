@@ -242,14 +242,19 @@ mod tests {
             (format!("alice submit\n"), "2 fields"),
             (format!("al/ice submit {h}\n"), "tenant"),
             (format!("alice root {h}\n"), "unknown role"),
-            (format!("alice submit {}\n", "a".repeat(63)), "64 hex digits"),
+            (
+                format!("alice submit {}\n", "a".repeat(63)),
+                "64 hex digits",
+            ),
             (format!("alice submit {h}\nbob view {h}\n"), "earlier line"),
             ("# nothing\n".to_string(), "no keys"),
         ] {
             let e = table(&text).unwrap_err().to_string();
             assert!(e.contains(needle), "{text:?}: {e}");
         }
-        let e = table(&format!("\nalice root {h}\n")).unwrap_err().to_string();
+        let e = table(&format!("\nalice root {h}\n"))
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("keys:2:"), "{e}");
     }
 

@@ -171,7 +171,10 @@ mod tests {
             assert!(gate.fail(a).is_none());
         }
         let wait = gate.fail(a).expect("the 11th failure is one too many");
-        assert!(wait >= Duration::from_secs(1) && wait <= Duration::from_secs(7), "{wait:?}");
+        assert!(
+            wait >= Duration::from_secs(1) && wait <= Duration::from_secs(7),
+            "{wait:?}"
+        );
         assert!(gate.blocked(a).is_some());
         assert!(gate.blocked(b).is_none());
         assert!(gate.fail(b).is_none());

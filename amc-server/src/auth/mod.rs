@@ -261,6 +261,9 @@ mod tests {
             .set_modified(later + std::time::Duration::from_secs(5))
             .unwrap();
         auth.reload_if_changed();
-        assert!(auth.lookup(&k2).is_some(), "a broken file keeps the old keys");
+        assert!(
+            auth.lookup(&k2).is_some(),
+            "a broken file keeps the old keys"
+        );
     }
 }

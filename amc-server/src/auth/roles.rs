@@ -133,7 +133,10 @@ mod tests {
         assert_eq!(r.to_string(), "submit,view");
         assert!(Roles::parse("submit,").is_err());
         assert!(Roles::parse("Admin").is_err());
-        assert_eq!(Roles::parse("submit,view,publish,admin").unwrap(), Roles::ALL);
+        assert_eq!(
+            Roles::parse("submit,view,publish,admin").unwrap(),
+            Roles::ALL
+        );
     }
 
     #[test]

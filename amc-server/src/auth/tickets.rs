@@ -47,8 +47,7 @@ impl Tickets {
                 let now = Instant::now();
                 map.retain(|_, (_, expires)| *expires > now);
                 if map.len() >= MAX_LOCAL {
-                    if let Some(oldest) = map.iter().min_by_key(|(_, (_, e))| *e).map(|(k, _)| *k)
-                    {
+                    if let Some(oldest) = map.iter().min_by_key(|(_, (_, e))| *e).map(|(k, _)| *k) {
                         map.remove(&oldest);
                     }
                 }
@@ -56,7 +55,13 @@ impl Tickets {
             }
             Tickets::Shared(queue) => {
                 queue
-                    .insert_ticket(&hash, &who.tenant, &who.roles.to_string(), who.key, TICKET_TTL)
+                    .insert_ticket(
+                        &hash,
+                        &who.tenant,
+                        &who.roles.to_string(),
+                        who.key,
+                        TICKET_TTL,
+                    )
                     .await?
             }
         }
@@ -77,15 +82,18 @@ impl Tickets {
                     .filter(|(_, expires)| *expires > Instant::now())
                     .map(|(who, _)| who))
             }
-            Tickets::Shared(queue) => Ok(queue.redeem_ticket(&hash).await?.and_then(
-                |(tenant, roles, key)| {
-                    Some(Principal {
-                        tenant,
-                        roles: Roles::parse(&roles).ok()?,
-                        key,
-                    })
-                },
-            )),
+            Tickets::Shared(queue) => {
+                Ok(queue
+                    .redeem_ticket(&hash)
+                    .await?
+                    .and_then(|(tenant, roles, key)| {
+                        Some(Principal {
+                            tenant,
+                            roles: Roles::parse(&roles).ok()?,
+                            key,
+                        })
+                    }))
+            }
         }
     }
 }

@@ -58,7 +58,9 @@ impl Queue {
             }))
         };
         match read(&row).map_err(ClusterError::db("redeeming a live ticket"))? {
-            Some(t) => t.map(Some).map_err(ClusterError::db("redeeming a live ticket")),
+            Some(t) => t
+                .map(Some)
+                .map_err(ClusterError::db("redeeming a live ticket")),
             None => Ok(None),
         }
     }

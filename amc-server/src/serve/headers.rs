@@ -11,7 +11,8 @@ use tower_http::cors::{AllowOrigin, CorsLayer};
 
 /// The page's policy: its own scripts, WASM (`wasm-unsafe-eval`), workers
 /// from its own files or blobs, and connections back to this service.
-pub const CONTENT_SECURITY_POLICY: &str = "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; \
+pub const CONTENT_SECURITY_POLICY: &str =
+    "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; \
     worker-src 'self' blob:; connect-src 'self' ws: wss: blob: data:; img-src 'self' blob: data:; \
     media-src 'self' blob:; style-src 'self'; font-src 'self'; object-src 'none'; base-uri 'none'; \
     frame-ancestors 'none'; form-action 'self'";
@@ -24,8 +25,14 @@ pub async fn secure(request: Request, next: Next) -> Response {
         header::CONTENT_SECURITY_POLICY,
         HeaderValue::from_static(CONTENT_SECURITY_POLICY),
     );
-    h.insert(header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff"));
-    h.insert(header::REFERRER_POLICY, HeaderValue::from_static("no-referrer"));
+    h.insert(
+        header::X_CONTENT_TYPE_OPTIONS,
+        HeaderValue::from_static("nosniff"),
+    );
+    h.insert(
+        header::REFERRER_POLICY,
+        HeaderValue::from_static("no-referrer"),
+    );
     h.insert(header::X_FRAME_OPTIONS, HeaderValue::from_static("DENY"));
     res
 }
@@ -46,10 +53,14 @@ pub fn cors(origins: &[String]) -> Option<CorsLayer> {
             .allow_methods([Method::GET, Method::POST, Method::DELETE])
             .allow_headers([header::AUTHORIZATION, header::CONTENT_TYPE])
             .expose_headers(
-                [header::LOCATION, header::RETRY_AFTER, header::CONTENT_DISPOSITION]
-                    .into_iter()
-                    .chain(SUMMARY_HEADERS.iter().map(|h| HeaderName::from_static(h)))
-                    .collect::<Vec<_>>(),
+                [
+                    header::LOCATION,
+                    header::RETRY_AFTER,
+                    header::CONTENT_DISPOSITION,
+                ]
+                .into_iter()
+                .chain(SUMMARY_HEADERS.iter().map(|h| HeaderName::from_static(h)))
+                .collect::<Vec<_>>(),
             )
             .max_age(std::time::Duration::from_secs(600)),
     )

@@ -2,13 +2,13 @@
 //! options (or 400), the upload (or 400/413/415) and its inspection (or 415/422).
 
 use super::options::JobOptions;
-use crate::auth::limits::TenantSlot;
-use crate::auth::Principal;
 use super::problem::{count, ApiError};
 use super::state::AppState;
 use super::storage::Scratch;
 use super::upload::{self, Upload};
 use super::work::{self, WorkSpec};
+use crate::auth::limits::TenantSlot;
+use crate::auth::Principal;
 use amc_engine::RunControl;
 use amc_video::Inspection;
 use axum::body::BodyDataStream;

@@ -97,7 +97,11 @@ fn tls_acceptor(cert: &Path, key: &Path) -> Result<TlsAcceptor, ServiceError> {
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| tls_error("tls-cert", cert, e))?;
     if certs.is_empty() {
-        return Err(tls_error("tls-cert", cert, "no certificate (PEM `CERTIFICATE` blocks)"));
+        return Err(tls_error(
+            "tls-cert",
+            cert,
+            "no certificate (PEM `CERTIFICATE` blocks)",
+        ));
     }
     let key_der = PrivateKeyDer::from_pem_file(key).map_err(|e| tls_error("tls-key", key, e))?;
     let provider = Arc::new(rustls::crypto::ring::default_provider());
@@ -206,7 +210,9 @@ pub async fn serve(
             // One body for both transports (a macro: the two connection types differ).
             macro_rules! serve_until_stopped {
                 ($io:expr) => {{
-                    let conn = http.serve_connection(TokioIo::new($io), service).with_upgrades();
+                    let conn = http
+                        .serve_connection(TokioIo::new($io), service)
+                        .with_upgrades();
                     let mut conn = std::pin::pin!(conn);
                     tokio::select! {
                         _ = conn.as_mut() => {}

@@ -29,12 +29,12 @@
 
 pub(crate) mod access;
 pub(crate) mod config;
-mod headers;
-mod listen;
 #[doc(hidden)]
 pub mod fuzzing;
+mod headers;
 pub(crate) mod intake;
 pub(crate) mod jobs;
+mod listen;
 mod live;
 pub(crate) mod metrics;
 mod openapi;

@@ -366,7 +366,9 @@ fn declare_access(doc: &mut Value) {
         return;
     };
     for (path, item) in paths.iter_mut() {
-        let Some(ops) = item.as_object_mut() else { continue };
+        let Some(ops) = item.as_object_mut() else {
+            continue;
+        };
         for op in ops.values_mut() {
             if path == "/healthz" {
                 op["security"] = json!([]);

@@ -134,7 +134,12 @@ async fn routes_and_errors() {
     let (s, _, doc) = call(&app, get("/openapi.json")).await;
     assert_eq!(s, StatusCode::OK);
     // The spec names exactly the router's paths (router.rs), each operation once.
-    let mut paths: Vec<&str> = doc["paths"].as_object().unwrap().keys().map(String::as_str).collect();
+    let mut paths: Vec<&str> = doc["paths"]
+        .as_object()
+        .unwrap()
+        .keys()
+        .map(String::as_str)
+        .collect();
     paths.sort_unstable();
     assert_eq!(
         paths,
@@ -197,7 +202,10 @@ async fn every_stabilizer_option_is_documented_with_its_help() {
 #[tokio::test]
 async fn every_operation_declares_the_bearer_scheme_and_its_refusals() {
     let doc = openapi::spec();
-    assert_eq!(doc["components"]["securitySchemes"]["bearer"]["scheme"], "bearer");
+    assert_eq!(
+        doc["components"]["securitySchemes"]["bearer"]["scheme"],
+        "bearer"
+    );
     assert_eq!(doc["security"], serde_json::json!([{"bearer": []}]));
     for (path, item) in doc["paths"].as_object().unwrap() {
         for (method, op) in item.as_object().unwrap() {
@@ -210,7 +218,11 @@ async fn every_operation_declares_the_bearer_scheme_and_its_refusals() {
             for code in ["401", "429"] {
                 assert!(r.get(code).is_some(), "{method} {path} lacks {code}");
             }
-            assert_eq!(r.get("403").is_some(), path != "/openapi.json", "{method} {path}: 403");
+            assert_eq!(
+                r.get("403").is_some(),
+                path != "/openapi.json",
+                "{method} {path}: 403"
+            );
         }
     }
     assert!(doc["paths"]["/live/ticket"]["post"]["responses"]["200"].is_object());

@@ -6,14 +6,14 @@
 use super::shared;
 use super::store::{lock, Job};
 use super::view::{JobFile, JobPage, JobState, JobView};
+use crate::auth::gate::principal;
+use crate::auth::{Principal, Roles};
 use crate::serve::intake::{self, LocalWork};
 use crate::serve::panics::PANICKED;
 use crate::serve::problem::ApiError;
 use crate::serve::state::AppState;
 use crate::serve::work::{self, WorkSpec};
 use axum::body::Body;
-use crate::auth::gate::principal;
-use crate::auth::{Principal, Roles};
 use axum::extract::{Extension, Path as UrlPath, Request, State};
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
@@ -204,7 +204,9 @@ pub async fn list(
         }
     }
     match &state.cluster {
-        Some(cluster) => Ok(Json(shared::list(cluster, scope(&who), limit, cursor).await?)),
+        Some(cluster) => Ok(Json(
+            shared::list(cluster, scope(&who), limit, cursor).await?,
+        )),
         None => Ok(Json(state.jobs.page(scope(&who), limit, cursor))),
     }
 }

@@ -179,7 +179,11 @@ pub async fn file(
 /// `DELETE /jobs/{id}`: cancels a queued or running job (200 with its
 /// state, once its worker has let go of it, or after `CANCEL_WAIT`), or
 /// removes a finished one with its objects (204).
-pub async fn delete(cluster: &Cluster, tenant: Option<&str>, id: &str) -> Result<Response, ApiError> {
+pub async fn delete(
+    cluster: &Cluster,
+    tenant: Option<&str>,
+    id: &str,
+) -> Result<Response, ApiError> {
     let row = row(cluster, tenant, id).await?;
     if let Some(mut row) = cluster.queue.cancel(&row.id).await? {
         tracing::info!(job = %row.id, "job cancelled by request");

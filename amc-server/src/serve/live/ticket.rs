@@ -14,7 +14,10 @@ use axum::Json;
 use std::sync::Arc;
 
 /// `POST /live/ticket`.
-pub async fn ticket(State(state): State<Arc<AppState>>, request: Request) -> Result<Response, ApiError> {
+pub async fn ticket(
+    State(state): State<Arc<AppState>>,
+    request: Request,
+) -> Result<Response, ApiError> {
     let who = principal(&request)?;
     let ticket = state.auth.tickets.issue(&who).await?;
     let mut res = Json(serde_json::json!({
@@ -22,7 +25,9 @@ pub async fn ticket(State(state): State<Arc<AppState>>, request: Request) -> Res
         "expires_in_s": TICKET_TTL.as_secs(),
     }))
     .into_response();
-    res.headers_mut()
-        .insert(header::CACHE_CONTROL, header::HeaderValue::from_static("no-store"));
+    res.headers_mut().insert(
+        header::CACHE_CONTROL,
+        header::HeaderValue::from_static("no-store"),
+    );
     Ok(res)
 }
