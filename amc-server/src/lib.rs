@@ -9,4 +9,5 @@
 pub mod auth;
 pub mod cluster;
 pub mod serve;
+pub mod setting;
 pub mod worker;

@@ -15,7 +15,7 @@ pub use keys::{new_key, valid_tenant, KeyTable, KeysError, Principal};
 pub use roles::{Need, Roles};
 pub use tickets::{Tickets, TICKET_TTL};
 
-use crate::serve::config::{check, ServiceError};
+use crate::setting::{check, InvalidSetting};
 use limits::{FailureGate, KeyRates, TenantSlots};
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, RwLock};
@@ -55,13 +55,13 @@ impl Default for AuthConfig {
 }
 
 impl AuthConfig {
-    pub fn validate(&self) -> Result<(), ServiceError> {
+    pub fn validate(&self) -> Result<(), InvalidSetting> {
         check("key-rate", self.key_rate, 1, 100_000)?;
         check("auth-failures", self.auth_failures, 1, 10_000)?;
         check("max-jobs-per-tenant", self.max_jobs_per_tenant, 1, 100_000)?;
         for o in &self.cors_origins {
             if !valid_origin(o) {
-                return Err(ServiceError::Invalid {
+                return Err(InvalidSetting {
                     flag: "cors-origin",
                     detail: format!(
                         "{o:?} (allowed: an origin, scheme://host[:port], e.g. https://app.example.com, no path)"
@@ -70,7 +70,7 @@ impl AuthConfig {
             }
         }
         if self.keys_file.is_some() && self.insecure_no_auth {
-            return Err(ServiceError::Invalid {
+            return Err(InvalidSetting {
                 flag: "insecure-no-auth",
                 detail: "given with --auth-keys (allowed: one or the other)".into(),
             });

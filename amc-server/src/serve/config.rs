@@ -203,13 +203,22 @@ pub(crate) fn check<T: PartialOrd + std::fmt::Display>(
     lo: T,
     hi: T,
 ) -> Result<(), ServiceError> {
-    if value < lo || value > hi {
-        return Err(ServiceError::Invalid {
-            flag,
-            detail: format!("{value} (allowed: {lo}..={hi})"),
-        });
+    Ok(crate::setting::check(flag, value, lo, hi)?)
+}
+
+impl From<crate::setting::InvalidSetting> for ServiceError {
+    fn from(e: crate::setting::InvalidSetting) -> Self {
+        Self::Invalid {
+            flag: e.flag,
+            detail: e.detail,
+        }
     }
-    Ok(())
+}
+
+impl From<crate::setting::InvalidSetting> for ServeError {
+    fn from(e: crate::setting::InvalidSetting) -> Self {
+        Self::Service(e.into())
+    }
 }
 
 impl ServeConfig {

@@ -5,7 +5,7 @@
 //! (rustls), the client's address for the access check, and a graceful
 //! shutdown (answers in progress finish; new connections are refused).
 
-use super::config::{check, ServiceError};
+use crate::setting::{check, InvalidSetting};
 use axum::extract::ConnectInfo;
 use axum::Router;
 use hyper::body::Incoming;
@@ -49,7 +49,7 @@ impl Default for ListenConfig {
 }
 
 impl ListenConfig {
-    pub fn validate(&self) -> Result<(), ServiceError> {
+    pub fn validate(&self) -> Result<(), InvalidSetting> {
         check("max-connections", self.max_connections, 1, 1_000_000)?;
         check(
             "max-connections-per-ip",
@@ -59,12 +59,12 @@ impl ListenConfig {
         )?;
         check("header-timeout", self.header_timeout, 1, 3600)?;
         match (&self.tls_cert, &self.tls_key) {
-            (Some(_), None) => Err(ServiceError::Invalid {
+            (Some(_), None) => Err(InvalidSetting {
                 flag: "tls-key",
                 detail: "missing: --tls-cert needs --tls-key (the certificate's private key, PEM)"
                     .into(),
             }),
-            (None, Some(_)) => Err(ServiceError::Invalid {
+            (None, Some(_)) => Err(InvalidSetting {
                 flag: "tls-cert",
                 detail: "missing: --tls-key needs --tls-cert (the certificate chain, PEM)".into(),
             }),
@@ -73,7 +73,7 @@ impl ListenConfig {
     }
 
     /// The TLS acceptor, when a certificate is given.
-    pub fn tls(&self) -> Result<Option<TlsAcceptor>, ServiceError> {
+    pub fn tls(&self) -> Result<Option<TlsAcceptor>, InvalidSetting> {
         match (&self.tls_cert, &self.tls_key) {
             (Some(cert), Some(key)) => tls_acceptor(cert, key).map(Some),
             _ => Ok(None),
@@ -81,15 +81,15 @@ impl ListenConfig {
     }
 }
 
-fn tls_error(flag: &'static str, path: &Path, why: impl std::fmt::Display) -> ServiceError {
-    ServiceError::Invalid {
+fn tls_error(flag: &'static str, path: &Path, why: impl std::fmt::Display) -> InvalidSetting {
+    InvalidSetting {
         flag,
         detail: format!("{}: {why}", path.display()),
     }
 }
 
 /// rustls with the ring provider, TLS 1.2 and 1.3, HTTP/1.1 by ALPN.
-fn tls_acceptor(cert: &Path, key: &Path) -> Result<TlsAcceptor, ServiceError> {
+fn tls_acceptor(cert: &Path, key: &Path) -> Result<TlsAcceptor, InvalidSetting> {
     use rustls_pki_types::pem::PemObject;
     use rustls_pki_types::{CertificateDer, PrivateKeyDer};
     let certs = CertificateDer::pem_file_iter(cert)
