@@ -1639,3 +1639,43 @@ fn tenants_and_tickets_hold_across_replicas() {
         );
     }
 }
+
+#[test]
+fn a_public_healthz_names_no_source_url_host_or_path() {
+    let _g = serial();
+    // /healthz is open to strangers; a live source's URL can carry its
+    // credentials (rtsp://user:pass@, srt's passphrase), and errors name hosts
+    // and paths. With keys it says only which part is broken; the log has why.
+    let keys = Keys::new();
+    keys.add("ops", "admin");
+    let source = "rtsp://pilot:hunter2secret@127.0.0.1:9/cam";
+    let server = Server::start(&["--auth-keys", keys.path(), "--live-source", source]);
+    let mut health = None;
+    wait_until(
+        "/healthz never reported the live source",
+        Duration::from_secs(20),
+        || {
+            let h = call("GET", &server.url("/healthz"), "");
+            let bad = h.status == 503;
+            health = Some(h);
+            bad
+        },
+    );
+    let h = health.unwrap();
+    let text = h.text();
+    let j = h.json();
+    assert_eq!(j["status"], "unavailable", "{j}");
+    assert_eq!(j["live"]["state"], "unavailable", "{j}");
+    assert!(
+        j["detail"].as_str().unwrap().contains("the live source"),
+        "{j}"
+    );
+    for secret in ["hunter2secret", "pilot", "127.0.0.1:9", "rtsp"] {
+        assert!(!text.contains(secret), "/healthz shows {secret:?}: {text}");
+    }
+    wait_until(
+        "the log never said why the source failed",
+        Duration::from_secs(5),
+        || server.log().contains("the live source"),
+    );
+}

@@ -7,7 +7,7 @@
 use super::state::WorkerState;
 use crate::serve::jobs::JobState;
 use crate::serve::metrics::StateLabel;
-use crate::serve::ops::health;
+use crate::serve::ops::{health, Trouble};
 use crate::serve::problem::ApiError;
 use axum::extract::State;
 use axum::http::{header, HeaderMap};
@@ -19,8 +19,10 @@ use std::sync::Arc;
 
 /// With `--auth-keys`, `/metrics` needs an `admin` key (as on the replicas).
 pub(super) fn app(state: Arc<WorkerState>, auth: Arc<crate::auth::Auth>) -> Router {
+    // With keys, /healthz is still open to all: it names no host or path.
+    let public = auth.enabled();
     Router::new()
-        .route("/healthz", get(healthz))
+        .route("/healthz", get(move |state| healthz(state, public)))
         .route("/metrics", get(metrics))
         .fallback(|uri: axum::http::Uri| async move {
             ApiError::NoRoute(format!(
@@ -37,11 +39,15 @@ pub(super) fn app(state: Arc<WorkerState>, auth: Arc<crate::auth::Auth>) -> Rout
 }
 
 /// 200 while the worker can run jobs; 503 naming what is down.
-async fn healthz(State(state): State<Arc<WorkerState>>) -> Response {
+async fn healthz(State(state): State<Arc<WorkerState>>, public: bool) -> Response {
     let check = match tokio::task::spawn_blocking(amc_video::ffmpeg_available).await {
-        Ok(Ok(())) => state.cluster.ping().await.map_err(|e| e.to_string()),
-        Ok(Err(e)) => Err(e.to_string()),
-        Err(e) => Err(e.to_string()),
+        Ok(Ok(())) => state
+            .cluster
+            .ping()
+            .await
+            .map_err(|e| Trouble::new("the job database or bucket", e)),
+        Ok(Err(e)) => Err(Trouble::new("ffmpeg", e)),
+        Err(e) => Err(Trouble::new("the health check", e)),
     };
     health(
         check,
@@ -51,6 +57,7 @@ async fn healthz(State(state): State<Arc<WorkerState>>) -> Response {
             "threads": state.limits.threads,
             "busy": state.busy.load(Ordering::SeqCst),
         }),
+        public,
     )
 }
 
