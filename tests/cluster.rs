@@ -9,7 +9,7 @@
 
 use amc_e2e::cluster::{metric, submit, wait_finished, Infra};
 use amc_e2e::fixtures::{ffprobe_frames, test_clip};
-use amc_e2e::server::{delete, get, post_multipart, Reply, Server};
+use amc_e2e::server::{delete, get, post_multipart, wait_until, Reply, Server};
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Mutex;
@@ -47,14 +47,6 @@ fn assert_empty(dir: &Path, what: &str) {
         .map(|rd| rd.flatten().map(|e| e.path()).collect())
         .unwrap_or_default();
     assert!(left.is_empty(), "{what} left files: {left:?}");
-}
-
-fn wait_until(what: &str, within: Duration, mut ok: impl FnMut() -> bool) {
-    let start = Instant::now();
-    while !ok() {
-        assert!(start.elapsed() < within, "{what}: not within {within:?}");
-        std::thread::sleep(Duration::from_millis(200));
-    }
 }
 
 #[test]

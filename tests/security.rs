@@ -8,7 +8,7 @@
 
 use amc_e2e::cluster::Infra;
 use amc_e2e::fixtures::test_clip;
-use amc_e2e::server::{raw_request, request, websocket_with, Reply, Server, NO_ANSWER};
+use amc_e2e::server::{raw_request, request, wait_until, websocket_with, Reply, Server, NO_ANSWER};
 use amc_e2e::{amc, amc_ok, data, run_amc};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -311,15 +311,23 @@ fn exits_within(args: &[&str], within: Duration) -> Option<(std::process::ExitSt
     None
 }
 
+/// `amc serve --addr ADDR --work-dir DIR ARGS...` must stop at start with a
+/// non-zero status (within 20 s); its stderr.
+fn refused_at_start(addr: &str, dir: &Path, args: &[&str], what: &str) -> String {
+    let mut all = vec!["serve", "--addr", addr, "--work-dir", dir.to_str().unwrap()];
+    all.extend_from_slice(args);
+    let (status, stderr) = exits_within(&all, Duration::from_secs(20))
+        .unwrap_or_else(|| panic!("amc serve {what} started"));
+    assert!(!status.success(), "amc serve {what}: {stderr}");
+    stderr
+}
+
 #[test]
 fn a_public_address_without_keys_is_refused_at_start() {
     let _g = serial();
     let work = tempfile::tempdir().unwrap();
     let w = work.path().to_str().unwrap();
-    let within = Duration::from_secs(20);
-    let (status, stderr) = exits_within(&["serve", "--addr", "0.0.0.0:0", "--work-dir", w], within)
-        .expect("amc serve on 0.0.0.0 without keys started");
-    assert!(!status.success(), "{stderr}");
+    let stderr = refused_at_start("0.0.0.0:0", work.path(), &[], "on 0.0.0.0 without keys");
     assert!(
         stderr.contains("--auth-keys") && stderr.contains("--insecure-no-auth"),
         "the refusal does not say what to do: {stderr}"
@@ -327,37 +335,20 @@ fn a_public_address_without_keys_is_refused_at_start() {
     // Keys and the escape hatch together are a contradiction.
     let keys = Keys::new();
     keys.add("alice", "submit");
-    let (status, stderr) = exits_within(
-        &[
-            "serve",
-            "--addr",
-            "127.0.0.1:0",
-            "--work-dir",
-            w,
-            "--auth-keys",
-            keys.path(),
-            "--insecure-no-auth",
-        ],
-        within,
-    )
-    .expect("amc serve with --auth-keys and --insecure-no-auth started");
-    assert!(!status.success(), "{stderr}");
+    refused_at_start(
+        "127.0.0.1:0",
+        work.path(),
+        &["--auth-keys", keys.path(), "--insecure-no-auth"],
+        "with --auth-keys and --insecure-no-auth",
+    );
     // A keys file that is missing stops it.
     let missing = work.path().join("no-such-keys");
-    let (status, stderr) = exits_within(
-        &[
-            "serve",
-            "--addr",
-            "127.0.0.1:0",
-            "--work-dir",
-            w,
-            "--auth-keys",
-            missing.to_str().unwrap(),
-        ],
-        within,
-    )
-    .expect("amc serve with a missing keys file started");
-    assert!(!status.success(), "{stderr}");
+    let stderr = refused_at_start(
+        "127.0.0.1:0",
+        work.path(),
+        &["--auth-keys", missing.to_str().unwrap()],
+        "with a missing keys file",
+    );
     assert!(stderr.contains("no-such-keys"), "{stderr}");
 
     // With --insecure-no-auth it serves, without keys.
@@ -405,14 +396,6 @@ fn touch_ahead(path: &Path, secs: u64) {
         .unwrap();
 }
 
-fn wait_until(what: &str, within: Duration, mut ok: impl FnMut() -> bool) {
-    let start = Instant::now();
-    while !ok() {
-        assert!(start.elapsed() < within, "{what} (waited {within:?})");
-        std::thread::sleep(Duration::from_millis(200));
-    }
-}
-
 #[test]
 fn a_key_removed_from_the_keys_file_is_refused_without_a_restart() {
     let _g = serial();
@@ -458,20 +441,12 @@ fn a_key_pasted_into_the_keys_file_is_refused_without_printing_it() {
     let work = tempfile::tempdir().unwrap();
     let pasted = work.path().join("pasted-keys");
     std::fs::write(&pasted, format!("alice submit {key}\n")).unwrap();
-    let (status, at_start) = exits_within(
-        &[
-            "serve",
-            "--addr",
-            "127.0.0.1:0",
-            "--work-dir",
-            work.path().to_str().unwrap(),
-            "--auth-keys",
-            pasted.to_str().unwrap(),
-        ],
-        Duration::from_secs(20),
-    )
-    .expect("amc serve with a key pasted in its keys file started");
-    assert!(!status.success(), "{at_start}");
+    let at_start = refused_at_start(
+        "127.0.0.1:0",
+        work.path(),
+        &["--auth-keys", pasted.to_str().unwrap()],
+        "with a key pasted in its keys file",
+    );
     assert!(at_start.contains("pasted-keys:1"), "{at_start}");
 
     let keys = Keys::new();
@@ -842,36 +817,18 @@ fn tenants_see_only_their_own_jobs_and_admin_sees_all() {
     let out = call("GET", &server.url(&format!("/jobs/{a}/output")), &alice);
     assert_eq!(out.status, 200, "{}", out.text());
     assert!(out.body.len() > 1000);
-    assert_eq!(
-        call(
-            "GET",
-            &server.url(&format!("/jobs/{a}/telemetry.csv")),
-            &alice
-        )
-        .status,
-        200
-    );
-    // Bob's DELETE removed nothing; admin's does.
-    assert_eq!(
-        call("GET", &server.url(&format!("/jobs/{a}")), &alice).status,
-        200
-    );
-    assert_eq!(
-        call("GET", &server.url(&format!("/jobs/{a}")), &admin).status,
-        200
-    );
-    assert_eq!(
-        call("GET", &server.url(&format!("/jobs/{a}/output")), &admin).status,
-        200
-    );
-    assert_eq!(
-        call("DELETE", &server.url(&format!("/jobs/{a}")), &admin).status,
-        204
-    );
-    assert_eq!(
-        call("GET", &server.url(&format!("/jobs/{a}")), &alice).status,
-        404
-    );
+    // Bob's DELETE removed nothing; admin's does. In this order:
+    for (method, path, key, status) in [
+        ("GET", "/telemetry.csv", &alice, 200),
+        ("GET", "", &alice, 200),
+        ("GET", "", &admin, 200),
+        ("GET", "/output", &admin, 200),
+        ("DELETE", "", &admin, 204),
+        ("GET", "", &alice, 404),
+    ] {
+        let url = server.url(&format!("/jobs/{a}{path}"));
+        assert_eq!(call(method, &url, key).status, status, "{method} {url}");
+    }
     // The synchronous endpoint serves a key of its own tenant too.
     let r = send("POST", &server.url("/stabilize?n_avg=2"), &bob, &clip);
     assert_eq!(r.status, 200, "{}", r.text());

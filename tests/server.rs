@@ -6,7 +6,9 @@
 use amc_e2e::fixtures::{
     ffmpeg, ffprobe_frames, ffprobe_video_duration, has_audio, test_clip, test_picture,
 };
-use amc_e2e::server::{delete, get, post, post_multipart, raw_request, websocket, Server};
+use amc_e2e::server::{
+    delete, get, post, post_multipart, raw_request, wait_until, websocket, Server,
+};
 use amc_e2e::{data, s};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
@@ -356,14 +358,6 @@ fn metric(server: &Server, name: &str) -> f64 {
     text.lines()
         .find_map(|l| l.strip_prefix(name)?.strip_prefix(' ')?.trim().parse().ok())
         .unwrap_or_else(|| panic!("/metrics lacks {name}:\n{text}"))
-}
-
-fn wait_until(what: &str, within: Duration, mut ok: impl FnMut() -> bool) {
-    let start = Instant::now();
-    while !ok() {
-        assert!(start.elapsed() < within, "{what} (waited {within:?})");
-        std::thread::sleep(Duration::from_millis(100));
-    }
 }
 
 #[test]

@@ -491,3 +491,13 @@ pub fn websocket_with(
         Err(e) => Err(e.to_string()),
     }
 }
+
+/// Polls `ok` every 100 ms until it holds; fails the test naming `what`
+/// once `within` has passed.
+pub fn wait_until(what: &str, within: Duration, mut ok: impl FnMut() -> bool) {
+    let start = Instant::now();
+    while !ok() {
+        assert!(start.elapsed() < within, "{what}: not within {within:?}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}

@@ -18,7 +18,7 @@
 
 use amc_e2e::cluster::{submit, wait_finished, Infra};
 use amc_e2e::fixtures::test_clip;
-use amc_e2e::server::{agent, delete, get, post, post_multipart, Server};
+use amc_e2e::server::{agent, delete, get, post, post_multipart, wait_until, Server};
 use amc_e2e::services::REQUIRE_SERVICES;
 use amc_e2e::{data, workspace_root};
 use std::path::{Path, PathBuf};
@@ -43,14 +43,6 @@ fn fallback_clip(dir: &Path) -> Vec<u8> {
     let clip = dir.join("pattern.mp4");
     test_clip(&clip, 320, 180, 30, 2.0);
     read_file(&clip)
-}
-
-fn wait_until(what: &str, within: Duration, mut ok: impl FnMut() -> bool) {
-    let start = Instant::now();
-    while !ok() {
-        assert!(start.elapsed() < within, "{what}: not within {within:?}");
-        std::thread::sleep(Duration::from_millis(100));
-    }
 }
 
 fn wait_for_state(server: &Server, id: &str, want: &str) -> serde_json::Value {

@@ -218,17 +218,6 @@ pub fn spec() -> Value {
                     "503": unavailable()
                 }
             }},
-            "/jobs/{id}/telemetry": {"get": {
-                "operationId": "getJobTelemetryAlias",
-                "summary": "The same as /jobs/{id}/telemetry.csv",
-                "parameters": [id_parameter()],
-                "responses": {
-                    "200": {"description": "CSV", "content": {"text/csv": {}}},
-                    "404": not_found,
-                    "409": not_done,
-                    "503": unavailable()
-                }
-            }},
             "/live": {"get": {
                 "operationId": "watchLive",
                 "parameters": [ticket_parameter()],
@@ -353,6 +342,11 @@ pub fn spec() -> Value {
             }}
         }}
     });
+    // The alias answers exactly as the `.csv` path does.
+    let mut alias = doc["paths"]["/jobs/{id}/telemetry.csv"].clone();
+    alias["get"]["operationId"] = "getJobTelemetryAlias".into();
+    alias["get"]["summary"] = "The same as /jobs/{id}/telemetry.csv".into();
+    doc["paths"]["/jobs/{id}/telemetry"] = alias;
     declare_access(&mut doc);
     doc
 }
