@@ -635,7 +635,7 @@ impl FfmpegSink {
 /// (it rounds a 4:2:0 input's size down to the chroma grid). The chroma planes
 /// already cover the added pixels (they are `ceil(side / 2)` samples), so the
 /// copies keep the colour of the pixels they repeat.
-fn pad_to_even(width: usize, height: usize, planes: &[u8], out: &mut Vec<u8>) {
+pub(crate) fn pad_to_even(width: usize, height: usize, planes: &[u8], out: &mut Vec<u8>) {
     let (ew, eh) = (width.next_multiple_of(2), height.next_multiple_of(2));
     let (y, u, v) = amc_core::image::yuv_planes(width, height, planes);
     out.clear();

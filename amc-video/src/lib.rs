@@ -23,7 +23,9 @@ mod caps;
 pub mod cleanup;
 mod error;
 mod ffmpeg;
+mod flv;
 mod frame;
+mod h264;
 mod images;
 mod mkv;
 mod open;
@@ -37,7 +39,9 @@ mod tests;
 
 pub use atomic::{write_atomic, AtomicDir, AtomicFile};
 pub use error::VideoError;
+pub use flv::{AccessUnit, FlvError, FlvToAnnexB};
 pub use frame::{FrameSink, FrameSource};
+pub use h264::{H264Encoder, H264Options};
 pub use images::{folder_fps, list_images};
 pub use open::{
     check_output, check_parent_dir, create_output, ffmpeg_available, frame_size, inspect,

@@ -64,19 +64,26 @@ impl Proc {
         with_stdin: bool,
         pts_tx: Option<Sender<f64>>,
     ) -> Result<Self, VideoError> {
+        // An encoder writes to a file; only decoders and probes talk on stdout.
+        Self::spawn_piped(tool, args, path, timeout, with_stdin, !with_stdin, pts_tx)
+    }
+
+    /// [`Proc::spawn`] with each of stdin and stdout piped or not (a live
+    /// encoder takes frames on one and gives its stream on the other).
+    pub fn spawn_piped(
+        tool: &'static str,
+        args: &[std::ffi::OsString],
+        path: &Path,
+        timeout: Duration,
+        with_stdin: bool,
+        with_stdout: bool,
+        pts_tx: Option<Sender<f64>>,
+    ) -> Result<Self, VideoError> {
+        let piped = |on: bool| if on { Stdio::piped() } else { Stdio::null() };
         let mut cmd = Command::new(tool);
         cmd.args(args)
-            .stdin(if with_stdin {
-                Stdio::piped()
-            } else {
-                Stdio::null()
-            })
-            // An encoder writes to a file; only decoders and probes talk on stdout.
-            .stdout(if with_stdin {
-                Stdio::null()
-            } else {
-                Stdio::piped()
-            })
+            .stdin(piped(with_stdin))
+            .stdout(piped(with_stdout))
             .stderr(Stdio::piped());
         // Its own process group keeps a terminal Ctrl-C away from ffmpeg:
         // the program decides what to do (drop sources and sinks, which

@@ -9,6 +9,13 @@
 //! 3. The clip at 60 frames/s (the paper's FPV camera's rate) as a looped
 //!    `--live-source` with two viewers at once: frames/s reaching each viewer
 //!    and the added latency (p50/p95/max) over 20 s.
+//! 4. The live feed as H.264 (`/live?codec=h264`) beside JPEG: at 320x180
+//!    60 fps, 1280x720 60 fps and 1920x1080 30 fps sources, two H.264 viewers
+//!    and one JPEG viewer at once: frames/s, Mbit/s and latency for each,
+//!    and the H.264 frames' quality against the JPEG frames of the same
+//!    index (PSNR, and Sobel sharpness as a ratio).
+//!
+//! `cargo bench -p amc-e2e --bench serve -- h264` runs part 4 alone.
 
 use amc_e2e::fixtures::ffmpeg;
 use amc_e2e::server::{post, websocket, Server};
@@ -29,7 +36,11 @@ fn encode(input: &[&str], audio: &[&str], out: &std::path::Path) {
 }
 
 fn main() {
+    let only_h264 = std::env::args().any(|a| a == "h264");
     let dir = tempfile::tempdir().expect("temp dir");
+    if only_h264 {
+        return h264_section(dir.path());
+    }
     let clip = dir.path().join("karma-720p30-20s.mp4");
     // karma.mp4 looped and scaled.
     encode(
@@ -84,7 +95,7 @@ fn main() {
     }
     drop(server);
 
-    let (rate, lat, skipped) = live(&clip, 1, 330).remove(0);
+    let (rate, lat, skipped, _) = live(&clip, &["/live"], 330).remove(0);
     println!("\n| live feed | median | p95 | max | frames/s to a viewer | skipped |");
     println!("|---|---|---|---|---|---|");
     println!(
@@ -96,7 +107,10 @@ fn main() {
 
     let clip60 = dir.path().join("karma-720p60-20s.mp4");
     encode(&["-i", &s(&clip), "-vf", "fps=60"], &["-an"], &clip60);
-    for (viewer, (rate, lat, skipped)) in live(&clip60, 2, 1230).into_iter().enumerate() {
+    for (viewer, (rate, lat, skipped, _)) in live(&clip60, &["/live", "/live"], 1230)
+        .into_iter()
+        .enumerate()
+    {
         println!(
             "| 720p60 source, viewer {} of 2 | {:.1} ms | {:.1} ms | {:.1} ms | {rate:.1} | {skipped} |",
             viewer + 1,
@@ -105,13 +119,60 @@ fn main() {
             lat[lat.len() - 1],
         );
     }
+    h264_section(dir.path());
 }
 
-/// Serves `clip` as a looped live source to `viewers` viewers at once, each
-/// reading `frames` frames: per viewer, the frames/s it received (after the
-/// first 30), the latencies the server reported (sorted, ms) and the frames
-/// it was skipped past.
-fn live(clip: &std::path::Path, viewers: usize, frames: usize) -> Vec<(f64, Vec<f64>, u64)> {
+/// Part 4: H.264 beside JPEG at three sizes.
+fn h264_section(dir: &std::path::Path) {
+    println!("\n| live source | viewer | frames/s | Mbit/s | latency p50 | p95 | max | skipped |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for (w, h, fps) in [(320, 180, 60), (1280, 720, 60), (1920, 1080, 30)] {
+        let clip = dir.join(format!("karma-{h}p{fps}.mp4"));
+        encode(
+            &[
+                "-stream_loop",
+                "1",
+                "-i",
+                &s(&data("karma/karma.mp4")),
+                "-t",
+                "20",
+                "-vf",
+                &format!("scale={w}:{h},fps={fps}"),
+            ],
+            &["-an"],
+            &clip,
+        );
+        // ~12 s of frames for each viewer.
+        let frames = 12 * fps as usize;
+        // Three JPEG viewers first (before H.264: the baseline of this run),
+        // then two H.264 viewers and one JPEG viewer.
+        let jpeg_only = ["/live", "/live", "/live"];
+        let mixed = ["/live?codec=h264", "/live?codec=h264", "/live"];
+        let runs = [
+            (&jpeg_only, live(&clip, &jpeg_only, frames)),
+            (&mixed, live(&clip, &mixed, frames)),
+        ];
+        for (path, (rate, lat, skipped, bytes)) in runs
+            .iter()
+            .flat_map(|(paths, got)| paths.iter().zip(got.iter().cloned()))
+        {
+            println!(
+                "| {w}x{h} {fps} fps | {path} | {rate:.1} | {:.2} | {:.1} ms | {:.1} ms | {:.1} ms | {skipped} |",
+                bytes as f64 * 8.0 / 1e6 / ((frames - 30) as f64 / rate),
+                percentile(&lat, 0.5),
+                percentile(&lat, 0.95),
+                lat[lat.len() - 1],
+            );
+        }
+    }
+}
+
+/// Serves `clip` as a looped live source to one viewer per path at once
+/// (`/live`, `/live?codec=h264`), each reading `frames` frames: per viewer,
+/// the frames/s it received (after the first 30), the latencies the server
+/// reported (sorted, ms), the frames it was skipped past, and the bytes of
+/// its binary messages after the first 30 frames.
+fn live(clip: &std::path::Path, paths: &[&str], frames: usize) -> Vec<(f64, Vec<f64>, u64, u64)> {
     let server = Server::start(&[
         "--live-source",
         clip.to_str().unwrap(),
@@ -119,8 +180,9 @@ fn live(clip: &std::path::Path, viewers: usize, frames: usize) -> Vec<(f64, Vec<
         "--live-fov",
         "70",
     ]);
-    let sockets: Vec<_> = (0..viewers)
-        .map(|_| websocket(&server.addr, "/live", Duration::from_secs(20)).expect("viewer"))
+    let sockets: Vec<_> = paths
+        .iter()
+        .map(|p| websocket(&server.addr, p, Duration::from_secs(20)).expect("viewer"))
         .collect();
     let threads: Vec<_> = sockets
         .into_iter()
@@ -130,8 +192,10 @@ fn live(clip: &std::path::Path, viewers: usize, frames: usize) -> Vec<(f64, Vec<
                 let mut started: Option<Instant> = None;
                 let mut skipped = 0u64;
                 let mut last: Option<u64> = None;
+                let mut bytes = 0u64;
                 while latencies.len() < frames {
                     match ws.read() {
+                        Ok(Message::Binary(b)) if started.is_some() => bytes += b.len() as u64,
                         Ok(Message::Text(t)) => {
                             let v: serde_json::Value = serde_json::from_str(&t).expect("json");
                             let f = v["frame"].as_u64().unwrap_or(0);
@@ -153,7 +217,7 @@ fn live(clip: &std::path::Path, viewers: usize, frames: usize) -> Vec<(f64, Vec<
                 let rate = (frames - 30) as f64 / secs;
                 let mut lat: Vec<f64> = latencies[30..].to_vec();
                 lat.sort_by(|a, b| a.total_cmp(b));
-                (rate, lat, skipped)
+                (rate, lat, skipped, bytes)
             })
         })
         .collect();

@@ -101,6 +101,10 @@ pub struct ServeArgs {
     /// JPEG quality of live frames (1..=100).
     #[arg(long, default_value_t = 80)]
     pub live_jpeg_quality: u8,
+    /// Most kilobits per second of the H.264 live stream (`/live?codec=h264`,
+    /// 100..=100000), held over every half second; a simpler picture takes less.
+    #[arg(long, value_name = "KBPS", default_value_t = amc_server::serve::LiveConfig::default().bitrate_kbps)]
+    pub live_bitrate: u32,
     /// Log one JSON object per line (for log collectors) instead of text.
     /// The level is set with RUST_LOG (default: info).
     #[arg(long)]
@@ -219,6 +223,7 @@ impl ServeArgs {
             live_readout_ms: self.live_readout_ms,
             live_width: self.live_width,
             live_jpeg_quality: self.live_jpeg_quality,
+            live_bitrate: self.live_bitrate,
             log_json: self.log_json,
         })
     }

@@ -70,6 +70,8 @@ pub struct ServeConfig {
     pub live_width: Option<usize>,
     /// JPEG quality of live frames (1..=100).
     pub live_jpeg_quality: u8,
+    /// `--live-bitrate`: the H.264 live stream's kilobits per second.
+    pub live_bitrate: u32,
     /// Log one JSON object per line (for log collectors) instead of text.
     /// The level is set with RUST_LOG (default: info).
     pub log_json: bool,
@@ -295,6 +297,7 @@ impl ServeConfig {
     /// The live feed's configuration.
     pub fn live(&self) -> Result<LiveConfig, ServeError> {
         check("live-jpeg-quality", self.live_jpeg_quality, 1, 100)?;
+        check("live-bitrate", self.live_bitrate, 100, 100_000)?;
         // The same range as every other field of view (`fov`).
         if amc_core::LensSpec::parse_fov(&self.live_fov.to_string()).is_err() {
             return Err(ServiceError::Invalid {
@@ -341,6 +344,7 @@ impl ServeConfig {
             lens,
             fov_deg: self.live_fov,
             jpeg_quality: self.live_jpeg_quality,
+            bitrate_kbps: self.live_bitrate,
             ffmpeg_timeout: Duration::from_secs(self.ffmpeg_timeout),
         })
     }

@@ -220,10 +220,15 @@ pub fn spec() -> Value {
             }},
             "/live": {"get": {
                 "operationId": "watchLive",
-                "parameters": [ticket_parameter()],
-                "summary": "WebSocket for viewers of the live feed: per stabilized frame, one binary message (JPEG) then one text message (LiveTelemetry JSON). Slow viewers skip frames. With no viewer the feed is paused; the first viewer resumes it.",
+                "parameters": [ticket_parameter(), {
+                    "name": "codec", "in": "query", "required": false,
+                    "description": "What each binary message holds: jpeg (default), one JPEG per frame; h264, one H.264 access unit per frame in Annex-B form, from a keyframe with its SPS and PPS on (the messages concatenated are an H.264 elementary stream), from one encoder shared by every H.264 viewer",
+                    "schema": {"type": "string", "enum": ["jpeg", "h264"], "default": "jpeg"}
+                }],
+                "summary": "WebSocket for viewers of the live feed: per stabilized frame, one binary message (a JPEG, or an H.264 access unit with codec=h264) then one text message (LiveTelemetry JSON, its codec named). Slow viewers skip frames (H.264 viewers to the next keyframe). With no viewer the feed is paused; the first viewer resumes it.",
                 "responses": {
                     "101": {"description": "Switching to the WebSocket protocol"},
+                    "400": problem("An unknown codec"),
                     "426": problem("Not a WebSocket upgrade request")
                 }
             }},
@@ -338,7 +343,9 @@ pub fn spec() -> Value {
                 "frame": {"type": "integer"}, "t": {"type": "number"},
                 "speed_est_dps": {"type": "number"}, "speed_view_dps": {"type": "number"},
                 "valid": {"type": "number"}, "saccade": {"type": "boolean"},
-                "latency_ms": {"type": "number"}, "width": {"type": "integer"}, "height": {"type": "integer"}
+                "latency_ms": {"type": "number", "description": "From the source frame's arrival to this message's frame being ready to send (stabilized and encoded), ms"},
+                "width": {"type": "integer"}, "height": {"type": "integer"},
+                "codec": {"type": "string", "enum": ["jpeg", "h264"], "description": "What the binary message before it holds"}
             }}
         }}
     });

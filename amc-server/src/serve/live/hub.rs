@@ -5,7 +5,11 @@
 //! ```text
 //! source thread --try_send--> [1 slot] --> processor --[1 slot]--> JPEG thread --watch--> viewer tasks
 //! ingest socket --try_send-->            (stabilize)              (encode)     (latest frame only)
+//!                                                                     |
+//!                                      H.264 viewers: [2 slots] --> ffmpeg/x264 --broadcast--> viewer tasks
 //! ```
+//! The H.264 stage ([`super::h264`]) runs only while someone watches it,
+//! and JPEGs are encoded only while someone watches them.
 //! The JPEG of frame j is encoded while frame j + 1 is stabilized: on two
 //! cores the stabilizer's single-threaded parts (tracking, the view) and the
 //! encoder then overlap instead of taking turns (docs/speed.md).
@@ -19,18 +23,19 @@
 //! fan-out is a `watch` channel holding only the newest frame, so a slow
 //! viewer skips frames instead of queueing them and never delays the others.
 
+use super::h264::{FrameRate, H264Stage, H264Unit, BROADCAST_UNITS};
+use super::telemetry::LiveTelemetry;
 use super::jpeg::{decode_ingest_frame, JpegEncoder};
 use crate::serve::metrics::Metrics;
 use amc_core::view::Mode;
 use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams};
 use amc_video::{self as video, InputOptions};
 use bytes::Bytes;
-use serde::Serialize;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
-use tokio::sync::watch;
+use tokio::sync::{broadcast, watch};
 
 /// Frames waiting for the processor; more would only add latency.
 const INPUT_SLOTS: usize = 1;
@@ -54,6 +59,8 @@ pub struct LiveConfig {
     pub fov_deg: f64,
     /// JPEG quality of the frames sent to viewers (1..=100).
     pub jpeg_quality: u8,
+    /// Kilobits per second of the H.264 stream.
+    pub bitrate_kbps: u32,
     pub ffmpeg_timeout: Duration,
 }
 
@@ -69,6 +76,9 @@ impl Default for LiveConfig {
             lens: None,
             fov_deg: amc_engine::FALLBACK_FOV_DEG,
             jpeg_quality: 80,
+            // 720p60 of stabilized (smooth) video looks clean at 6 Mbit/s,
+            // under the 8 that streaming services ask for it.
+            bitrate_kbps: 6000,
             ffmpeg_timeout: Duration::from_secs(20),
         }
     }
@@ -92,22 +102,6 @@ struct Stabilized {
     arrived: Instant,
 }
 
-/// The telemetry text message sent after each frame.
-#[derive(Serialize)]
-struct LiveTelemetry {
-    frame: u64,
-    t: f64,
-    speed_est_dps: f64,
-    speed_view_dps: f64,
-    valid: f64,
-    saccade: bool,
-    /// From the frame's arrival (decoded by ffmpeg, or received from the
-    /// publisher) to its stabilized JPEG being ready, milliseconds.
-    latency_ms: f64,
-    width: usize,
-    height: usize,
-}
-
 enum Input {
     Rgb {
         frame: Frame,
@@ -126,6 +120,10 @@ enum Input {
 /// The live feed's shared end: viewers subscribe, sources submit.
 pub struct LiveHub {
     latest: watch::Sender<Option<Arc<LiveFrame>>>,
+    /// The H.264 stream's access units, for its viewers.
+    h264: broadcast::Sender<Arc<H264Unit>>,
+    /// Viewers of the H.264 stream (the encoder runs while there are any).
+    h264_viewers: AtomicUsize,
     input: Mutex<Option<SyncSender<Input>>>,
     /// Frame buffers handed back by the processor for the source to reuse.
     spare: Mutex<Vec<Frame>>,
@@ -157,6 +155,15 @@ impl Drop for Viewing {
     }
 }
 
+/// An H.264 viewer's place (inside a [`Viewing`]): keeps the encoder running.
+pub struct H264Viewing(Arc<LiveHub>);
+
+impl Drop for H264Viewing {
+    fn drop(&mut self) {
+        self.0.h264_viewers.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
 /// The single publisher's slot, taken while it lives.
 pub struct Publishing(Arc<LiveHub>);
 
@@ -172,6 +179,8 @@ impl LiveHub {
         let (tx, rx) = mpsc::sync_channel(INPUT_SLOTS);
         let hub = Arc::new(Self {
             latest: watch::channel(None).0,
+            h264: broadcast::channel(BROADCAST_UNITS).0,
+            h264_viewers: AtomicUsize::new(0),
             input: Mutex::new(Some(tx)),
             spare: Mutex::new(Vec::new()),
             publisher: AtomicBool::new(false),
@@ -208,6 +217,14 @@ impl LiveHub {
         self.viewers.fetch_add(1, Ordering::SeqCst);
         self.metrics.live_viewers.inc();
         Viewing(self.clone())
+    }
+
+    /// The H.264 stream: subscribe first, then count the viewer, so that
+    /// the encoder's first access unit (a keyframe) is not missed.
+    pub fn watch_h264(self: &Arc<Self>) -> (broadcast::Receiver<Arc<H264Unit>>, H264Viewing) {
+        let units = self.h264.subscribe();
+        self.h264_viewers.fetch_add(1, Ordering::SeqCst);
+        (units, H264Viewing(self.clone()))
     }
 
     fn watched(&self) -> bool {
@@ -508,6 +525,7 @@ impl LiveHub {
                 latency_ms: 0.0,
                 width: out.width,
                 height: out.height,
+                codec: "jpeg",
             };
             // The JPEG thread hands its buffers back; at most three exist.
             let mut copy = returned
@@ -533,17 +551,67 @@ impl LiveHub {
     fn encode_and_publish(&self, frames: Receiver<Stabilized>, spare: mpsc::Sender<Frame>) {
         let mut encoder = JpegEncoder::default();
         let mut jpeg = Vec::new();
+        let mut h264: Option<H264Stage> = None;
+        let mut rate = FrameRate::default();
+        let mut last_arrival: Option<Instant> = None;
         while let Ok(Stabilized {
             frame,
             mut meta,
             arrived,
         }) = frames.recv()
         {
-            let encoded = encoder.encode(&frame.as_ref(), self.config.jpeg_quality, &mut jpeg);
+            // A gap of a second is a paused or reopened feed, not its rate.
+            if last_arrival
+                .is_some_and(|l| arrived.saturating_duration_since(l) > Duration::from_secs(1))
+            {
+                rate.restart();
+            }
+            last_arrival = Some(arrived);
+            rate.saw(arrived);
+            let h264_viewers = self.h264_viewers.load(Ordering::SeqCst);
+            if h264_viewers == 0 || h264.as_ref().is_some_and(|h| !h.fits(&frame)) {
+                // Dropping the stage stops its ffmpeg.
+                h264 = None;
+            }
+            if h264_viewers > 0 {
+                // The encoder starts once the feed's rate is known (a few frames).
+                if let (None, Some(fps)) = (&h264, rate.fps()) {
+                    h264 = H264Stage::start(
+                        &frame,
+                        fps,
+                        self.config.bitrate_kbps,
+                        self.config.ffmpeg_timeout,
+                        self.h264.clone(),
+                    )
+                    .map_err(|e| tracing::warn!(error = %e, "cannot start the live H.264 encoder"))
+                    .ok();
+                }
+                if let Some(stage) = h264.as_mut() {
+                    if stage.encode(&frame, &meta, arrived).is_err() {
+                        // Logged by its writer; the next frame starts a new one.
+                        h264 = None;
+                    }
+                }
+            }
+            // JPEGs only for those who watch them.
+            let jpeg_viewers = self.viewers.load(Ordering::SeqCst) > h264_viewers;
+            let encoded = if jpeg_viewers {
+                Some(encoder.encode(&frame.as_ref(), self.config.jpeg_quality, &mut jpeg))
+            } else {
+                None
+            };
             let _ = spare.send(frame);
-            if let Err(e) = encoded {
-                tracing::warn!(error = %e, "cannot encode a live frame");
-                continue;
+            self.metrics.live_frames.inc();
+            self.metrics
+                .frames_processed
+                .fetch_add(1, Ordering::Relaxed);
+            match encoded {
+                None => continue,
+                Some(Err(e)) => {
+                    tracing::warn!(error = %e, "cannot encode a live frame");
+                    continue;
+                }
+                Some(Ok(_)) => {}
             }
             meta.latency_ms = arrived.elapsed().as_secs_f64() * 1e3;
             let number = meta.frame;
@@ -553,10 +621,6 @@ impl LiveHub {
                 jpeg: Bytes::copy_from_slice(&jpeg),
                 meta,
             })));
-            self.metrics.live_frames.inc();
-            self.metrics
-                .frames_processed
-                .fetch_add(1, Ordering::Relaxed);
         }
     }
 

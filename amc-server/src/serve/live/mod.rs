@@ -5,14 +5,18 @@
 //! | module | what |
 //! |---|---|
 //! | `hub` | the source and processor threads, the newest frame, viewers and publisher slots, pausing |
+//! | `h264` | the H.264 stream: one shared encoder, access units fanned out |
 //! | `jpeg` | JPEG encoding of stabilized frames, decoding of published ones |
 //! | `viewer` | `GET /live`: a viewer's WebSocket |
 //! | `ingest` | `GET /live/ingest`: the publisher's WebSocket |
+//! | `telemetry` | the text message after each frame |
 //! | `ticket` | `POST /live/ticket`: a browser's single-use ticket for either socket |
 
+mod h264;
 mod hub;
 mod ingest;
 mod jpeg;
+mod telemetry;
 mod ticket;
 mod viewer;
 

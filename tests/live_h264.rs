@@ -1,0 +1,286 @@
+//! The live feed as H.264 (`/live?codec=h264`) from a real `amc serve` with
+//! a looped clip as `--live-source`: every viewer's stream starts at a
+//! keyframe with its parameter sets and decodes with ffmpeg frame for frame,
+//! a viewer joining later starts at a keyframe too, a stalled viewer skips to
+//! a keyframe without holding the others back, and JPEG viewers keep their
+//! stream beside them.
+
+use amc_e2e::data;
+use amc_e2e::server::{websocket, Server};
+use std::net::TcpStream;
+use std::path::Path;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+use tungstenite::{Message, WebSocket};
+
+static SERIAL: Mutex<()> = Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn start() -> Server {
+    let cup = data("cup/cup.mp4");
+    Server::start(&[
+        "--live-source",
+        cup.to_str().unwrap(),
+        "--live-loop",
+        "--live-fov",
+        "70",
+    ])
+}
+
+/// One frame as a viewer got it: the binary message and its telemetry.
+struct Got {
+    data: Vec<u8>,
+    meta: serde_json::Value,
+}
+
+/// Reads `n` frames (binary, then text).
+fn read(ws: &mut WebSocket<TcpStream>, n: usize) -> Vec<Got> {
+    let mut out = Vec::new();
+    let mut data = None;
+    while out.len() < n {
+        match ws.read().expect("the viewer's socket") {
+            Message::Binary(b) => data = Some(b.to_vec()),
+            Message::Text(t) => out.push(Got {
+                data: data.take().expect("a binary message before its telemetry"),
+                meta: serde_json::from_str(&t).unwrap(),
+            }),
+            _ => {}
+        }
+    }
+    out
+}
+
+/// The NAL unit types of an Annex-B access unit.
+fn nal_types(au: &[u8]) -> Vec<u8> {
+    au.windows(5)
+        .filter(|w| w[..4] == [0, 0, 0, 1])
+        .map(|w| w[4] & 0x1f)
+        .collect()
+}
+
+/// Frames ffmpeg decodes from the concatenated units, and its errors.
+fn decode(units: &[Got], dir: &Path, name: &str) -> (usize, String) {
+    let path = dir.join(name);
+    let bytes: Vec<u8> = units.iter().flat_map(|u| u.data.iter().copied()).collect();
+    std::fs::write(&path, bytes).unwrap();
+    let out = std::process::Command::new("ffprobe")
+        .args(["-v", "error", "-count_frames", "-select_streams", "v:0"])
+        .args(["-show_entries", "stream=nb_read_frames", "-of", "csv=p=0"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    let n = String::from_utf8_lossy(&out.stdout)
+        .trim()
+        .parse()
+        .unwrap_or(0);
+    (n, String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+#[test]
+fn h264_viewers_start_at_a_keyframe_and_ffmpeg_decodes_every_frame() {
+    let _g = serial();
+    let server = start();
+    let dir = tempfile::tempdir().unwrap();
+    let t = Duration::from_secs(20);
+    let mut a = websocket(&server.addr, "/live?codec=h264", t).expect("H.264 viewer a");
+    let mut jpeg = websocket(&server.addr, "/live", t).expect("JPEG viewer");
+    let first = read(&mut a, 40);
+    // The first message decodes alone: an IDR picture with its SPS and PPS.
+    let types = nal_types(&first[0].data);
+    for want in [7, 8, 5] {
+        assert!(
+            types.contains(&want),
+            "first access unit's NAL types {types:?}"
+        );
+    }
+    // A viewer joining later starts at a keyframe too.
+    let mut b = websocket(&server.addr, "/live?codec=h264", t).expect("H.264 viewer b");
+    let joined = read(&mut b, 40);
+    assert!(
+        nal_types(&joined[0].data).contains(&5),
+        "b's first access unit is no IDR"
+    );
+    let more = read(&mut a, 40);
+    let jpegs = read(&mut jpeg, 10);
+    for g in first.iter().chain(&more).chain(&joined) {
+        assert_eq!(g.meta["codec"], "h264", "{}", g.meta);
+        assert!(
+            g.meta["latency_ms"].as_f64().is_some_and(|l| l > 0.0),
+            "{}",
+            g.meta
+        );
+    }
+    // A is not read while B joins: whatever it skipped, it went on at a keyframe.
+    let all: Vec<Got> = first.into_iter().chain(more).collect();
+    gaps_end_at_keyframes(&all);
+    for g in &jpegs {
+        assert_eq!(g.meta["codec"], "jpeg", "{}", g.meta);
+        assert_eq!(&g.data[..2], [0xff, 0xd8], "a JPEG");
+    }
+    eprintln!(
+        "sizes: {:?}",
+        all.iter().map(|g| g.data.len()).collect::<Vec<_>>()
+    );
+    let (n, errors) = decode(&all, dir.path(), "a.h264");
+    let _ = std::fs::copy(dir.path().join("a.h264"), "/tmp/a.h264");
+    assert_eq!(
+        n,
+        all.len(),
+        "ffmpeg decoded {n} of {} frames: {errors}",
+        all.len()
+    );
+    assert!(errors.trim().is_empty(), "{errors}");
+    let (n, errors) = decode(&joined, dir.path(), "b.h264");
+    assert_eq!(n, joined.len(), "{errors}");
+    // An unknown codec is refused before the upgrade.
+    let e = websocket(&server.addr, "/live?codec=vp9", t).err();
+    assert_eq!(e.as_deref(), Some("HTTP 400"));
+}
+
+#[test]
+fn a_stalled_h264_viewer_skips_to_a_keyframe_and_holds_nobody_back() {
+    let _g = serial();
+    let server = start();
+    let dir = tempfile::tempdir().unwrap();
+    let t = Duration::from_secs(20);
+    let mut a = websocket(&server.addr, "/live?codec=h264", t).expect("viewer a");
+    let mut stalled = websocket(&server.addr, "/live?codec=h264", t).expect("stalled viewer");
+    read(&mut a, 10);
+    let mut got = read(&mut stalled, 10);
+    // A reads ~3 s of frames at the source's rate while the other reads nothing.
+    let fps = 26.777;
+    let start = Instant::now();
+    read(&mut a, 80);
+    let rate = 80.0 / start.elapsed().as_secs_f64();
+    assert!(
+        rate > 0.8 * fps,
+        "viewer a got {rate:.1} frames/s beside a stalled one"
+    );
+    // The stalled viewer's stream goes on at a keyframe and still decodes whole.
+    got.extend(read(&mut stalled, 60));
+    let skipped = gaps_end_at_keyframes(&got);
+    assert!(skipped > 0, "the stalled viewer skipped nothing");
+    let (n, errors) = decode(&got, dir.path(), "stalled.h264");
+    assert_eq!(n, got.len(), "{errors}");
+}
+
+/// Frame numbers rise by one except where the viewer fell behind, and each
+/// such gap ends at an IDR picture; the frames skipped.
+fn gaps_end_at_keyframes(got: &[Got]) -> u64 {
+    let frames: Vec<u64> = got
+        .iter()
+        .map(|g| g.meta["frame"].as_u64().unwrap())
+        .collect();
+    let mut skipped = 0;
+    for (i, w) in frames.windows(2).enumerate() {
+        if w[1] != w[0] + 1 {
+            assert!(w[1] > w[0], "frames out of order: {frames:?}");
+            assert!(
+                nal_types(&got[i + 1].data).contains(&5),
+                "frame {} after a gap is no IDR: {frames:?}",
+                w[1]
+            );
+            skipped += w[1] - w[0] - 1;
+        }
+    }
+    skipped
+}
+
+/// Gray frames ffmpeg decodes from `bytes` (`-f h264` or `-f mjpeg`).
+fn gray_frames(bytes: &[u8], format: &str, w: usize, h: usize, dir: &Path) -> Vec<Vec<u8>> {
+    let path = dir.join(format!("stream.{format}"));
+    std::fs::write(&path, bytes).unwrap();
+    let out = std::process::Command::new("ffmpeg")
+        .args(["-v", "error", "-f", format, "-i"])
+        .arg(&path)
+        .args(["-f", "rawvideo", "-pix_fmt", "gray", "-"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out.stdout.chunks_exact(w * h).map(<[u8]>::to_vec).collect()
+}
+
+/// Mean Sobel magnitude (3x3, / 8, intensities in [0, 1]) inside the border.
+fn sharpness(g: &[u8], w: usize, h: usize) -> f64 {
+    let p = |x: usize, y: usize| g[y * w + x] as f64 / 255.0;
+    let mut sum = 0.0;
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let gx = (p(x + 1, y - 1) + 2.0 * p(x + 1, y) + p(x + 1, y + 1))
+                - (p(x - 1, y - 1) + 2.0 * p(x - 1, y) + p(x - 1, y + 1));
+            let gy = (p(x - 1, y + 1) + 2.0 * p(x, y + 1) + p(x + 1, y + 1))
+                - (p(x - 1, y - 1) + 2.0 * p(x, y - 1) + p(x + 1, y - 1));
+            sum += (gx * gx + gy * gy).sqrt() / 8.0;
+        }
+    }
+    sum / ((w - 2) * (h - 2)) as f64
+}
+
+fn psnr(a: &[u8], b: &[u8]) -> f64 {
+    let mse = a
+        .iter()
+        .zip(b)
+        .map(|(&x, &y)| (x as f64 - y as f64).powi(2))
+        .sum::<f64>()
+        / a.len() as f64;
+    10.0 * (255.0f64.powi(2) / mse.max(1e-9)).log10()
+}
+
+#[test]
+fn h264_frames_keep_the_jpeg_frames_sharpness() {
+    let _g = serial();
+    let server = start();
+    let dir = tempfile::tempdir().unwrap();
+    let t = Duration::from_secs(20);
+    // Both viewers read at once, each on its own thread.
+    let read_from = |path: &'static str| {
+        let mut ws = websocket(&server.addr, path, t).expect(path);
+        std::thread::spawn(move || read(&mut ws, 90))
+    };
+    let h264 = read_from("/live?codec=h264");
+    let jpeg = read_from("/live");
+    let (h264, jpeg) = (h264.join().unwrap(), jpeg.join().unwrap());
+    let (w, h) = (
+        h264[0].meta["width"].as_u64().unwrap() as usize,
+        h264[0].meta["height"].as_u64().unwrap() as usize,
+    );
+    let bytes: Vec<u8> = h264.iter().flat_map(|g| g.data.clone()).collect();
+    let decoded = gray_frames(&bytes, "h264", w, h, dir.path());
+    assert_eq!(decoded.len(), h264.len());
+    let mut ratios = Vec::new();
+    let mut psnrs = Vec::new();
+    for (g, frame) in h264.iter().zip(&decoded) {
+        let Some(j) = jpeg.iter().find(|j| j.meta["frame"] == g.meta["frame"]) else {
+            continue;
+        };
+        let jf = gray_frames(&j.data, "mjpeg", w, h, dir.path()).remove(0);
+        ratios.push(sharpness(frame, w, h) / sharpness(&jf, w, h));
+        psnrs.push(psnr(frame, &jf));
+    }
+    assert!(
+        ratios.len() >= 20,
+        "only {} frames in both streams",
+        ratios.len()
+    );
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (ratio, db) = (mean(&ratios), mean(&psnrs));
+    eprintln!(
+        "H.264 against JPEG over {} frames: sharpness {ratio:.3}, PSNR {db:.1} dB",
+        ratios.len()
+    );
+    assert!(
+        ratio >= 0.92,
+        "H.264 frames keep {ratio:.3} of the JPEG frames' sharpness"
+    );
+    assert!(
+        db >= 32.0,
+        "H.264 frames are {db:.1} dB from the JPEG frames"
+    );
+}
