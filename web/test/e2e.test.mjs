@@ -633,8 +633,25 @@ test('Live tab: frames and telemetry from the looped source', async () => {
   const legendText = await page.textContent('[data-testid=live-legend]');
   assert.match(legendText, /camera \(estimate\) speed.*view speed/);
   await shot(page, 'live');
+  // Chromium has WebCodecs on localhost: the feed came as H.264, decoded in the page.
+  assert.equal(await page.getAttribute('[data-testid=live-canvas]', 'data-codec'), 'h264');
+  assert.match(await page.textContent('#live-status'), /H\.264 \(WebCodecs\).*frames\/s.*Mbit\/s/);
   // Through a ticket (a server without keys still gives one), or plain /live where the server has no tickets (404).
   assert.equal(sockets.length, 1, sockets.join(' '));
+  assert.match(sockets[0], /^ws:\/\/127\.0\.0\.1:\d+\/live\?(ticket=[0-9a-f]{64}&)?codec=h264$/);
+  await page.close();
+});
+
+test('Live tab without WebCodecs: JPEGs, and the status says why', async () => {
+  const sockets = [];
+  const { page } = await newPage(server, async (page) => {
+    await page.addInitScript(() => { delete window.VideoDecoder; });
+    page.on('websocket', (ws) => sockets.push(ws.url()));
+  });
+  await page.click('[data-testid=live-tab]');
+  await page.waitForFunction(() => Number(document.querySelector('[data-testid=live-canvas]').dataset.frames) >= 10, null, { timeout: 60000 });
+  assert.equal(await page.getAttribute('[data-testid=live-canvas]', 'data-codec'), 'jpeg');
+  assert.match(await page.textContent('#live-status'), /JPEG \(this browser has no WebCodecs VideoDecoder\)/);
   assert.match(sockets[0], /^ws:\/\/127\.0\.0\.1:\d+\/live(\?ticket=[0-9a-f]{64})?$/);
   await page.close();
 });
@@ -759,6 +776,8 @@ test('Live tab (ticket endpoint and socket by route): a ticket, asked with the k
   const tickets = [], sockets = [], urls = [];
   let issued = 0, ticketAnswer = 'check';
   const { page } = await newPage(server, async (page) => {
+    // JPEG frames by route: the page's JPEG path (no WebCodecs).
+    await page.addInitScript(() => { delete window.VideoDecoder; });
     page.on('request', (r) => urls.push(r.url()));
     await page.route((u) => u.pathname === '/live/ticket', async (route) => {
       const req = route.request();
@@ -842,7 +861,7 @@ test('amc serve --auth-keys: the API wants a key, the page asks for it on its fi
     await page.waitForFunction(() => Number(document.querySelector('[data-testid=live-canvas]').dataset.frames) >= 10, null, { timeout: 60000 });
     await shot(page, 'auth-2-live');
     assert.equal(sockets.length, 2, sockets.join(' '));
-    for (const u of sockets) assert.match(u, /\/live\?ticket=[0-9a-f]{64}$/);
+    for (const u of sockets) assert.match(u, /\/live\?ticket=[0-9a-f]{64}&codec=h264$/);
     assert.notEqual(sockets[0], sockets[1], 'a fresh ticket per connection');
     // The key: in sessionStorage and the Authorization header only.
     assert.deepEqual(await keyStore(page), { session: keys.alice, local: [] });
