@@ -1,0 +1,175 @@
+//! The sources a ground station really offers, from a real ffmpeg publishing
+//! on loopback into `amc serve --live-source`: MPEG-TS over UDP and over SRT
+//! (SRT's listener on amc's side, the publisher calling it). Each reaches a
+//! viewer as stabilized frames, as H.264 and as JPEG.
+
+use amc_e2e::data;
+use amc_e2e::server::{websocket, Server};
+use std::process::{Child, Command, Stdio};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+use tungstenite::Message;
+
+static SERIAL: Mutex<()> = Mutex::new(());
+
+/// An ffmpeg publishing cup.mp4 in a loop as H.264 in MPEG-TS to `url`,
+/// started again while it exits early (an SRT caller before its listener).
+struct Publisher {
+    url: String,
+    child: Child,
+}
+
+impl Publisher {
+    fn spawn(url: &str) -> Child {
+        let cup = data("cup/cup.mp4");
+        Command::new("ffmpeg")
+            .args(["-v", "error", "-re", "-stream_loop", "-1", "-i"])
+            .arg(&cup)
+            .args([
+                "-an",
+                "-c:v",
+                "libx264",
+                "-preset",
+                "ultrafast",
+                "-tune",
+                "zerolatency",
+            ])
+            .args(["-g", "15", "-f", "mpegts", url])
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("ffmpeg")
+    }
+
+    fn start(url: &str) -> Publisher {
+        Publisher {
+            url: url.to_string(),
+            child: Self::spawn(url),
+        }
+    }
+
+    /// Restarts the publisher if it has exited.
+    fn keep_alive(&mut self) {
+        if let Ok(Some(_)) = self.child.try_wait() {
+            self.child = Self::spawn(&self.url);
+        }
+    }
+}
+
+impl Drop for Publisher {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn free_udp_port() -> u16 {
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// A viewer of `path` gets `n` frames (binary then telemetry) within 60 s,
+/// the publisher kept alive meanwhile; the telemetry of the last.
+fn frames_reach(
+    server: &Server,
+    publisher: &mut Publisher,
+    path: &str,
+    n: usize,
+) -> serde_json::Value {
+    let start = Instant::now();
+    let mut ws = loop {
+        publisher.keep_alive();
+        match websocket(&server.addr, path, Duration::from_secs(2)) {
+            Ok(ws) => break ws,
+            Err(e) => {
+                assert!(start.elapsed() < Duration::from_secs(60), "{path}: {e}");
+                std::thread::sleep(Duration::from_millis(200));
+            }
+        }
+    };
+    let (mut got, mut binary) = (0, false);
+    let mut last = serde_json::Value::Null;
+    while got < n {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "{path}: {got} of {n} frames in 60 s; server log:\n{}",
+            server.log()
+        );
+        publisher.keep_alive();
+        match ws.read() {
+            Ok(Message::Binary(_)) => binary = true,
+            Ok(Message::Text(t)) if binary => {
+                last = serde_json::from_str(&t).unwrap();
+                got += 1;
+                binary = false;
+            }
+            Ok(_) => {}
+            // The read timeout while the source opens: keep waiting.
+            Err(tungstenite::Error::Io(e))
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) => {}
+            Err(e) => panic!("{path}: {e}"),
+        }
+    }
+    last
+}
+
+fn check(source: &str, format: &str, publish_to: &str) {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let server = Server::start(&[
+        "--live-source",
+        source,
+        "--live-format",
+        format,
+        "--live-fov",
+        "70",
+    ]);
+    let mut publisher = Publisher::start(publish_to);
+    let meta = frames_reach(&server, &mut publisher, "/live?codec=h264", 40);
+    assert_eq!(meta["codec"], "h264", "{meta}");
+    assert_eq!(
+        (meta["width"].as_u64(), meta["height"].as_u64()),
+        (Some(640), Some(480)),
+        "{meta}"
+    );
+    let meta = frames_reach(&server, &mut publisher, "/live", 20);
+    assert_eq!(meta["codec"], "jpeg", "{meta}");
+}
+
+#[test]
+fn mpeg_ts_over_udp_reaches_viewers() {
+    let port = free_udp_port();
+    check(
+        &format!("udp://127.0.0.1:{port}?fifo_size=1000000&overrun_nonfatal=1"),
+        "mpegts",
+        &format!("udp://127.0.0.1:{port}?pkt_size=1316"),
+    );
+}
+
+#[test]
+fn mpeg_ts_over_srt_reaches_viewers() {
+    // Debian's ffmpeg has libsrt; a build without it cannot be asked for SRT.
+    let protocols = Command::new("ffmpeg")
+        .args(["-hide_banner", "-protocols"])
+        .output()
+        .unwrap();
+    if !String::from_utf8_lossy(&protocols.stdout)
+        .lines()
+        .any(|l| l.trim() == "srt")
+    {
+        eprintln!("note: this ffmpeg has no SRT; skipped");
+        return;
+    }
+    let port = free_udp_port();
+    check(
+        &format!("srt://127.0.0.1:{port}?mode=listener"),
+        "mpegts",
+        &format!("srt://127.0.0.1:{port}?mode=caller"),
+    );
+}
