@@ -25,9 +25,8 @@
 use crate::atomic::AtomicFile;
 use crate::caps::{caps, prefetch_caps};
 use crate::error::VideoError;
-use crate::frame::{
-    as_rgb, as_yuv420p, check_frame, extension, no_frames, shape, FrameSink, FrameSource,
-};
+use crate::frame::{check_frame, extension, no_frames, shape, FrameSink, FrameSource};
+use crate::frame_pipe::FramePipe;
 use crate::mkv::RawFormat;
 use crate::probe::{probe, probe_device, probe_with, DataTrack, Probe};
 use crate::process::Proc;
@@ -470,15 +469,8 @@ pub(crate) struct FfmpegSink {
     proc: Proc,
     temp: AtomicFile,
     path: PathBuf,
-    width: usize,
-    height: usize,
-    /// The pixel format of the pipe, fixed by the spec.
-    raw: RawFormat,
-    scratch: Vec<u8>,
-    /// An odd-sized I420 frame padded to even sizes, reused.
-    padded: Vec<u8>,
-    /// A frame's Matroska cluster header, reused.
-    block_header: Vec<u8>,
+    /// The frames' way into ffmpeg, its pixel layout fixed by the spec.
+    pipe: FramePipe,
     frames: u64,
     failed: bool,
 }
@@ -533,14 +525,10 @@ impl FfmpegSink {
             }
             _ => {}
         }
-        let raw = match spec.pixel_format {
-            PixelFormat::Yuv420p => RawFormat::I420,
-            PixelFormat::Rgb8 | PixelFormat::Rgba8 => RawFormat::Rgb24,
-        };
-        let odd = spec.width % 2 == 1 || spec.height % 2 == 1;
-        if odd && raw == RawFormat::Rgb24 {
+        let pipe = FramePipe::new(spec.width, spec.height, spec.pixel_format);
+        if pipe.odd() && pipe.raw == RawFormat::Rgb24 {
             // yuv420p needs even sizes: add one black row/column rather than fail.
-            // (I420 frames are padded before piping: see `pad_to_even`.)
+            // (I420 frames are padded before piping: see `frame_pipe`.)
             more.extend(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2"].map(String::from));
         }
         more.extend(container.video_args(spec.crf));
@@ -590,14 +578,7 @@ impl FfmpegSink {
         // ffmpeg names the file it writes in its errors: that is the hidden
         // temporary sibling, which means nothing to the user.
         proc.alias(temp.partial_path(), path);
-        let (pipe_w, pipe_h) = match raw {
-            RawFormat::I420 => (
-                spec.width.next_multiple_of(2),
-                spec.height.next_multiple_of(2),
-            ),
-            RawFormat::Rgb24 => (spec.width, spec.height),
-        };
-        let header = crate::mkv::header(pipe_w, pipe_h, raw);
+        let header = pipe.header();
         if let Some(stdin) = proc.stdin.as_mut() {
             // A failure shows on the first frame, with ffmpeg's own message.
             let _ = stdin.write_all(&header);
@@ -606,12 +587,7 @@ impl FfmpegSink {
             proc,
             temp,
             path: path.to_path_buf(),
-            width: spec.width,
-            height: spec.height,
-            raw,
-            scratch: Vec::new(),
-            padded: Vec::new(),
-            block_header: Vec::new(),
+            pipe,
             frames: 0,
             failed: false,
         })
@@ -627,26 +603,6 @@ impl FfmpegSink {
         let status = self.proc.wait().ok();
         self.proc.failure(status)
     }
-}
-
-/// Pads a `width x height` YUV 4:2:0 frame with an odd side to the next even
-/// size by repeating its last luma column and row: the encoder's `yuv420p`
-/// needs even sizes, and ffmpeg's `pad` filter would drop that column and row
-/// (it rounds a 4:2:0 input's size down to the chroma grid). The chroma planes
-/// already cover the added pixels (they are `ceil(side / 2)` samples), so the
-/// copies keep the colour of the pixels they repeat.
-pub(crate) fn pad_to_even(width: usize, height: usize, planes: &[u8], out: &mut Vec<u8>) {
-    let (ew, eh) = (width.next_multiple_of(2), height.next_multiple_of(2));
-    let (y, u, v) = amc_core::image::yuv_planes(width, height, planes);
-    out.clear();
-    for row in (0..height).chain((height < eh).then_some(height - 1)) {
-        let line = &y[row * width..][..width];
-        out.extend_from_slice(line);
-        out.extend(line.last().filter(|_| width < ew));
-    }
-    out.extend_from_slice(u);
-    out.extend_from_slice(v);
-    debug_assert_eq!(Some(out.len()), PixelFormat::Yuv420p.buffer_len(ew, eh));
 }
 
 /// What of the input goes into the output besides the picture.
@@ -693,25 +649,13 @@ fn streams_to_carry(
 
 impl FrameSink for FfmpegSink {
     fn write_frame(&mut self, frame: &FrameRef<'_>, t: f64) -> Result<(), VideoError> {
-        check_frame(&self.path, self.width, self.height, frame)?;
+        check_frame(&self.path, self.pipe.width, self.pipe.height, frame)?;
         if self.failed {
             return Err(self.proc.failure(None));
         }
-        let pixels = match self.raw {
-            RawFormat::Rgb24 => as_rgb(frame, &mut self.scratch),
-            RawFormat::I420 => {
-                let planes = as_yuv420p(frame, &mut self.scratch);
-                if self.width % 2 == 1 || self.height % 2 == 1 {
-                    pad_to_even(self.width, self.height, planes, &mut self.padded);
-                    &self.padded
-                } else {
-                    planes
-                }
-            }
-        };
         self.proc.arm();
         let written = match self.proc.stdin.as_mut() {
-            Some(stdin) => crate::mkv::write_frame(stdin, t, pixels, &mut self.block_header),
+            Some(stdin) => self.pipe.write(stdin, frame, t),
             None => Err(std::io::ErrorKind::BrokenPipe.into()),
         };
         self.proc.disarm();

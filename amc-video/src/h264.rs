@@ -11,7 +11,7 @@
 
 use crate::error::VideoError;
 use crate::flv::{AccessUnit, FlvError, FlvToAnnexB};
-use crate::frame::{as_rgb, as_yuv420p};
+use crate::frame_pipe::FramePipe;
 use crate::mkv::RawFormat;
 use crate::process::Proc;
 use amc_core::image::{FrameRef, PixelFormat};
@@ -58,12 +58,7 @@ impl Default for H264Options {
 /// A running encoder; dropping it stops ffmpeg.
 pub struct H264Encoder {
     proc: Proc,
-    raw: RawFormat,
-    width: usize,
-    height: usize,
-    scratch: Vec<u8>,
-    padded: Vec<u8>,
-    block_header: Vec<u8>,
+    pipe: FramePipe,
     reader: Option<JoinHandle<()>>,
 }
 
@@ -79,10 +74,7 @@ impl H264Encoder {
         opts: &H264Options,
         mut on_unit: impl FnMut(Result<AccessUnit, FlvError>) + Send + 'static,
     ) -> Result<Self, VideoError> {
-        let raw = match format {
-            PixelFormat::Yuv420p => RawFormat::I420,
-            PixelFormat::Rgb8 | PixelFormat::Rgba8 => RawFormat::Rgb24,
-        };
+        let pipe = FramePipe::new(width, height, format);
         let kbps = opts.bitrate_kbps.max(1);
         let mut args: Vec<String> = [
             "-hide_banner",
@@ -104,7 +96,7 @@ impl H264Encoder {
         ]
         .map(String::from)
         .to_vec();
-        if raw == RawFormat::Rgb24 && (width % 2 == 1 || height % 2 == 1) {
+        if pipe.raw == RawFormat::Rgb24 && pipe.odd() {
             args.extend(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2"].map(String::from));
         }
         args.extend(
@@ -156,11 +148,7 @@ impl H264Encoder {
             true,
             None,
         )?;
-        let (pipe_w, pipe_h) = match raw {
-            RawFormat::I420 => (width.next_multiple_of(2), height.next_multiple_of(2)),
-            RawFormat::Rgb24 => (width, height),
-        };
-        let header = crate::mkv::header(pipe_w, pipe_h, raw);
+        let header = pipe.header();
         if let Some(stdin) = proc.stdin.as_mut() {
             // A failure shows on the first frame, with ffmpeg's own message.
             let _ = std::io::Write::write_all(stdin, &header);
@@ -183,21 +171,12 @@ impl H264Encoder {
                 }
             })
         });
-        Ok(Self {
-            proc,
-            raw,
-            width,
-            height,
-            scratch: Vec::new(),
-            padded: Vec::new(),
-            block_header: Vec::new(),
-            reader,
-        })
+        Ok(Self { proc, pipe, reader })
     }
 
     /// The frame size this encoder was started for.
     pub fn size(&self) -> (usize, usize) {
-        (self.width, self.height)
+        (self.pipe.width, self.pipe.height)
     }
 
     /// Encodes `frame` at `t` seconds (increasing); its access unit reaches
@@ -205,25 +184,13 @@ impl H264Encoder {
     pub fn write_frame(&mut self, frame: &FrameRef<'_>, t: f64) -> Result<(), VideoError> {
         crate::frame::check_frame(
             Path::new("live H.264 stream"),
-            self.width,
-            self.height,
+            self.pipe.width,
+            self.pipe.height,
             frame,
         )?;
-        let pixels = match self.raw {
-            RawFormat::Rgb24 => as_rgb(frame, &mut self.scratch),
-            RawFormat::I420 => {
-                let planes = as_yuv420p(frame, &mut self.scratch);
-                if self.width % 2 == 1 || self.height % 2 == 1 {
-                    crate::ffmpeg::pad_to_even(self.width, self.height, planes, &mut self.padded);
-                    &self.padded
-                } else {
-                    planes
-                }
-            }
-        };
         self.proc.arm();
         let written = match self.proc.stdin.as_mut() {
-            Some(stdin) => crate::mkv::write_frame(stdin, t, pixels, &mut self.block_header),
+            Some(stdin) => self.pipe.write(stdin, frame, t),
             None => Err(std::io::ErrorKind::BrokenPipe.into()),
         };
         self.proc.disarm();

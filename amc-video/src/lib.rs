@@ -25,6 +25,7 @@ mod error;
 mod ffmpeg;
 mod flv;
 mod frame;
+mod frame_pipe;
 mod h264;
 mod images;
 mod mkv;

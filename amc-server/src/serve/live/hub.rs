@@ -24,8 +24,8 @@
 //! viewer skips frames instead of queueing them and never delays the others.
 
 use super::h264::{FrameRate, H264Stage, H264Unit, BROADCAST_UNITS};
-use super::telemetry::LiveTelemetry;
 use super::jpeg::{decode_ingest_frame, JpegEncoder};
+use super::telemetry::LiveTelemetry;
 use crate::serve::metrics::Metrics;
 use amc_core::view::Mode;
 use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams};

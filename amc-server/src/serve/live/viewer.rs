@@ -92,28 +92,48 @@ async fn serve_viewer(mut socket: WebSocket, state: Arc<AppState>) {
                     }
                 }
                 last = Some(frame.frame);
-                if socket.send(Message::Binary(frame.jpeg.clone())).await.is_err()
-                    || socket.send(Message::Text(frame.meta.clone().into())).await.is_err()
-                    || socket.send(Message::Ping(Bytes::copy_from_slice(&sent.to_be_bytes()))).await.is_err()
-                {
+                if !send_frame(&mut socket, &frame.jpeg, &frame.meta, sent).await {
                     break;
                 }
                 sent += 1;
             }
-            msg = socket.recv() => match msg {
-                Some(Ok(Message::Pong(payload))) => {
-                    if let Ok(n) = <[u8; 8]>::try_from(payload.as_ref()) {
-                        acked = acked.max(u64::from_be_bytes(n) + 1).min(sent);
-                    }
-                }
-                Some(Ok(Message::Close(_))) | None | Some(Err(_)) => break,
-                Some(Ok(_)) => {}
+            msg = socket.recv() => if !read_ack(msg, &mut acked, sent) {
+                break;
             },
             _ = until_shutdown(&mut shutdown) => {
                 let _ = socket.send(Message::Close(None)).await;
                 break;
             }
         }
+    }
+}
+
+/// Sends a frame (binary), its telemetry (text) and a ping carrying its
+/// number, which the viewer's pong acknowledges; `false` once it has left.
+async fn send_frame(socket: &mut WebSocket, data: &Bytes, meta: &str, number: u64) -> bool {
+    socket.send(Message::Binary(data.clone())).await.is_ok()
+        && socket
+            .send(Message::Text(meta.to_owned().into()))
+            .await
+            .is_ok()
+        && socket
+            .send(Message::Ping(Bytes::copy_from_slice(&number.to_be_bytes())))
+            .await
+            .is_ok()
+}
+
+/// A viewer's message: a pong moves `acked` on (never past `sent`); `false`
+/// when the viewer left.
+fn read_ack(msg: Option<Result<Message, axum::Error>>, acked: &mut u64, sent: u64) -> bool {
+    match msg {
+        Some(Ok(Message::Pong(payload))) => {
+            if let Ok(n) = <[u8; 8]>::try_from(payload.as_ref()) {
+                *acked = (*acked).max(u64::from_be_bytes(n) + 1).min(sent);
+            }
+            true
+        }
+        Some(Ok(Message::Close(_))) | None | Some(Err(_)) => false,
+        Some(Ok(_)) => true,
     }
 }
 
@@ -148,22 +168,13 @@ async fn serve_h264_viewer(mut socket: WebSocket, state: Arc<AppState>) {
                     continue;
                 }
                 need_key = false;
-                if socket.send(Message::Binary(unit.data.clone())).await.is_err()
-                    || socket.send(Message::Text(unit.meta.clone().into())).await.is_err()
-                    || socket.send(Message::Ping(Bytes::copy_from_slice(&sent.to_be_bytes()))).await.is_err()
-                {
+                if !send_frame(&mut socket, &unit.data, &unit.meta, sent).await {
                     break;
                 }
                 sent += 1;
             }
-            msg = socket.recv() => match msg {
-                Some(Ok(Message::Pong(payload))) => {
-                    if let Ok(n) = <[u8; 8]>::try_from(payload.as_ref()) {
-                        acked = acked.max(u64::from_be_bytes(n) + 1).min(sent);
-                    }
-                }
-                Some(Ok(Message::Close(_))) | None | Some(Err(_)) => break,
-                Some(Ok(_)) => {}
+            msg = socket.recv() => if !read_ack(msg, &mut acked, sent) {
+                break;
             },
             _ = until_shutdown(&mut shutdown) => {
                 let _ = socket.send(Message::Close(None)).await;
