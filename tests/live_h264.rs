@@ -284,3 +284,69 @@ fn h264_frames_keep_the_jpeg_frames_sharpness() {
         "H.264 frames are {db:.1} dB from the JPEG frames"
     );
 }
+
+#[test]
+fn h264_from_a_publisher_on_ingest_reaches_viewers() {
+    let _g = serial();
+    // The drone's stream as a ground station relays it: H.264 access units,
+    // Annex-B, each starting with its delimiter (x264's aud=1), one per message.
+    let dir = tempfile::tempdir().unwrap();
+    let stream = dir.path().join("drone.h264");
+    let out = std::process::Command::new("ffmpeg")
+        .args(["-v", "error", "-i"])
+        .arg(data("cup/cup.mp4"))
+        .args([
+            "-t",
+            "4",
+            "-an",
+            "-c:v",
+            "libx264",
+            "-preset",
+            "ultrafast",
+            "-bf",
+            "0",
+        ])
+        .args(["-x264-params", "aud=1", "-f", "h264"])
+        .arg(&stream)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let bytes = std::fs::read(&stream).unwrap();
+    let starts: Vec<usize> = (0..bytes.len().saturating_sub(5))
+        .filter(|&i| bytes[i..i + 5] == [0, 0, 0, 1, 9])
+        .chain([bytes.len()])
+        .collect();
+    let units: Vec<Vec<u8>> = starts
+        .windows(2)
+        .map(|w| bytes[w[0]..w[1]].to_vec())
+        .collect();
+    assert!(units.len() > 90, "{} access units", units.len());
+
+    let server = Server::start(&["--live-fov", "70"]);
+    let t = Duration::from_secs(20);
+    let mut viewer = websocket(&server.addr, "/live?codec=h264", t).expect("viewer");
+    let mut publisher = websocket(&server.addr, "/live/ingest", t).expect("publisher");
+    let sender = std::thread::spawn(move || {
+        for u in units {
+            if publisher.send(Message::Binary(u.into())).is_err() {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(33));
+        }
+        let _ = publisher.close(None);
+    });
+    let got = read(&mut viewer, 40);
+    sender.join().unwrap();
+    let first = &got[0].meta;
+    assert_eq!(
+        (first["width"].as_u64(), first["height"].as_u64()),
+        (Some(640), Some(480)),
+        "{first}"
+    );
+    let (n, errors) = decode(&got, dir.path(), "viewer.h264");
+    assert_eq!(n, got.len(), "{errors}");
+}

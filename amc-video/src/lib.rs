@@ -27,6 +27,7 @@ mod flv;
 mod frame;
 mod frame_pipe;
 mod h264;
+mod h264_decoder;
 mod images;
 mod mkv;
 mod open;
@@ -43,6 +44,7 @@ pub use error::VideoError;
 pub use flv::{AccessUnit, FlvError, FlvToAnnexB};
 pub use frame::{FrameSink, FrameSource};
 pub use h264::{H264Encoder, H264Options};
+pub use h264_decoder::{is_annex_b, H264Decoder};
 pub use images::{folder_fps, list_images};
 pub use open::{
     check_output, check_parent_dir, create_output, ffmpeg_available, frame_size, inspect,

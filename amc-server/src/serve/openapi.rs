@@ -235,7 +235,7 @@ pub fn spec() -> Value {
             "/live/ingest": {"get": {
                 "operationId": "publishLive",
                 "parameters": [ticket_parameter()],
-                "summary": "WebSocket for one publisher: each binary message is one JPEG frame of the feed to stabilize (dropped undecoded while no viewer watches)",
+                "summary": "WebSocket for one publisher: each binary message is one JPEG frame, or one H.264 access unit in Annex-B form (told apart by its first bytes), of the feed to stabilize (dropped undecoded while no viewer watches)",
                 "responses": {
                     "101": {"description": "Switching to the WebSocket protocol"},
                     "426": problem("Not a WebSocket upgrade request"),

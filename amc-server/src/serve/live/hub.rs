@@ -24,6 +24,7 @@
 //! viewer skips frames instead of queueing them and never delays the others.
 
 use super::h264::{FrameRate, H264Stage, H264Unit, BROADCAST_UNITS};
+use super::ingest_h264::IngestDecoder;
 use super::jpeg::{decode_ingest_frame, JpegEncoder};
 use super::telemetry::LiveTelemetry;
 use crate::serve::metrics::Metrics;
@@ -128,6 +129,8 @@ pub struct LiveHub {
     /// Frame buffers handed back by the processor for the source to reuse.
     spare: Mutex<Vec<Frame>>,
     publisher: AtomicBool,
+    /// The publisher's H.264 decoder, once it sent H.264.
+    ingest_h264: Mutex<Option<IngestDecoder>>,
     stop: AtomicBool,
     pub config: LiveConfig,
     metrics: Arc<Metrics>,
@@ -169,6 +172,8 @@ pub struct Publishing(Arc<LiveHub>);
 
 impl Drop for Publishing {
     fn drop(&mut self) {
+        // Its decoder (if it sent H.264) stops with it.
+        lock(&self.0.ingest_h264).take();
         self.0.publisher.store(false, Ordering::SeqCst);
     }
 }
@@ -184,6 +189,7 @@ impl LiveHub {
             input: Mutex::new(Some(tx)),
             spare: Mutex::new(Vec::new()),
             publisher: AtomicBool::new(false),
+            ingest_h264: Mutex::new(None),
             stop: AtomicBool::new(false),
             config,
             metrics,
@@ -305,6 +311,45 @@ impl LiveHub {
         lock(&self.spare)
             .pop()
             .unwrap_or_else(|| Frame::new(0, 0, PixelFormat::Rgb8))
+    }
+
+    /// An H.264 access unit from a publisher (dropped undecoded while nobody
+    /// watches; the decoder picks up again at a keyframe).
+    pub fn submit_h264(self: &Arc<Self>, unit: Bytes) {
+        if !self.watched() {
+            return;
+        }
+        let mut slot = lock(&self.ingest_h264);
+        if slot.is_none() {
+            // A new stream: a new clock for the processor (see `Input::Rgb`).
+            let opening = self.openings.fetch_add(1, Ordering::SeqCst) + 1;
+            let hub = Arc::downgrade(self);
+            let started = IngestDecoder::start(self.config.ffmpeg_timeout, move |frame| match hub
+                .upgrade()
+            {
+                Some(hub) => {
+                    hub.submit(Input::Rgb {
+                        frame,
+                        t: None,
+                        arrived: Instant::now(),
+                        opening,
+                    });
+                    hub.take_buffer()
+                }
+                None => frame,
+            });
+            match started {
+                Ok(d) => *slot = Some(d),
+                Err(e) => {
+                    tracing::warn!(error = %e, "cannot start a decoder for the publisher's H.264");
+                    return;
+                }
+            }
+        }
+        if !slot.as_ref().is_some_and(|d| d.push(unit)) {
+            // Stopped (its writer logged why): the next unit starts another.
+            *slot = None;
+        }
     }
 
     /// A JPEG frame from a publisher (dropped undecoded while nobody watches).

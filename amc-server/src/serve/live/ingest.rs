@@ -1,5 +1,6 @@
 //! `GET /live/ingest`: one publisher's WebSocket (a ground station relaying a
-//! drone's feed); each binary message is one JPEG frame for the processor.
+//! drone's feed); each binary message is one JPEG frame, or one H.264 access
+//! unit in Annex-B form (told apart by its first bytes), for the processor.
 
 use super::hub::Publishing;
 use super::viewer::not_a_websocket;
@@ -41,6 +42,9 @@ async fn serve_publisher(mut socket: WebSocket, state: Arc<AppState>, slot: Publ
     loop {
         tokio::select! {
             msg = socket.recv() => match msg {
+                Some(Ok(Message::Binary(bytes))) if amc_video::is_annex_b(&bytes) => {
+                    state.live.submit_h264(bytes)
+                }
                 Some(Ok(Message::Binary(bytes))) => state.live.submit_jpeg(bytes),
                 Some(Ok(Message::Close(_))) | None | Some(Err(_)) => break,
                 Some(Ok(_)) => {}

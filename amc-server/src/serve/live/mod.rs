@@ -8,6 +8,7 @@
 //! | `h264` | the H.264 stream: one shared encoder, access units fanned out |
 //! | `jpeg` | JPEG encoding of stabilized frames, decoding of published ones |
 //! | `viewer` | `GET /live`: a viewer's WebSocket |
+//! | `ingest_h264` | the publisher's H.264, decoded by an ffmpeg child |
 //! | `ingest` | `GET /live/ingest`: the publisher's WebSocket |
 //! | `telemetry` | the text message after each frame |
 //! | `ticket` | `POST /live/ticket`: a browser's single-use ticket for either socket |
@@ -15,6 +16,7 @@
 mod h264;
 mod hub;
 mod ingest;
+mod ingest_h264;
 mod jpeg;
 mod telemetry;
 mod ticket;
