@@ -8,6 +8,7 @@
 
 pub mod auth;
 pub mod cluster;
+pub mod poison;
 pub mod serve;
 pub mod setting;
 pub mod worker;

@@ -596,12 +596,7 @@ impl FfmpegSink {
     /// The error after ffmpeg stopped taking frames.
     fn died(&mut self) -> VideoError {
         self.failed = true;
-        if self.proc.timed_out() {
-            self.proc.kill();
-            return self.proc.timeout_error();
-        }
-        let status = self.proc.wait().ok();
-        self.proc.failure(status)
+        self.proc.input_refused()
     }
 }
 

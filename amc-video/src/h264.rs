@@ -174,11 +174,6 @@ impl H264Encoder {
         Ok(Self { proc, pipe, reader })
     }
 
-    /// The frame size this encoder was started for.
-    pub fn size(&self) -> (usize, usize) {
-        (self.pipe.width, self.pipe.height)
-    }
-
     /// Encodes `frame` at `t` seconds (increasing); its access unit reaches
     /// `on_unit` once ffmpeg has encoded it.
     pub fn write_frame(&mut self, frame: &FrameRef<'_>, t: f64) -> Result<(), VideoError> {
@@ -194,15 +189,7 @@ impl H264Encoder {
             None => Err(std::io::ErrorKind::BrokenPipe.into()),
         };
         self.proc.disarm();
-        written.map_err(|_| {
-            if self.proc.timed_out() {
-                self.proc.timeout_error()
-            } else {
-                self.proc.kill();
-                let status = self.proc.wait().ok();
-                self.proc.failure(status)
-            }
-        })
+        written.map_err(|_| self.proc.input_refused())
     }
 }
 

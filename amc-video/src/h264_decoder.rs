@@ -134,15 +134,7 @@ impl H264Decoder {
             None => Err(std::io::ErrorKind::BrokenPipe.into()),
         };
         self.proc.disarm();
-        written.map_err(|_| {
-            if self.proc.timed_out() {
-                self.proc.timeout_error()
-            } else {
-                self.proc.kill();
-                let status = self.proc.wait().ok();
-                self.proc.failure(status)
-            }
-        })
+        written.map_err(|_| self.proc.input_refused())
     }
 }
 

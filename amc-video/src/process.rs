@@ -193,6 +193,18 @@ impl Proc {
     }
 
     /// Kills the child (if still running) and reaps it.
+    /// The error for a write to stdin that failed: ffmpeg stopped taking
+    /// input, because it stalled (killed, the timeout's error) or exited (its
+    /// status and stderr say why).
+    pub fn input_refused(&mut self) -> VideoError {
+        if self.timed_out() {
+            self.kill();
+            return self.timeout_error();
+        }
+        let status = self.wait().ok();
+        self.failure(status)
+    }
+
     pub fn kill(&mut self) {
         if self.status.is_none() {
             let mut child = lock(&self.child);

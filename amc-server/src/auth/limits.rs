@@ -2,6 +2,7 @@
 //! for a while), requests per key, and jobs per tenant.
 //! The rates are `governor`'s GCRA; the per-tenant counts are plain.
 
+use crate::poison::lock;
 use governor::clock::{Clock, DefaultClock};
 use governor::state::keyed::DefaultKeyedStateStore;
 use governor::{Quota, RateLimiter};
@@ -16,10 +17,6 @@ type Keyed<K> = RateLimiter<K, DefaultKeyedStateStore<K>, DefaultClock>;
 /// Most client addresses remembered as blocked; beyond it the soonest to
 /// be released are forgotten first.
 const MAX_BLOCKED: usize = 100_000;
-
-fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
-}
 
 fn nz(n: u32) -> NonZeroU32 {
     NonZeroU32::new(n.max(1)).unwrap_or(NonZeroU32::MIN)

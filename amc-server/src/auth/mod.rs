@@ -160,7 +160,7 @@ impl Auth {
     pub fn reload_if_changed(&self) {
         let Some(k) = &self.keys else { return };
         let now = modified(&k.path);
-        let mut seen = k.modified.lock().unwrap_or_else(|e| e.into_inner());
+        let mut seen = crate::poison::lock(&k.modified);
         if now == *seen {
             return;
         }

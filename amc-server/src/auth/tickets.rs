@@ -43,7 +43,7 @@ impl Tickets {
         let hash = hash_key(&ticket);
         match self {
             Tickets::Local(map) => {
-                let mut map = map.lock().unwrap_or_else(|e| e.into_inner());
+                let mut map = crate::poison::lock(map);
                 let now = Instant::now();
                 map.retain(|_, (_, expires)| *expires > now);
                 if map.len() >= MAX_LOCAL {
@@ -76,7 +76,7 @@ impl Tickets {
         let hash = hash_key(&ticket.to_ascii_lowercase());
         match self {
             Tickets::Local(map) => {
-                let mut map = map.lock().unwrap_or_else(|e| e.into_inner());
+                let mut map = crate::poison::lock(map);
                 Ok(map
                     .remove(&hash)
                     .filter(|(_, expires)| *expires > Instant::now())

@@ -123,7 +123,7 @@ struct IpSlot(Arc<PerIp>, IpAddr);
 
 impl PerIp {
     fn take(self: &Arc<Self>, ip: IpAddr, max: usize) -> Option<IpSlot> {
-        let mut m = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let mut m = crate::poison::lock(&self.0);
         let n = m.entry(ip).or_insert(0);
         if *n >= max {
             return None;
@@ -135,7 +135,7 @@ impl PerIp {
 
 impl Drop for IpSlot {
     fn drop(&mut self) {
-        let mut m = self.0 .0.lock().unwrap_or_else(|e| e.into_inner());
+        let mut m = crate::poison::lock(&self.0 .0);
         if let Some(n) = m.get_mut(&self.1) {
             *n -= 1;
             if *n == 0 {

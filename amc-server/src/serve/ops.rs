@@ -94,7 +94,7 @@ pub(crate) fn health(
     let (code, status, detail) = match check {
         Ok(()) => (StatusCode::OK, "ok", None),
         Err(t) if public => {
-            let mut logged = LOGGED.lock().unwrap_or_else(|e| e.into_inner());
+            let mut logged = crate::poison::lock(&LOGGED);
             if logged.as_deref() != Some(t.detail.as_str()) {
                 tracing::warn!(error = %t.detail, "/healthz: {} is not working", t.what);
                 *logged = Some(t.detail);

@@ -13,7 +13,7 @@ use crate::serve::storage::Scratch;
 use amc_engine::{RunControl, RunSummary};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime};
 use tokio::sync::{watch, Notify};
 
@@ -45,9 +45,7 @@ pub struct Job {
     pub inner: Mutex<JobInner>,
 }
 
-pub fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
-}
+pub use crate::poison::lock;
 
 impl Job {
     pub fn state(&self) -> JobState {

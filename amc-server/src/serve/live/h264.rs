@@ -5,11 +5,11 @@
 //! telemetry. A frame is encoded once, whatever the number of viewers.
 
 use super::telemetry::LiveTelemetry;
+use crate::poison::lock;
 use amc_core::Frame;
 use amc_video::{H264Encoder, H264Options, VideoError};
 use bytes::Bytes;
 use std::collections::VecDeque;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -37,10 +37,6 @@ pub struct H264Unit {
 
 type Pending = Arc<Mutex<VecDeque<(LiveTelemetry, Instant)>>>;
 
-fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
-}
-
 /// The feed's frame rate, from the arrival of its last frames: x264's rate
 /// control shares the bit rate over it (a live source's or publisher's rate
 /// is not known in advance).
@@ -53,17 +49,22 @@ impl FrameRate {
     /// Frames whose arrival make an estimate.
     const ENOUGH: usize = 8;
     const KEPT: usize = 32;
+    const GAP: Duration = Duration::from_secs(1);
 
+    /// A frame arrived. After a gap of over a second (a paused or reopened
+    /// feed, not its rate) the estimate starts again.
     pub fn saw(&mut self, arrived: Instant) {
+        if self
+            .arrivals
+            .back()
+            .is_some_and(|&l| arrived.saturating_duration_since(l) > Self::GAP)
+        {
+            self.arrivals.clear();
+        }
         if self.arrivals.len() == Self::KEPT {
             self.arrivals.pop_front();
         }
         self.arrivals.push_back(arrived);
-    }
-
-    /// Forgets the frames of a stopped feed (a pause is no frame interval).
-    pub fn restart(&mut self) {
-        self.arrivals.clear();
     }
 
     /// Frames per second, once enough frames arrived.
@@ -92,7 +93,6 @@ pub(super) struct H264Stage {
     /// The writer's used frames, for the next copies.
     spare: Receiver<Frame>,
     size: (usize, usize),
-    failed: Arc<AtomicBool>,
     clock: Option<Instant>,
     last_t: f64,
 }
@@ -140,16 +140,14 @@ impl H264Stage {
         )?;
         let (to_writer, jobs) = mpsc::sync_channel::<Job>(WAITING_FRAMES);
         let (give_back, spare) = mpsc::channel::<Frame>();
-        let failed = Arc::new(AtomicBool::new(false));
-        let writer_failed = Arc::clone(&failed);
         std::thread::Builder::new()
             .name("amc-live-h264".into())
             .spawn(move || {
                 for job in jobs {
                     lock(&pending).push_back((job.meta, job.arrived));
                     if let Err(e) = encoder.write_frame(&job.frame.as_ref(), job.t) {
+                        // Returning drops `jobs`: the next `encode` sees it.
                         tracing::warn!(error = %e, "the live H.264 encoder stopped");
-                        writer_failed.store(true, Ordering::SeqCst);
                         return;
                     }
                     let _ = give_back.send(job.frame);
@@ -167,7 +165,6 @@ impl H264Stage {
             to_writer,
             spare,
             size: (frame.width, frame.height),
-            failed,
             clock: None,
             last_t: f64::NEG_INFINITY,
         })
@@ -187,9 +184,6 @@ impl H264Stage {
         meta: &LiveTelemetry,
         arrived: Instant,
     ) -> Result<(), &'static str> {
-        if self.failed.load(Ordering::SeqCst) {
-            return Err("the encoder stopped");
-        }
         let start = *self.clock.get_or_insert(arrived);
         let t = arrived
             .saturating_duration_since(start)
@@ -235,7 +229,8 @@ mod tests {
             r.saw(t0 + Duration::from_micros(i * 16_667));
         }
         assert!((r.fps().unwrap() - 60.0).abs() < 0.1, "{:?}", r.fps());
-        r.restart();
+        // A pause of two seconds: the rate is not known again until new frames.
+        r.saw(t0 + Duration::from_secs(3));
         assert_eq!(r.fps(), None);
     }
 }

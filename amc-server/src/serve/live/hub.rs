@@ -27,6 +27,7 @@ use super::h264::{FrameRate, H264Stage, H264Unit, BROADCAST_UNITS};
 use super::ingest_h264::IngestDecoder;
 use super::jpeg::{decode_ingest_frame, JpegEncoder};
 use super::telemetry::LiveTelemetry;
+use crate::poison::lock;
 use crate::serve::metrics::Metrics;
 use amc_core::view::Mode;
 use amc_core::{CameraModel, Frame, PixelFormat, Stabilizer, StabilizerParams};
@@ -34,7 +35,7 @@ use amc_video::{self as video, InputOptions};
 use bytes::Bytes;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::sync::{broadcast, watch};
 
@@ -142,10 +143,6 @@ pub struct LiveHub {
     source_open: AtomicBool,
     /// Openings of the source so far.
     openings: AtomicU64,
-}
-
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// A viewer's place: counted while it lives (it keeps the feed running).
@@ -598,20 +595,12 @@ impl LiveHub {
         let mut jpeg = Vec::new();
         let mut h264: Option<H264Stage> = None;
         let mut rate = FrameRate::default();
-        let mut last_arrival: Option<Instant> = None;
         while let Ok(Stabilized {
             frame,
             mut meta,
             arrived,
         }) = frames.recv()
         {
-            // A gap of a second is a paused or reopened feed, not its rate.
-            if last_arrival
-                .is_some_and(|l| arrived.saturating_duration_since(l) > Duration::from_secs(1))
-            {
-                rate.restart();
-            }
-            last_arrival = Some(arrived);
             rate.saw(arrived);
             let h264_viewers = self.h264_viewers.load(Ordering::SeqCst);
             if h264_viewers == 0 || h264.as_ref().is_some_and(|h| !h.fits(&frame)) {

@@ -160,10 +160,9 @@ async fn serve_h264_viewer(mut socket: WebSocket, state: Arc<AppState>) {
                     }
                     Err(tokio::sync::broadcast::error::RecvError::Closed) => break,
                 };
-                if sent - acked >= H264_IN_FLIGHT {
-                    need_key = true;
-                }
-                if need_key && !(unit.key && sent - acked < H264_IN_FLIGHT) {
+                let behind = sent - acked >= H264_IN_FLIGHT;
+                need_key |= behind;
+                if behind || (need_key && !unit.key) {
                     state.metrics.live_dropped.inc();
                     continue;
                 }
