@@ -7,6 +7,8 @@
 #[path = "cluster_harness.rs"]
 pub mod cluster;
 pub mod fixtures;
+#[path = "rtsp_harness.rs"]
+pub mod rtsp;
 #[path = "server_harness.rs"]
 pub mod server;
 pub mod services;

@@ -1,9 +1,11 @@
 //! The sources a ground station really offers, from a real ffmpeg publishing
 //! on loopback into `amc serve --live-source`: MPEG-TS over UDP and over SRT
-//! (SRT's listener on amc's side, the publisher calling it). Each reaches a
-//! viewer as stabilized frames, as H.264 and as JPEG.
+//! (SRT's listener on amc's side, the publisher calling it), and RTSP through
+//! a relay (the publisher records into an RTSP server, amc plays from it).
+//! Each reaches a viewer as stabilized frames, as H.264 and as JPEG.
 
 use amc_e2e::data;
+use amc_e2e::rtsp::RtspServer;
 use amc_e2e::server::{websocket, Server};
 use std::process::{Child, Command, Stdio};
 use std::sync::Mutex;
@@ -12,15 +14,17 @@ use tungstenite::Message;
 
 static SERIAL: Mutex<()> = Mutex::new(());
 
-/// An ffmpeg publishing cup.mp4 in a loop as H.264 in MPEG-TS to `url`,
-/// started again while it exits early (an SRT caller before its listener).
+/// An ffmpeg publishing cup.mp4 in a loop as H.264 in `format` (a muxer) to
+/// `url`, started again while it exits early (an SRT caller before its
+/// listener).
 struct Publisher {
     url: String,
+    format: &'static str,
     child: Child,
 }
 
 impl Publisher {
-    fn spawn(url: &str) -> Child {
+    fn spawn(url: &str, format: &str) -> Child {
         let cup = data("cup/cup.mp4");
         Command::new("ffmpeg")
             .args(["-v", "error", "-re", "-stream_loop", "-1", "-i"])
@@ -34,7 +38,7 @@ impl Publisher {
                 "-tune",
                 "zerolatency",
             ])
-            .args(["-g", "15", "-f", "mpegts", url])
+            .args(["-g", "15", "-f", format, url])
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(Stdio::null())
@@ -42,17 +46,18 @@ impl Publisher {
             .expect("ffmpeg")
     }
 
-    fn start(url: &str) -> Publisher {
+    fn start(url: &str, format: &'static str) -> Publisher {
         Publisher {
             url: url.to_string(),
-            child: Self::spawn(url),
+            format,
+            child: Self::spawn(url, format),
         }
     }
 
     /// Restarts the publisher if it has exited.
     fn keep_alive(&mut self) {
         if let Ok(Some(_)) = self.child.try_wait() {
-            self.child = Self::spawn(&self.url);
+            self.child = Self::spawn(&self.url, self.format);
         }
     }
 }
@@ -120,17 +125,16 @@ fn frames_reach(
     last
 }
 
-fn check(source: &str, format: &str, publish_to: &str) {
+/// `source` read by amc (with `--live-format` when given) while ffmpeg
+/// publishes to `publish_to` as `muxer`.
+fn check(source: &str, format: Option<&str>, publish_to: &str, muxer: &'static str) {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let server = Server::start(&[
-        "--live-source",
-        source,
-        "--live-format",
-        format,
-        "--live-fov",
-        "70",
-    ]);
-    let mut publisher = Publisher::start(publish_to);
+    let mut args = vec!["--live-source", source, "--live-fov", "70"];
+    if let Some(format) = format {
+        args.extend(["--live-format", format]);
+    }
+    let server = Server::start(&args);
+    let mut publisher = Publisher::start(publish_to, muxer);
     let meta = frames_reach(&server, &mut publisher, "/live?codec=h264", 40);
     assert_eq!(meta["codec"], "h264", "{meta}");
     assert_eq!(
@@ -147,8 +151,9 @@ fn mpeg_ts_over_udp_reaches_viewers() {
     let port = free_udp_port();
     check(
         &format!("udp://127.0.0.1:{port}?fifo_size=1000000&overrun_nonfatal=1"),
-        "mpegts",
+        Some("mpegts"),
         &format!("udp://127.0.0.1:{port}?pkt_size=1316"),
+        "mpegts",
     );
 }
 
@@ -169,7 +174,23 @@ fn mpeg_ts_over_srt_reaches_viewers() {
     let port = free_udp_port();
     check(
         &format!("srt://127.0.0.1:{port}?mode=listener"),
-        "mpegts",
+        Some("mpegts"),
         &format!("srt://127.0.0.1:{port}?mode=caller"),
+        "mpegts",
+    );
+}
+
+#[test]
+fn rtsp_through_a_relay_reaches_viewers() {
+    let Some(relay) = RtspServer::start() else {
+        return;
+    };
+    // The URL alone tells ffmpeg it is RTSP (no --live-format), as a user
+    // would pass a camera's or a relay's address.
+    check(
+        &format!("rtsp://127.0.0.1:{}/drone", relay.client_port),
+        None,
+        &format!("rtsp://127.0.0.1:{}/drone", relay.source_port),
+        "rtsp",
     );
 }

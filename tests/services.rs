@@ -29,7 +29,7 @@ pub const REQUIRE_SERVICES: &str = "AMC_REQUIRE_SERVICES";
 const READY_WITHIN: Duration = Duration::from_secs(30);
 
 /// Skips (None) or, with `AMC_REQUIRE_SERVICES=1`, panics: `service` is not installed.
-fn not_installed<T>(service: &str, why: &str, install: &str) -> Option<T> {
+pub(crate) fn not_installed<T>(service: &str, why: &str, install: &str) -> Option<T> {
     if std::env::var(REQUIRE_SERVICES).as_deref() == Ok("1") {
         panic!(
             "{service} is required ({REQUIRE_SERVICES}=1) but not installed: {why}. \
@@ -928,16 +928,16 @@ static RESERVED: Mutex<BTreeSet<u16>> = Mutex::new(BTreeSet::new());
 
 /// Ports held for one server, released when dropped.
 #[derive(Default)]
-struct PortLease {
+pub(crate) struct PortLease {
     /// The ports asked for.
-    ports: Vec<u16>,
+    pub(crate) ports: Vec<u16>,
     /// Those and, with the gRPC offset, their + 10000.
     all: Vec<u16>,
 }
 
 impl PortLease {
     /// `n` ports free on 127.0.0.1 (and, `with_grpc`, each + [`GRPC_OFFSET`] too).
-    fn reserve(n: usize, with_grpc: bool) -> PortLease {
+    pub(crate) fn reserve(n: usize, with_grpc: bool) -> PortLease {
         let mut reserved = RESERVED.lock().unwrap_or_else(|e| e.into_inner());
         let mut lease = PortLease::default();
         let mut tries = 0;
