@@ -17,6 +17,9 @@ import { authFetch, ApiError, problemDetail } from './auth.js';
 let session = 0;
 let frames = 0, retryTimer = null, retryDelay = 1;
 
+// Access units waiting in the decoder past which it skips to the next keyframe.
+const MAX_DECODE_QUEUE = 30;
+
 // Set when H.264 failed in this page: JPEGs from then on.
 let h264Failed = null;
 
@@ -96,7 +99,7 @@ async function connect(me) {
   ws.binaryType = codec === 'h264' ? 'arraybuffer' : 'blob';
   const canvas = $('live-canvas');
   const shown = url.replace(/\?.*/, '');
-  let busy = false, got = 0, bytes = 0, latency = 0, chunks = 0;
+  let busy = false, got = 0, bytes = 0, latency = 0, chunks = 0, lagging = false;
   const t0 = performance.now();
   const label = codec === 'h264' ? 'H.264 (WebCodecs)' : `JPEG${why ? ` (${why})` : ''}`;
   const showRate = () => {
@@ -154,6 +157,8 @@ async function connect(me) {
       drawLivePlot();
       return;
     }
+    // Pictures the server sent this page, drawn or not (beside data-frames, those drawn).
+    canvas.dataset.received = Number(canvas.dataset.received || 0) + 1;
     if (decoder) {
       const au = new Uint8Array(ev.data);
       bytes += au.length;
@@ -164,8 +169,12 @@ async function connect(me) {
         decoder.configure({ codec: avc, optimizeForLatency: true });
       }
       if (decoder.state !== 'configured') return;
-      // Each access unit once: a decoder cannot skip pictures (the server skips to keyframes).
-      decoder.decode(new EncodedVideoChunk({ type: isKey(au) ? 'key' : 'delta', timestamp: 1000 * chunks++, data: au }));
+      const key = isKey(au);
+      // A decoder that fell half a second behind (a slow device) waits for the
+      // next keyframe rather than showing ever older pictures.
+      if (key) lagging = false;
+      else if (lagging || decoder.decodeQueueSize > MAX_DECODE_QUEUE) { lagging = true; return; }
+      decoder.decode(new EncodedVideoChunk({ type: key ? 'key' : 'delta', timestamp: 1000 * chunks++, data: au }));
       return;
     }
     bytes += ev.data.size || 0;
