@@ -12,6 +12,7 @@ pub mod rtsp;
 #[path = "server_harness.rs"]
 pub mod server;
 pub mod services;
+pub mod stream_quality;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

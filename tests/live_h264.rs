@@ -7,6 +7,7 @@
 
 use amc_e2e::data;
 use amc_e2e::server::{websocket, Server};
+use amc_e2e::stream_quality::h264_against_jpeg;
 use std::net::TcpStream;
 use std::path::Path;
 use std::sync::Mutex;
@@ -189,50 +190,6 @@ fn gaps_end_at_keyframes(got: &[Got]) -> u64 {
     skipped
 }
 
-/// Gray frames ffmpeg decodes from `bytes` (`-f h264` or `-f mjpeg`).
-fn gray_frames(bytes: &[u8], format: &str, w: usize, h: usize, dir: &Path) -> Vec<Vec<u8>> {
-    let path = dir.join(format!("stream.{format}"));
-    std::fs::write(&path, bytes).unwrap();
-    let out = std::process::Command::new("ffmpeg")
-        .args(["-v", "error", "-f", format, "-i"])
-        .arg(&path)
-        .args(["-f", "rawvideo", "-pix_fmt", "gray", "-"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out.stdout.chunks_exact(w * h).map(<[u8]>::to_vec).collect()
-}
-
-/// Mean Sobel magnitude (3x3, / 8, intensities in [0, 1]) inside the border.
-fn sharpness(g: &[u8], w: usize, h: usize) -> f64 {
-    let p = |x: usize, y: usize| g[y * w + x] as f64 / 255.0;
-    let mut sum = 0.0;
-    for y in 1..h - 1 {
-        for x in 1..w - 1 {
-            let gx = (p(x + 1, y - 1) + 2.0 * p(x + 1, y) + p(x + 1, y + 1))
-                - (p(x - 1, y - 1) + 2.0 * p(x - 1, y) + p(x - 1, y + 1));
-            let gy = (p(x - 1, y + 1) + 2.0 * p(x, y + 1) + p(x + 1, y + 1))
-                - (p(x - 1, y - 1) + 2.0 * p(x, y - 1) + p(x + 1, y - 1));
-            sum += (gx * gx + gy * gy).sqrt() / 8.0;
-        }
-    }
-    sum / ((w - 2) * (h - 2)) as f64
-}
-
-fn psnr(a: &[u8], b: &[u8]) -> f64 {
-    let mse = a
-        .iter()
-        .zip(b)
-        .map(|(&x, &y)| (x as f64 - y as f64).powi(2))
-        .sum::<f64>()
-        / a.len() as f64;
-    10.0 * (255.0f64.powi(2) / mse.max(1e-9)).log10()
-}
-
 #[test]
 fn h264_frames_keep_the_jpeg_frames_sharpness() {
     let _g = serial();
@@ -251,29 +208,17 @@ fn h264_frames_keep_the_jpeg_frames_sharpness() {
         h264[0].meta["width"].as_u64().unwrap() as usize,
         h264[0].meta["height"].as_u64().unwrap() as usize,
     );
-    let bytes: Vec<u8> = h264.iter().flat_map(|g| g.data.clone()).collect();
-    let decoded = gray_frames(&bytes, "h264", w, h, dir.path());
-    assert_eq!(decoded.len(), h264.len());
-    let mut ratios = Vec::new();
-    let mut psnrs = Vec::new();
-    for (g, frame) in h264.iter().zip(&decoded) {
-        let Some(j) = jpeg.iter().find(|j| j.meta["frame"] == g.meta["frame"]) else {
-            continue;
-        };
-        let jf = gray_frames(&j.data, "mjpeg", w, h, dir.path()).remove(0);
-        ratios.push(sharpness(frame, w, h) / sharpness(&jf, w, h));
-        psnrs.push(psnr(frame, &jf));
-    }
-    assert!(
-        ratios.len() >= 20,
-        "only {} frames in both streams",
-        ratios.len()
-    );
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-    let (ratio, db) = (mean(&ratios), mean(&psnrs));
+    let pair = |g: &[Got]| -> Vec<(Vec<u8>, u64)> {
+        g.iter()
+            .map(|g| (g.data.clone(), g.meta["frame"].as_u64().unwrap()))
+            .collect()
+    };
+    let q = h264_against_jpeg(&pair(&h264), &pair(&jpeg), w, h, dir.path());
+    assert!(q.frames >= 20, "only {} frames in both streams", q.frames);
+    let (ratio, db) = (q.sharpness_ratio, q.psnr_db);
     eprintln!(
         "H.264 against JPEG over {} frames: sharpness {ratio:.3}, PSNR {db:.1} dB",
-        ratios.len()
+        q.frames
     );
     assert!(
         ratio >= 0.92,

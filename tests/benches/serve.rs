@@ -19,6 +19,7 @@
 
 use amc_e2e::fixtures::ffmpeg;
 use amc_e2e::server::{post, websocket, Server};
+use amc_e2e::stream_quality::h264_against_jpeg;
 use amc_e2e::{data, s};
 use std::time::{Duration, Instant};
 use tungstenite::Message;
@@ -95,7 +96,9 @@ fn main() {
     }
     drop(server);
 
-    let (rate, lat, skipped, _) = live(&clip, &["/live"], 330).remove(0);
+    let Viewer {
+        rate, lat, skipped, ..
+    } = live(&clip, &["/live"], 330, false).remove(0);
     println!("\n| live feed | median | p95 | max | frames/s to a viewer | skipped |");
     println!("|---|---|---|---|---|---|");
     println!(
@@ -107,7 +110,12 @@ fn main() {
 
     let clip60 = dir.path().join("karma-720p60-20s.mp4");
     encode(&["-i", &s(&clip), "-vf", "fps=60"], &["-an"], &clip60);
-    for (viewer, (rate, lat, skipped, _)) in live(&clip60, &["/live", "/live"], 1230)
+    for (
+        viewer,
+        Viewer {
+            rate, lat, skipped, ..
+        },
+    ) in live(&clip60, &["/live", "/live"], 1230, false)
         .into_iter()
         .enumerate()
     {
@@ -124,8 +132,8 @@ fn main() {
 
 /// Part 4: H.264 beside JPEG at three sizes.
 fn h264_section(dir: &std::path::Path) {
-    println!("\n| live source | viewer | frames/s | Mbit/s | latency p50 | p95 | max | skipped |");
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("\n| live source | viewer | frames/s | Mbit/s | latency p50 | p95 | max | skipped | sharpness vs JPEG | PSNR vs JPEG |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for (w, h, fps) in [(320, 180, 60), (1280, 720, 60), (1920, 1080, 30)] {
         let clip = dir.join(format!("karma-{h}p{fps}.mp4"));
         encode(
@@ -148,31 +156,68 @@ fn h264_section(dir: &std::path::Path) {
         // then two H.264 viewers and one JPEG viewer.
         let jpeg_only = ["/live", "/live", "/live"];
         let mixed = ["/live?codec=h264", "/live?codec=h264", "/live"];
-        let runs = [
-            (&jpeg_only, live(&clip, &jpeg_only, frames)),
-            (&mixed, live(&clip, &mixed, frames)),
-        ];
-        for (path, (rate, lat, skipped, bytes)) in runs
+        let baseline = live(&clip, &jpeg_only, frames, false);
+        let beside = live(&clip, &mixed, frames, true);
+        // Each H.264 viewer's decoded frames against the JPEG viewer's of the same index.
+        let quality: Vec<String> = beside
             .iter()
-            .flat_map(|(paths, got)| paths.iter().zip(got.iter().cloned()))
-        {
+            .map(|v| {
+                if v.frames
+                    .first()
+                    .is_none_or(|(d, _)| d.starts_with(&[0xff, 0xd8]))
+                {
+                    return "-".to_string();
+                }
+                let q = h264_against_jpeg(&v.frames, &beside[2].frames, w, h, dir);
+                format!(
+                    "{:.3} ({} frames) | {:.1} dB",
+                    q.sharpness_ratio, q.frames, q.psnr_db
+                )
+            })
+            .collect();
+        let rows = jpeg_only
+            .iter()
+            .zip(&baseline)
+            .map(|(p, v)| (p, v, "- | -".to_string()))
+            .chain(
+                mixed
+                    .iter()
+                    .zip(&beside)
+                    .zip(quality)
+                    .map(|((p, v), q)| (p, v, if q == "-" { "- | -".to_string() } else { q })),
+            );
+        for (path, v, q) in rows {
             println!(
-                "| {w}x{h} {fps} fps | {path} | {rate:.1} | {:.2} | {:.1} ms | {:.1} ms | {:.1} ms | {skipped} |",
-                bytes as f64 * 8.0 / 1e6 / ((frames - 30) as f64 / rate),
-                percentile(&lat, 0.5),
-                percentile(&lat, 0.95),
-                lat[lat.len() - 1],
+                "| {w}x{h} {fps} fps | {path} | {:.1} | {:.2} | {:.1} ms | {:.1} ms | {:.1} ms | {} | {q} |",
+                v.rate,
+                v.bytes as f64 * 8.0 / 1e6 / ((frames - 30) as f64 / v.rate),
+                percentile(&v.lat, 0.5),
+                percentile(&v.lat, 0.95),
+                v.lat[v.lat.len() - 1],
+                v.skipped,
             );
         }
     }
 }
 
+/// What one viewer of [`live`] got.
+struct Viewer {
+    /// Frames/s received after the first 30.
+    rate: f64,
+    /// The latencies the server reported after the first 30 frames, sorted, ms.
+    lat: Vec<f64>,
+    /// Frames the viewer was skipped past.
+    skipped: u64,
+    /// Bytes of its binary messages after the first 30 frames.
+    bytes: u64,
+    /// Every binary message with its frame index, when kept.
+    frames: Vec<(Vec<u8>, u64)>,
+}
+
 /// Serves `clip` as a looped live source to one viewer per path at once
-/// (`/live`, `/live?codec=h264`), each reading `frames` frames: per viewer,
-/// the frames/s it received (after the first 30), the latencies the server
-/// reported (sorted, ms), the frames it was skipped past, and the bytes of
-/// its binary messages after the first 30 frames.
-fn live(clip: &std::path::Path, paths: &[&str], frames: usize) -> Vec<(f64, Vec<f64>, u64, u64)> {
+/// (`/live`, `/live?codec=h264`), each reading `frames` frames; `keep`: each
+/// viewer keeps its binary messages.
+fn live(clip: &std::path::Path, paths: &[&str], frames: usize, keep: bool) -> Vec<Viewer> {
     let server = Server::start(&[
         "--live-source",
         clip.to_str().unwrap(),
@@ -193,9 +238,18 @@ fn live(clip: &std::path::Path, paths: &[&str], frames: usize) -> Vec<(f64, Vec<
                 let mut skipped = 0u64;
                 let mut last: Option<u64> = None;
                 let mut bytes = 0u64;
+                let mut kept = Vec::new();
+                let mut data = None;
                 while latencies.len() < frames {
                     match ws.read() {
-                        Ok(Message::Binary(b)) if started.is_some() => bytes += b.len() as u64,
+                        Ok(Message::Binary(b)) => {
+                            if started.is_some() {
+                                bytes += b.len() as u64;
+                            }
+                            if keep {
+                                data = Some(b.to_vec());
+                            }
+                        }
                         Ok(Message::Text(t)) => {
                             let v: serde_json::Value = serde_json::from_str(&t).expect("json");
                             let f = v["frame"].as_u64().unwrap_or(0);
@@ -203,6 +257,9 @@ fn live(clip: &std::path::Path, paths: &[&str], frames: usize) -> Vec<(f64, Vec<
                                 skipped += f.saturating_sub(l + 1);
                             }
                             last = Some(f);
+                            if let Some(d) = data.take() {
+                                kept.push((d, f));
+                            }
                             latencies.push(v["latency_ms"].as_f64().unwrap_or(f64::NAN));
                             // The first frames include the stabilizer's warm-up.
                             if latencies.len() == 30 {
@@ -214,10 +271,15 @@ fn live(clip: &std::path::Path, paths: &[&str], frames: usize) -> Vec<(f64, Vec<
                     }
                 }
                 let secs = started.map_or(f64::NAN, |s| s.elapsed().as_secs_f64());
-                let rate = (frames - 30) as f64 / secs;
                 let mut lat: Vec<f64> = latencies[30..].to_vec();
                 lat.sort_by(|a, b| a.total_cmp(b));
-                (rate, lat, skipped, bytes)
+                Viewer {
+                    rate: (frames - 30) as f64 / secs,
+                    lat,
+                    skipped,
+                    bytes,
+                    frames: kept,
+                }
             })
         })
         .collect();
