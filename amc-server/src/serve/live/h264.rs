@@ -10,6 +10,7 @@ use amc_core::Frame;
 use amc_video::{H264Encoder, H264Options, VideoError};
 use bytes::Bytes;
 use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -20,8 +21,13 @@ use tokio::sync::broadcast;
 pub const BROADCAST_UNITS: usize = 64;
 /// The encoder's timestamps move on by at least this (FLV counts whole ms).
 const MIN_STEP_S: f64 = 0.002;
-/// Frames that may wait for the encoder.
+/// Frames that may wait for the running encoder.
 const WAITING_FRAMES: usize = 2;
+/// Frames that may wait while ffmpeg starts (a few hundred ms): held, not
+/// left out, so a viewer's stream starts with the feed's first frames; the
+/// encoder is faster than real time and catches up. At most this many bytes.
+const STARTUP_FRAMES: usize = 24;
+const STARTUP_BYTES: usize = 64 << 20;
 
 /// One encoded frame as viewers get it.
 #[derive(Debug)]
@@ -87,9 +93,14 @@ struct Job {
 /// The running encoder of the feed. Frames go to it through a writer thread
 /// (ffmpeg reads a frame only once it has encoded the one before, and the
 /// feed's encode thread must not wait for that); a frame arriving while two
-/// wait is left out of the H.264 stream.
+/// wait is left out of the H.264 stream (while ffmpeg starts, up to
+/// [`STARTUP_FRAMES`]).
 pub(super) struct H264Stage {
     to_writer: SyncSender<Job>,
+    /// Frames handed to the writer and not yet taken by it.
+    waiting: Arc<AtomicUsize>,
+    /// Set once the first access unit came out.
+    running: Arc<AtomicBool>,
     /// The writer's used frames, for the next copies.
     spare: Receiver<Frame>,
     size: (usize, usize),
@@ -110,6 +121,8 @@ impl H264Stage {
         // access unit comes out per frame: no B-frames, no lookahead).
         let pending: Pending = Arc::new(Mutex::new(VecDeque::new()));
         let queue = Arc::clone(&pending);
+        let running = Arc::new(AtomicBool::new(false));
+        let ran = Arc::clone(&running);
         let opts = H264Options {
             bitrate_kbps,
             fps,
@@ -123,6 +136,7 @@ impl H264Stage {
             &opts,
             move |unit| match unit {
                 Ok(unit) => {
+                    ran.store(true, Ordering::SeqCst);
                     let Some((mut meta, arrived)) = lock(&queue).pop_front() else {
                         return;
                     };
@@ -138,12 +152,16 @@ impl H264Stage {
                 Err(e) => tracing::warn!(error = %e, "the live H.264 stream cannot be read"),
             },
         )?;
-        let (to_writer, jobs) = mpsc::sync_channel::<Job>(WAITING_FRAMES);
+        let held = (STARTUP_BYTES / frame.data.len().max(1)).clamp(WAITING_FRAMES, STARTUP_FRAMES);
+        let (to_writer, jobs) = mpsc::sync_channel::<Job>(held);
         let (give_back, spare) = mpsc::channel::<Frame>();
+        let waiting = Arc::new(AtomicUsize::new(0));
+        let taken = Arc::clone(&waiting);
         std::thread::Builder::new()
             .name("amc-live-h264".into())
             .spawn(move || {
                 for job in jobs {
+                    taken.fetch_sub(1, Ordering::SeqCst);
                     lock(&pending).push_back((job.meta, job.arrived));
                     if let Err(e) = encoder.write_frame(&job.frame.as_ref(), job.t) {
                         // Returning drops `jobs`: the next `encode` sees it.
@@ -163,6 +181,8 @@ impl H264Stage {
             })?;
         Ok(Self {
             to_writer,
+            waiting,
+            running,
             spare,
             size: (frame.width, frame.height),
             clock: None,
@@ -184,6 +204,12 @@ impl H264Stage {
         meta: &LiveTelemetry,
         arrived: Instant,
     ) -> Result<(), &'static str> {
+        if self.running.load(Ordering::SeqCst)
+            && self.waiting.load(Ordering::SeqCst) >= WAITING_FRAMES
+        {
+            // Two frames already wait: this one is left out.
+            return Ok(());
+        }
         let start = *self.clock.get_or_insert(arrived);
         let t = arrived
             .saturating_duration_since(start)
@@ -200,14 +226,21 @@ impl H264Stage {
             meta: meta.clone(),
             arrived,
         };
+        self.waiting.fetch_add(1, Ordering::SeqCst);
         match self.to_writer.try_send(job) {
             Ok(()) => {
                 self.last_t = t;
                 Ok(())
             }
-            // Two frames already wait: this one is left out.
-            Err(TrySendError::Full(_)) => Ok(()),
-            Err(TrySendError::Disconnected(_)) => Err("the encoder stopped"),
+            // As many frames as ffmpeg's start may hold wait: left out.
+            Err(TrySendError::Full(_)) => {
+                self.waiting.fetch_sub(1, Ordering::SeqCst);
+                Ok(())
+            }
+            Err(TrySendError::Disconnected(_)) => {
+                self.waiting.fetch_sub(1, Ordering::SeqCst);
+                Err("the encoder stopped")
+            }
         }
     }
 }

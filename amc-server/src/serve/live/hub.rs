@@ -143,6 +143,10 @@ pub struct LiveHub {
     source_open: AtomicBool,
     /// Openings of the source so far.
     openings: AtomicU64,
+    /// The open source's frame rate as its container states it (f64 bits;
+    /// 0: none open, or no plausible rate stated): the H.264 encoder starts
+    /// with the first frame instead of measuring the rate over a few.
+    source_fps: AtomicU64,
 }
 
 /// A viewer's place: counted while it lives (it keeps the feed running).
@@ -194,6 +198,7 @@ impl LiveHub {
             source_error: Mutex::new(None),
             source_open: AtomicBool::new(false),
             openings: AtomicU64::new(0),
+            source_fps: AtomicU64::new(0),
         });
         let processor = hub.clone();
         std::thread::Builder::new()
@@ -408,6 +413,13 @@ impl LiveHub {
             self.set_source_error(None);
             let opening = self.openings.fetch_add(1, Ordering::SeqCst) + 1;
             self.source_open.store(true, Ordering::SeqCst);
+            let fps = src.info().fps;
+            let stated = if (1.0..=240.0).contains(&fps) {
+                fps
+            } else {
+                0.0
+            };
+            self.source_fps.store(stated.to_bits(), Ordering::SeqCst);
             tracing::info!(%source, width = src.info().width, height = src.info().height, fps = src.info().fps, "live source open");
             let ended = loop {
                 if stopped() {
@@ -442,6 +454,7 @@ impl LiveHub {
             // Dropping the source kills its ffmpeg child.
             drop(src);
             self.source_open.store(false, Ordering::SeqCst);
+            self.source_fps.store(0, Ordering::SeqCst);
             if ended {
                 if is_file && !self.config.looped {
                     return;
@@ -608,8 +621,11 @@ impl LiveHub {
                 h264 = None;
             }
             if h264_viewers > 0 {
-                // The encoder starts once the feed's rate is known (a few frames).
-                if let (None, Some(fps)) = (&h264, rate.fps()) {
+                // The encoder starts once the feed's rate is known: as the
+                // source states it, else measured over a few frames.
+                let stated = f64::from_bits(self.source_fps.load(Ordering::SeqCst));
+                let fps = (stated > 0.0).then_some(stated).or_else(|| rate.fps());
+                if let (None, Some(fps)) = (&h264, fps) {
                     h264 = H264Stage::start(
                         &frame,
                         fps,
