@@ -28,12 +28,15 @@ fn run_mode(input: &Path, out_dir: &Path, mode: &str, ext: &str, extra: &[String
         s(&metrics),
         "--telemetry".into(),
         s(&telemetry),
-        // The paper's framing (a fixed 12.5% margin) and view filter: its bars, valid
-        // share included, are defined for them; the defaults are tested in tests/framing.rs.
+        // The paper's framing (a fixed 12.5% margin), view filter and plain average: its
+        // bars, valid share included, are defined for them; the defaults are tested in
+        // tests/framing.rs and tests/sharpness.rs.
         "--zoom".into(),
         "none".into(),
         "--rate-b".into(),
         "40".into(),
+        "--deghost".into(),
+        "off".into(),
         "-q".into(),
     ];
     args.extend(extra.iter().cloned());

@@ -100,3 +100,130 @@ fn deghost_and_bicubic_keep_real_footage_sharp() {
     }
     assert!(failed.is_empty(), "{}", failed.join("\n"));
 }
+
+/// `amc stabilize` of `clip` with `args` (`-o` a `.y4m`): its `--metrics` JSON.
+fn stabilize_metrics(clip: &[String], args: &[&str], dir: &std::path::Path) -> Value {
+    let (out, metrics) = (dir.join("out.y4m"), dir.join("metrics.json"));
+    let mut all = vec!["stabilize".to_string()];
+    all.extend(clip.iter().cloned());
+    all.extend([
+        "-o".into(),
+        s(&out),
+        "--metrics".into(),
+        s(&metrics),
+        "-q".into(),
+    ]);
+    all.extend(args.iter().map(|a| a.to_string()));
+    amc_ok(&all);
+    read_json(&metrics)
+}
+
+/// Issue 48's bar: on real footage the default (ghost-free averaging with its
+/// threshold from the clip's noise) keeps at least 0.95 of the sharpness of
+/// one frame (`--n-avg 1`, the same framing), where the plain average does not.
+#[test]
+fn the_default_keeps_real_footage_as_sharp_as_one_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let clips: [(&str, Vec<String>); 3] = [
+        ("karma", vec![s(&data("karma/karma.mp4"))]),
+        ("cup", vec![s(&data("cup/cup.mp4"))]),
+        (
+            "cc9",
+            vec![
+                s(&data("cc9/frames")),
+                "--lens".into(),
+                s(&data("cc9/lens.json")),
+                "--fps".into(),
+                "30".into(),
+            ],
+        ),
+    ];
+    let mut failed = Vec::new();
+    for (name, clip) in &clips {
+        let sharp = |args: &[&str]| {
+            let m = stabilize_metrics(clip, args, dir.path());
+            (
+                json_f64(&m, "/metrics/sharpness"),
+                m["deghost_levels"].clone(),
+            )
+        };
+        let (default, levels) = sharp(&[]);
+        let (one, _) = sharp(&["--n-avg", "1"]);
+        let (plain, _) = sharp(&["--deghost", "off"]);
+        let (kept, plain_kept) = (default / one, plain / one);
+        eprintln!(
+            "[{name}] sharpness / --n-avg 1: default {kept:.3} (threshold {levels}), plain average {plain_kept:.3}"
+        );
+        assert!(
+            levels.as_f64().is_some_and(|l| (2.0..=8.0).contains(&l)),
+            "{name}: {levels}"
+        );
+        if kept < 0.95 {
+            failed.push(format!(
+                "{name}: the default keeps {kept:.3} of one frame's sharpness"
+            ));
+        }
+        // The check can fail: the plain average smears these clips.
+        if plain_kept > 0.9 {
+            failed.push(format!(
+                "{name}: the plain average keeps {plain_kept:.3}: no smear to remove?"
+            ));
+        }
+    }
+    assert!(failed.is_empty(), "{}", failed.join("\n"));
+}
+
+/// Where the scene is static (a panorama seen by a rotating camera, with
+/// sensor noise and x264's artefacts), the default still averages: less frame
+/// change and normal flow than one frame, and a threshold above the floor.
+#[test]
+fn the_default_still_averages_a_static_noisy_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("clip");
+    synth(
+        &frames,
+        &[
+            "--width",
+            "640",
+            "--height",
+            "360",
+            "--seconds",
+            "2",
+            "--seed",
+            "41",
+            "--shake-dps",
+            "150",
+        ],
+    );
+    let clip = dir.path().join("noisy.mp4");
+    amc_e2e::fixtures::ffmpeg(&[
+        "-framerate",
+        "60",
+        "-i",
+        &s(&frames.join("frame-%06d.png")),
+        "-vf",
+        "noise=alls=10:allf=t+u,format=yuv420p",
+        "-c:v",
+        "libx264",
+        "-crf",
+        "20",
+        &s(&clip),
+    ]);
+    let input = vec![s(&clip), "--lens".into(), s(&frames.join("lens.json"))];
+    let default = stabilize_metrics(&input, &[], dir.path());
+    let one = stabilize_metrics(&input, &["--n-avg", "1"], dir.path());
+    let m = |v: &Value, k: &str| json_f64(v, &format!("/metrics/{k}"));
+    let levels = json_f64(&default, "/deghost_levels");
+    eprintln!(
+        "static noisy scene: threshold {levels:.2}; frame change {:.4} vs {:.4}, normal flow {:.3} vs {:.3}, sharpness {:.4} vs {:.4}",
+        m(&default, "rms_change"),
+        m(&one, "rms_change"),
+        m(&default, "rms_normal_flow"),
+        m(&one, "rms_normal_flow"),
+        m(&default, "sharpness"),
+        m(&one, "sharpness"),
+    );
+    assert!(levels > 2.5, "the noise sets the threshold: {levels}");
+    assert!(m(&default, "rms_change") < 0.95 * m(&one, "rms_change"));
+    assert!(m(&default, "rms_normal_flow") < 0.95 * m(&one, "rms_normal_flow"));
+}

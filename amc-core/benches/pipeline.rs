@@ -304,7 +304,8 @@ fn bench_stabilize(c: &mut Criterion) {
                 params.view.mode = mode;
                 params.framing.zoom = zoom;
                 if name.contains("-deghost") {
-                    params.render.deghost = amc_core::render::SUGGESTED_DEGHOST;
+                    params.render.deghost =
+                        amc_core::render::DeghostLevel::Levels(amc_core::render::SUGGESTED_DEGHOST);
                 }
                 if name.ends_with("-rolling") {
                     params.shutter.readout_ms = READOUT_S * 1000.0;

@@ -122,9 +122,14 @@ pub const OPTIONS: &[OptionSpec] = &[
     OptionSpec {
         name: "deghost",
         flag: "deghost",
-        value_name: "LEVELS",
-        help: "ghost-free averaging: an averaged frame's pixel counts fully where it differs from the newest frame's by at most LEVELS (of 255), not at all from twice that, so what moves in the scene is not smeared and edges stay sharp; 0..=64, 6 suits compressed video (default 0: the plain average)",
-        allowed: Allowed::range(0.0, crate::render::MAX_DEGHOST),
+        value_name: "auto|off|LEVELS",
+        help: "ghost-free averaging: an averaged frame's pixel counts fully where it differs from the newest frame's by at most LEVELS (of 255), not at all from twice that, so what moves in the scene (parallax, walkers, cars) is not smeared and edges stay sharp; auto sets LEVELS from the clip's own noise (3 standard deviations, 2..=8); off (or 0) is the paper's plain average; 0..=64 (default auto)",
+        allowed: Allowed::Number {
+            min: 0.0,
+            max: crate::render::MAX_DEGHOST,
+            above_min: false,
+            words: &["auto", "off"],
+        },
     },
     OptionSpec {
         name: "antialias",
@@ -349,7 +354,7 @@ impl StabilizerOptions {
             "fov" => self.lens = LensSpec::parse_fov(value)?,
             "readout_ms" => self.readout = ReadoutSpec::parse(value)?,
             "n_avg" => p.render.n_avg = parse_value(spec, value)?,
-            "deghost" => p.render.deghost = parse_value(spec, value)?,
+            "deghost" => p.render.deghost = value.parse()?,
             "antialias" => p.render.antialias = value.trim().parse()?,
             "interpolation" => p.render.interpolation = value.trim().parse()?,
             "n_track" => p.tracker.n_track = parse_value(spec, value)?,

@@ -86,7 +86,7 @@ fn run(mode: Mode, n_avg: usize, deghost: f64, format: PixelFormat) -> Errors {
     let mut params = StabilizerParams::default();
     params.view.mode = mode;
     params.render.n_avg = n_avg;
-    params.render.deghost = deghost;
+    params.render.deghost = amc_core::render::DeghostLevel::Levels(deghost);
     params.framing = FramingParams {
         zoom: Zoom::None,
         ..FramingParams::default()

@@ -91,6 +91,9 @@ pub struct RunSummary {
     pub motion: MotionSummary,
     /// The rolling-shutter readout the run used, milliseconds (0 = global shutter).
     pub readout_ms: f64,
+    /// The ghost-free average's threshold the run ended with, levels of 255
+    /// (`deghost=auto`: set from the clip's noise; 0: the plain average).
+    pub deghost_levels: f64,
     /// Warnings for the user about the run (the caller adds them: e.g.
     /// `readout_ms=auto` fell back to a global shutter).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -276,6 +279,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         metrics,
         motion: motion.summary(),
         readout_ms: cfg.params.shutter.readout_ms,
+        deghost_levels: stab.deghost_levels().unwrap_or(0.0),
         warnings: Vec::new(),
         per_frame,
     })

@@ -206,7 +206,7 @@ mod tests {
         assert_eq!(def("fov"), json!("auto"));
         assert_eq!(def("readout_ms"), Value::Null);
         assert_eq!(def("n_avg"), json!(6));
-        assert_eq!(def("deghost"), json!(0.0));
+        assert_eq!(def("deghost"), json!("auto"));
         assert_eq!(def("margin"), json!(0.125));
         assert_eq!(def("max_crop"), json!(0.15));
         assert_eq!(def("rate_a"), json!(2.0));

@@ -79,6 +79,11 @@ pub struct ServeArgs {
     /// Frames averaged into each live output frame (1..=64).
     #[arg(long, default_value_t = 6)]
     pub live_n_avg: usize,
+    /// Ghost-free averaging of the live feed (as `amc stabilize --deghost`):
+    /// auto, off or 0..=64 levels. Off by default: on two cores it costs a
+    /// 720p60 feed its rate (50 against 60 frames/s, docs/speed.md).
+    #[arg(long, default_value = "off", value_name = "auto|off|LEVELS")]
+    pub live_deghost: String,
     /// Framing of the live output: auto (the least zoom that shows no border,
     /// within --live-max-crop) or none (crop --live-margin). `static` needs the
     /// whole clip and is refused.
@@ -217,6 +222,7 @@ impl ServeArgs {
             live_fov: self.live_fov,
             live_lens: self.live_lens,
             live_n_avg: self.live_n_avg,
+            live_deghost: self.live_deghost,
             live_zoom: self.live_zoom,
             live_max_crop: self.live_max_crop,
             live_margin: self.live_margin,

@@ -23,13 +23,14 @@
 //! coordinates and samples them, `grid.rs` fills a row's coordinates from the
 //! node grid of a gridded map, `accumulator.rs` holds the integer sums and the
 //! saccade slots, `robust.rs` the ghost-free average (each frame weighted by
-//! its agreement with the newest), and `kernels/` the row kernels (scalar
+//! its agreement with the newest), `noise.rs` its automatic threshold, and `kernels/` the row kernels (scalar
 //! reference, AVX2, `simd128`) behind one dispatcher. The warper uses the kernels and the accumulator (it
 //! fills the saccade slots); neither uses the warper.
 
 mod accumulator;
 mod grid;
 pub mod kernels;
+pub mod noise;
 mod params;
 pub mod robust;
 #[cfg(test)]
@@ -37,8 +38,9 @@ mod tests;
 mod warper;
 
 pub use accumulator::{Accumulator, WarpedFrame};
+pub use noise::{noise_sigma, AutoDeghost};
 pub use params::{
-    footprint, Antialias, Interpolation, RenderParams, DEFAULT_DEGHOST, MAX_SUPERSAMPLE,
+    footprint, Antialias, DeghostLevel, Interpolation, RenderParams, MAX_SUPERSAMPLE,
     SUGGESTED_DEGHOST, SUPERSAMPLE_ABOVE,
 };
 pub use robust::{Deghost, MAX_DEGHOST};

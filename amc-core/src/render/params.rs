@@ -19,12 +19,8 @@ pub struct RenderParams {
     pub output_width: Option<usize>,
     /// Output height in pixels; default: keeps the cropped aspect ratio. Range 16..=16384.
     pub output_height: Option<usize>,
-    /// Ghost-free averaging threshold, intensity levels of 255: each averaged
-    /// frame's pixel counts fully where it differs from the newest frame's by
-    /// at most this, not at all from twice this (so whatever moves in the
-    /// scene comes from the newest frame only); 0 (the default) = the plain
-    /// average. Range 0..=64 (see [`super::robust`]; 6 suits compressed video).
-    pub deghost: f64,
+    /// Ghost-free averaging (default `auto`): see [`DeghostLevel`].
+    pub deghost: DeghostLevel,
     /// Anti-aliasing of minified outputs (default `auto`): see [`Antialias`].
     pub antialias: Antialias,
     /// How a source frame is sampled between its pixels (default
@@ -167,19 +163,100 @@ impl Default for RenderParams {
             margin: 0.125,
             output_width: None,
             output_height: None,
-            deghost: DEFAULT_DEGHOST,
+            deghost: DeghostLevel::Auto,
             antialias: Antialias::Auto,
             interpolation: Interpolation::Bilinear,
         }
     }
 }
 
-/// Default ghost-free averaging threshold: 0, the plain average of the
-/// paper. On real footage the plain average's smoothing of frame change
-/// comes largely from blending what a rotation cannot align (parallax, the
-/// rolling shutter): with `deghost` those pixels come from the newest frame,
-/// sharp but unsmoothed (README, "Averaging without ghosts").
-pub const DEFAULT_DEGHOST: f64 = 0.0;
+/// The ghost-free average's threshold (`deghost`): each averaged frame's
+/// pixel counts fully where it differs from the newest frame's by at most the
+/// threshold, not at all from twice it, so whatever moves against the
+/// rotation model (parallax, walkers, cars, edges a rolling shutter bends)
+/// comes from the newest frame only and is not smeared (see
+/// [`super::robust`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum DeghostLevel {
+    /// Set from the clip's own noise (see [`super::noise`]): 3 standard
+    /// deviations, within 2..=8 levels.
+    #[default]
+    Auto,
+    /// This threshold, intensity levels of 255, `0..=64`; 0 (`off`): the
+    /// plain average of the paper, which smears what moves.
+    Levels(f64),
+}
+
+impl DeghostLevel {
+    /// The fixed weights; `None` for the plain average and for `auto` (the
+    /// stabilizer sets those as it measures the clip).
+    pub fn fixed(self) -> Option<super::Deghost> {
+        match self {
+            DeghostLevel::Auto => None,
+            DeghostLevel::Levels(l) => super::Deghost::new(l),
+        }
+    }
+}
+
+impl std::str::FromStr for DeghostLevel {
+    type Err = AmcError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let v = s.trim();
+        if v.eq_ignore_ascii_case("auto") {
+            return Ok(DeghostLevel::Auto);
+        }
+        if v.eq_ignore_ascii_case("off") {
+            return Ok(DeghostLevel::Levels(0.0));
+        }
+        match v.parse::<f64>() {
+            Ok(x) if x.is_finite() && (0.0..=super::robust::MAX_DEGHOST).contains(&x) => {
+                Ok(DeghostLevel::Levels(x))
+            }
+            _ => Err(AmcError::invalid(
+                "deghost",
+                format!("{s:?}"),
+                DEGHOST_ALLOWED,
+            )),
+        }
+    }
+}
+
+/// What `deghost` takes, for errors.
+const DEGHOST_ALLOWED: &str = "auto, off, or 0..=64 intensity levels (0 = the plain average)";
+
+impl std::fmt::Display for DeghostLevel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DeghostLevel::Auto => f.write_str("auto"),
+            DeghostLevel::Levels(l) => write!(f, "{l}"),
+        }
+    }
+}
+
+// As the option is written: "auto" or a number.
+impl Serialize for DeghostLevel {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            DeghostLevel::Auto => s.serialize_str("auto"),
+            DeghostLevel::Levels(l) => s.serialize_f64(*l),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for DeghostLevel {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Form {
+            Number(f64),
+            Word(String),
+        }
+        match Form::deserialize(d)? {
+            Form::Number(x) => Ok(DeghostLevel::Levels(x)),
+            Form::Word(w) => w.parse().map_err(serde::de::Error::custom),
+        }
+    }
+}
 
 /// A threshold that suits compressed 8-bit video: about 1-2 standard
 /// deviations of the difference of two frames' noise, so the static scene
@@ -199,13 +276,15 @@ impl RenderParams {
             0.45,
             "0..=0.45 (share of each side)",
         )?;
-        check_range(
-            "deghost",
-            self.deghost,
-            0.0,
-            super::robust::MAX_DEGHOST,
-            "0..=64 intensity levels (0 = plain average)",
-        )?;
+        if let DeghostLevel::Levels(l) = self.deghost {
+            check_range(
+                "deghost",
+                l,
+                0.0,
+                super::robust::MAX_DEGHOST,
+                DEGHOST_ALLOWED,
+            )?;
+        }
         for (name, v) in [
             ("output_width", self.output_width),
             ("output_height", self.output_height),
@@ -219,9 +298,10 @@ impl RenderParams {
         Ok(())
     }
 
-    /// The ghost-free averaging weights; `None` for the plain average.
+    /// The fixed ghost-free averaging weights; `None` for the plain average
+    /// and for `auto` (see [`DeghostLevel::fixed`]).
     pub fn deghost(&self) -> Option<super::Deghost> {
-        super::Deghost::new(self.deghost)
+        self.deghost.fixed()
     }
 
     /// Samples per axis of each output pixel from `src` into `out` (see

@@ -1,6 +1,7 @@
 //! A frame in the stabilizer's ring: the frame and what tracking found.
 
 use crate::image::Frame;
+use crate::render::Deghost;
 use crate::shutter::{IntraFrame, RollingProjector};
 use crate::so3::Rot;
 use crate::tracker::TrackInfo;
@@ -19,4 +20,7 @@ pub(super) struct Buffered {
     pub(super) info: TrackInfo,
     /// Forward-filtered view at this frame.
     pub(super) view_fwd: Rot,
+    /// With `deghost=auto`, the ghost-free weights in force when this frame
+    /// arrived: those of every output it is the newest frame of.
+    pub(super) deghost: Option<Deghost>,
 }

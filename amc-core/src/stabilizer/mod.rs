@@ -30,6 +30,7 @@ mod tracking;
 mod view;
 
 use crate::image::{Frame, PixelFormat};
+use crate::render::AutoDeghost;
 use crate::shutter::RollingProjector;
 use crate::so3::Rot;
 use buffered::Buffered;
@@ -58,4 +59,6 @@ pub struct Stabilizer {
     /// Render output `j` while tracking frame `j + 1 + lookahead` (on the
     /// caller's rayon pool with the `parallel` feature).
     pipelined: bool,
+    /// `deghost=auto`: the clip's noise, measured as frames arrive.
+    auto_deghost: Option<AutoDeghost>,
 }

@@ -111,6 +111,10 @@ impl Stabilizer {
         // Tail padding for the vectorized sampler's dword gathers.
         buf.data
             .extend_from_slice(&[0; crate::render::kernels::FRAME_PADDING]);
+        let deghost = self
+            .auto_deghost
+            .as_mut()
+            .and_then(|a| a.observe(self.received, &frame));
         self.ring.push_back(Buffered {
             frame: buf,
             index: self.received,
@@ -120,6 +124,7 @@ impl Stabilizer {
             rows,
             info,
             view_fwd: self.view_fwd,
+            deghost,
         });
         self.received += 1;
 

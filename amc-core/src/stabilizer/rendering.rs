@@ -6,7 +6,7 @@ use super::telemetry::Telemetry;
 use crate::camera::CameraModel;
 use crate::framing::{zoom_matrix, Border, Framer, Zoom};
 use crate::image::Frame;
-use crate::render::{Accumulator, WarpedFrame, Warper};
+use crate::render::{Accumulator, DeghostLevel, WarpedFrame, Warper};
 use crate::so3::{self, Rot};
 use crate::view::Mode;
 use std::collections::VecDeque;
@@ -76,6 +76,11 @@ impl Rendering {
         self.next_out += 1;
         let render = self.render && j % self.share.0 == self.share.1;
         let (first, pos) = self.window(ring, params, j);
+        if params.render.deghost == DeghostLevel::Auto {
+            // The threshold in force when the newest frame arrived.
+            self.warper.set_deghost(ring[pos].deghost);
+            self.chroma.set_deghost(ring[pos].deghost);
+        }
         let r_est = ring[pos].r_est;
         let mut r_view = self.view(ring, params, pos);
         let (zoom, mut saccade) = self.frame(params, j, ring[pos].t, &r_est, &mut r_view);

@@ -10,7 +10,7 @@ use crate::framing::{needed_zoom, Border, Framer, Zoom};
 use crate::frontend::TrackingFrontend;
 use crate::image::{Frame, FrameRef, PixelFormat};
 use crate::pyramid::Pyramid;
-use crate::render::{chroma_camera, Accumulator, Warper};
+use crate::render::{chroma_camera, Accumulator, AutoDeghost, DeghostLevel, Warper};
 use crate::shutter::{GaugeEase, RowTime, TrajectorySmoother};
 use crate::so3::Rot;
 use crate::tracker::Tracker;
@@ -143,8 +143,19 @@ impl Stabilizer {
             received: 0,
             last_t: None,
             pipelined: false,
+            auto_deghost: (params.render.deghost == DeghostLevel::Auto).then(AutoDeghost::default),
             params,
         })
+    }
+
+    /// The ghost-free average's threshold, levels of 255: the one given, or
+    /// with `deghost=auto` the one in force now (`None` before the first
+    /// frame); 0: the plain average.
+    pub fn deghost_levels(&self) -> Option<f64> {
+        match self.params.render.deghost {
+            DeghostLevel::Levels(l) => Some(l),
+            DeghostLevel::Auto => self.auto_deghost.as_ref().and_then(|a| a.levels()),
+        }
     }
 
     /// Output frame size.

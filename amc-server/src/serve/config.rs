@@ -56,6 +56,8 @@ pub struct ServeConfig {
     pub live_lens: Option<PathBuf>,
     /// Frames averaged into each live output frame (1..=64).
     pub live_n_avg: usize,
+    /// `--live-deghost`: auto, off or levels.
+    pub live_deghost: String,
     /// Framing of the live output: auto or none (static needs the whole clip: refused).
     pub live_zoom: amc_core::Zoom,
     /// Crop budget of `live_zoom` auto (0..=0.5).
@@ -310,6 +312,13 @@ impl ServeConfig {
         params.view.mode = self.live_mode;
         params.view.roll = self.live_roll;
         params.render.n_avg = self.live_n_avg;
+        params.render.deghost =
+            self.live_deghost
+                .parse()
+                .map_err(|e: amc_core::AmcError| ServiceError::Invalid {
+                    flag: "live-deghost",
+                    detail: e.to_string(),
+                })?;
         params.render.margin = self.live_margin;
         if self.live_zoom == amc_core::Zoom::Static {
             return Err(ServiceError::Invalid {

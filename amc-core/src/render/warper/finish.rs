@@ -156,8 +156,13 @@ pub(super) fn finish_merged_rgb_row(
 
 /// Writes one single-channel output row from
 /// [`Warper::merge_row`](super::Warper::merge_row)'s weighted sums (uncovered
-/// pixels `fill`); returns the pixels every frame covers.
+/// pixels `fill`): the first `n8` pixels by the vector kernel's finisher (its
+/// `round(sum / (256 n))` is `weighted_average`'s with the weights' sum for
+/// `n`, the same `f32` operations), the rest here; returns the pixels every
+/// frame covers.
 pub(super) fn finish_merged_gray_row(
+    kernel: Kernel,
+    n8: usize,
     scratch: &RowScratch,
     out_row: &mut [u8],
     cov_row: &mut [u8],
@@ -170,7 +175,19 @@ pub(super) fn finish_merged_gray_row(
         &scratch.weight[..ow],
         &scratch.count[..ow],
     );
-    for ((o, &s), &k) in out_row[..ow].iter_mut().zip(sum).zip(w) {
+    // SAFETY: `n8 > 0` only with a vectorized kernel (a multiple of 8), and
+    // every row buffer holds `ow >= n8` values. Its coverage (from the
+    // weights) is written again below, from the counts.
+    let start = match n8 {
+        0 => 0,
+        _ => unsafe { kernel.finish_row_gray(sum, w, out_row, cov_row, n8, 0, fill) }
+            .map_or(0, |_| n8),
+    };
+    for ((o, &s), &k) in out_row[start..ow]
+        .iter_mut()
+        .zip(&sum[start..])
+        .zip(&w[start..])
+    {
         *o = weighted_average(s, k, fill);
     }
     write_coverage(cov_row, n, full)

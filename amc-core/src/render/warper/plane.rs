@@ -53,7 +53,9 @@ impl Warper {
                         scratch.fit(n_frames, ow, pass.tables, merged.is_some());
                         if let Some(deghost) = merged {
                             w.merge_row(&pass, v, scratch, true, deghost);
-                            finish_merged_gray_row(scratch, out_row, cov_row, full, fill)
+                            finish_merged_gray_row(
+                                w.kernel, pass.n8, scratch, out_row, cov_row, full, fill,
+                            )
                         } else {
                             w.accumulate_row(&pass, None, v, scratch, true);
                             finish_gray_row(

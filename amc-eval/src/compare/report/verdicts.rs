@@ -7,6 +7,40 @@ use crate::compare::results::{ClipResult, MethodResult};
 pub(super) const CROP_TOLERANCE: f64 = 0.005;
 /// Speed factor our `stabilize` must have over vid.stab's two passes.
 pub(super) const SPEED_BAR: f64 = 5.0;
+/// Share of the peer's sharpness a method must keep for a win on frame change
+/// or normal flow to count: blur lowers both, and must not pass for stability.
+pub(super) const SHARPNESS_BAR: f64 = 0.95;
+
+/// Lower is better on these; `OrEqual`: a tie clears the bar too.
+#[derive(Clone, Copy, PartialEq)]
+enum Below {
+    Strictly,
+    OrEqual,
+}
+
+/// A bar on frame change or normal flow (`x` ours, `y` the peer's, lower is
+/// better), cleared only where ours also keeps [`SHARPNESS_BAR`] of the
+/// peer's sharpness.
+fn stability_bar(
+    what: String,
+    (ours, peer): (&MethodResult, &MethodResult),
+    (x, y): (f64, f64),
+    below: Below,
+    digits: usize,
+) -> Bar {
+    let (a, b) = (ours.measured.paper.sharpness, peer.measured.paper.sharpness);
+    let sharp = a >= SHARPNESS_BAR * b;
+    let lower = if below == Below::OrEqual {
+        x <= y
+    } else {
+        x < y
+    };
+    Bar {
+        what: format!("{what}, keeping >= {SHARPNESS_BAR} of its sharpness"),
+        cleared: lower && sharp,
+        detail: format!("{x:.digits$} vs {y:.digits$}; sharpness {a:.4} vs {b:.4}"),
+    }
+}
 
 /// One bar: what, ours, theirs, cleared.
 pub struct Bar {
@@ -30,11 +64,13 @@ pub fn bars(c: &ClipResult) -> Vec<Bar> {
             st.measured.rms_normal_flow_input_px,
             p.measured.rms_normal_flow_input_px,
         );
-        out.push(Bar {
-            what: format!("stabilize < {peer} on RMS normal flow (input px)"),
-            cleared: a < b,
-            detail: format!("{a:.3} vs {b:.3}"),
-        });
+        out.push(stability_bar(
+            format!("stabilize < {peer} on RMS normal flow (input px)"),
+            (st, p),
+            (a, b),
+            Below::Strictly,
+            3,
+        ));
         let (a, b) = (st.measured.distortion, p.measured.distortion);
         out.push(Bar {
             what: format!("stabilize >= {peer} on distortion (1 = none)"),
@@ -62,11 +98,13 @@ pub fn bars(c: &ClipResult) -> Vec<Bar> {
     }
     if let Some(t) = find(c, "vidstab-tripod") {
         let (a, b) = (sa.measured.paper.rms_change, t.measured.paper.rms_change);
-        out.push(Bar {
-            what: "saccade < vidstab-tripod on RMS frame change".into(),
-            cleared: a < b,
-            detail: format!("{a:.4} vs {b:.4}"),
-        });
+        out.push(stability_bar(
+            "saccade < vidstab-tripod on RMS frame change".into(),
+            (sa, t),
+            (a, b),
+            Below::Strictly,
+            4,
+        ));
     }
     out
 }
@@ -105,20 +143,24 @@ pub fn framing_bars(c: &ClipResult) -> Vec<Bar> {
             });
         }
         let (x, y) = (a.measured.paper.rms_change, p.measured.paper.rms_change);
-        out.push(Bar {
-            what: format!("{ours} <= {peer} on RMS frame change"),
-            cleared: x <= y,
-            detail: format!("{x:.4} vs {y:.4}"),
-        });
+        out.push(stability_bar(
+            format!("{ours} <= {peer} on RMS frame change"),
+            (a, p),
+            (x, y),
+            Below::OrEqual,
+            4,
+        ));
         let (x, y) = (
             a.measured.rms_normal_flow_input_px,
             p.measured.rms_normal_flow_input_px,
         );
-        out.push(Bar {
-            what: format!("{ours} <= {peer} on RMS normal flow (input px)"),
-            cleared: x <= y,
-            detail: format!("{x:.3} vs {y:.3}"),
-        });
+        out.push(stability_bar(
+            format!("{ours} <= {peer} on RMS normal flow (input px)"),
+            (a, p),
+            (x, y),
+            Below::OrEqual,
+            3,
+        ));
     }
     out
 }
