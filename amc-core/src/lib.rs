@@ -22,6 +22,7 @@ pub mod so3;
 
 pub use error::AmcError;
 pub mod frontend;
+pub mod gyro;
 pub mod metrics;
 pub mod minimize;
 pub mod options;

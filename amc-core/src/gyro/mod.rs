@@ -1,0 +1,211 @@
+//! A camera's gyro log, synchronized from the video itself.
+//!
+//! The tracker's estimate is drift-free against the picture; a gyro log is
+//! not synchronized with it (its clock starts seconds or minutes apart and
+//! runs at its own rate), sits in the IMU's axes (an FPV camera is tilted
+//! 20-40 deg on the flight controller) and carries a bias. All of that is
+//! found here by matching the log against the video's own frame-to-frame
+//! rotations, with nothing typed in:
+//! - `integrate.rs`: the log's running integral, so that any interval's
+//!   rotation is a difference of two interpolated values;
+//! - `offset.rs`: the time offset, first over the log's whole span by the
+//!   correlation of angular speeds (which no mounting changes), then to a
+//!   fraction of a millisecond by the fit's residual; and the clock drift from
+//!   the offsets of the clip's quarters;
+//! - `mount.rs`: the mounting (Wahba's problem, solved by SVD) and the bias,
+//!   robust to glitches (intervals where the gyro disagrees with the picture).
+//!
+//! Conventions: video time = log time + `offset_s`; `mount` takes IMU vectors
+//! into the camera frame (x right, y down, z forward); the bias is in the
+//! IMU's axes, rad/s.
+
+mod integrate;
+mod mount;
+mod offset;
+
+pub use integrate::GyroIntegral;
+pub use mount::{fit_mount, MountFit};
+pub use offset::{coarse_offset, refine_offset};
+
+use crate::so3::{self, Rot, Tangent};
+use nalgebra::Vector3;
+use thiserror::Error;
+
+/// A gyro log: sample times (seconds, the log's clock) and angular
+/// velocities (rad/s, the IMU's axes), times increasing.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GyroSamples {
+    /// Sample times, seconds (the log's clock).
+    pub t: Vec<f64>,
+    /// Angular velocities, rad/s, IMU axes.
+    pub w: Vec<Vector3<f64>>,
+}
+
+impl GyroSamples {
+    /// Mean sample rate, Hz (0 with fewer than two samples).
+    pub fn rate_hz(&self) -> f64 {
+        match (self.t.first(), self.t.last()) {
+            (Some(a), Some(b)) if b > a => (self.t.len() - 1) as f64 / (b - a),
+            _ => 0.0,
+        }
+    }
+}
+
+/// The video's own motion: the rotation from frame `j - 1` to frame `j`
+/// (`log(R_{0,j-1}^T R_{0,j})`, camera axes) over `[t0, t1]`, the frames'
+/// (mid-readout) times.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VisionStep {
+    /// Time of frame `j - 1`, seconds (video).
+    pub t0: f64,
+    /// Time of frame `j`, seconds.
+    pub t1: f64,
+    /// The rotation between them, camera axes, radians.
+    pub rotation: Tangent,
+}
+
+impl VisionStep {
+    /// The steps between consecutive frames of orientations `r` at times `t`.
+    pub fn from_orientations(t: &[f64], r: &[Rot]) -> Vec<VisionStep> {
+        t.windows(2)
+            .zip(r.windows(2))
+            .filter(|(t, _)| t[1] > t[0])
+            .map(|(t, r)| VisionStep {
+                t0: t[0],
+                t1: t[1],
+                rotation: so3::log(&(r[0].transpose() * r[1])),
+            })
+            .collect()
+    }
+}
+
+/// What the sync found.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GyroSync {
+    /// Video time = log time + `offset_s`, at the clip's first frame.
+    pub offset_s: f64,
+    /// How much faster the log's clock runs than the video's, parts per
+    /// million: the offset grows by `drift_ppm` microseconds per second of video.
+    pub drift_ppm: f64,
+    /// The rotation taking IMU vectors into the camera frame.
+    pub mount: Rot,
+    /// The gyro's bias, rad/s, in the IMU's axes.
+    pub bias: Vector3<f64>,
+    /// Frame intervals where the gyro disagrees with the picture (spikes,
+    /// saturation, dropouts) and that the fit left out.
+    pub glitches: usize,
+    /// RMS disagreement of the other intervals, rad/s.
+    pub residual_rad_s: f64,
+    /// The correlation of angular speeds at the offset found (1: the same).
+    pub correlation: f64,
+}
+
+impl GyroSync {
+    /// The mounting as a rotation vector, radians.
+    pub fn mount_rotvec(&self) -> Tangent {
+        so3::log(&self.mount)
+    }
+}
+
+/// Why a log cannot be synchronized.
+#[derive(Debug, Error, Clone, PartialEq)]
+#[allow(missing_docs)] // Each variant's message says what its fields are.
+pub enum GyroError {
+    /// Too short a log.
+    #[error("the gyro log has {samples} samples (at least {needed} are needed)")]
+    TooFewSamples { samples: usize, needed: usize },
+    /// Too short a clip.
+    #[error("the video has {steps} frame intervals with motion (at least {needed} are needed)")]
+    TooFewFrames { steps: usize, needed: usize },
+    /// The log cannot cover the clip at any offset.
+    #[error(
+        "the gyro log ({log_s:.1} s) is shorter than the video ({video_s:.1} s): it cannot cover it"
+    )]
+    LogTooShort { log_s: f64, video_s: f64 },
+    /// No offset makes the log's motion the video's.
+    #[error(
+        "the gyro log does not match the video's motion (speed correlation {correlation:.2} at \
+         best, below {needed}): another clip's log, or a camera that did not move"
+    )]
+    NoMatch { correlation: f64, needed: f64 },
+    /// A sample that is not a number, or out of order.
+    #[error("the gyro log has non-finite or unordered samples (at sample {index})")]
+    BadSamples { index: usize },
+}
+
+/// Lowest speed correlation accepted as a match.
+pub const MIN_CORRELATION: f64 = 0.5;
+const MIN_SAMPLES: usize = 50;
+const MIN_STEPS: usize = 20;
+
+/// Synchronizes `gyro` with the video's `steps`: the offset over the log's
+/// whole span, the clock drift, the mounting, the bias and the glitches.
+pub fn sync(gyro: &GyroSamples, steps: &[VisionStep]) -> Result<GyroSync, GyroError> {
+    if gyro.t.len() < MIN_SAMPLES || gyro.w.len() != gyro.t.len() {
+        return Err(GyroError::TooFewSamples {
+            samples: gyro.t.len().min(gyro.w.len()),
+            needed: MIN_SAMPLES,
+        });
+    }
+    if let Some(index) = (0..gyro.t.len()).find(|&i| {
+        !gyro.t[i].is_finite()
+            || gyro.w[i].iter().any(|v| !v.is_finite())
+            || (i > 0 && gyro.t[i] <= gyro.t[i - 1])
+    }) {
+        return Err(GyroError::BadSamples { index });
+    }
+    let steps: Vec<VisionStep> = steps
+        .iter()
+        .copied()
+        .filter(|s| s.rotation.iter().all(|v| v.is_finite()) && s.t1 > s.t0)
+        .collect();
+    if steps.len() < MIN_STEPS {
+        return Err(GyroError::TooFewFrames {
+            steps: steps.len(),
+            needed: MIN_STEPS,
+        });
+    }
+    let integral = GyroIntegral::new(gyro);
+    let video_s = steps[steps.len() - 1].t1 - steps[0].t0;
+    let log_s = integral.span().1 - integral.span().0;
+    if log_s < 0.9 * video_s {
+        return Err(GyroError::LogTooShort { log_s, video_s });
+    }
+    let candidates = coarse_offset(&integral, &steps);
+    let best_correlation = candidates.first().map_or(f64::NEG_INFINITY, |c| c.1);
+    if best_correlation < MIN_CORRELATION {
+        return Err(GyroError::NoMatch {
+            correlation: best_correlation,
+            needed: MIN_CORRELATION,
+        });
+    }
+    // Each good peak refined; the one the full fit (mounting and bias)
+    // explains best wins.
+    let (offset, fit, correlation) = candidates
+        .iter()
+        .filter(|c| c.1 >= MIN_CORRELATION)
+        .map(|&(coarse, correlation)| {
+            let offset = refine_offset(&integral, &steps, coarse, 0.03);
+            (offset, fit_mount(&integral, &steps, offset), correlation)
+        })
+        .min_by(|a, b| a.1.residual_rad_s.total_cmp(&b.1.residual_rad_s))
+        .expect("the best candidate passed");
+    // The drift: the offsets of the clip's quarters against their times.
+    let drift_ppm = offset::drift_ppm(&integral, &steps, offset);
+    let t_first = steps[0].t0;
+    let t_mid = 0.5 * (steps[0].t0 + steps[steps.len() - 1].t1);
+    // `offset` fits the clip as a whole (its middle); stated at its start.
+    let offset_s = offset - drift_ppm * 1e-6 * (t_mid - t_first);
+    Ok(GyroSync {
+        offset_s,
+        drift_ppm,
+        mount: fit.mount,
+        bias: fit.bias,
+        glitches: fit.glitches,
+        residual_rad_s: fit.residual_rad_s,
+        correlation,
+    })
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,225 @@
+//! The time offset between a gyro log and the video, and the drift of the
+//! two clocks.
+//!
+//! First over the log's whole span: at every offset on a [`COARSE_STEP`] grid
+//! where the log covers the clip, the correlation of the video's angular
+//! speed per frame interval with the gyro's over the same interval (a speed
+//! is the same in any axes, so the mounting does not matter yet). Logs can
+//! be minutes long, so the log's integral is first resampled on a uniform
+//! [`GRID_STEP`] grid, where an interval's rotation costs two lookups.
+//! Then to a fraction of a millisecond: the full fit's disagreement
+//! ([`fit_mount`]) on a millisecond grid around the best speed match, then a
+//! finer grid and the vertex of a parabola. The drift: the same refinement on
+//! each quarter of the clip, and the slope of their offsets in time.
+
+use super::{fit_mount, GyroIntegral, VisionStep};
+use nalgebra::Vector3;
+
+/// Offsets tried over the log's span, seconds.
+pub const COARSE_STEP: f64 = 0.002;
+/// Resampling step of the log's integral for the coarse search, seconds.
+const GRID_STEP: f64 = 0.0005;
+/// Share of the clip's frame intervals the log must cover at an offset.
+const MIN_COVER: f64 = 0.9;
+
+/// The log's integral on a uniform grid.
+struct UniformIntegral {
+    start: f64,
+    values: Vec<Vector3<f64>>,
+}
+
+impl UniformIntegral {
+    fn new(integral: &GyroIntegral) -> Self {
+        let (a, b) = integral.span();
+        let n = ((b - a) / GRID_STEP).floor() as usize + 1;
+        let values = (0..n)
+            .map(|i| integral.at(a + i as f64 * GRID_STEP).unwrap_or_default())
+            .collect();
+        Self { start: a, values }
+    }
+
+    fn at(&self, t: f64) -> Option<Vector3<f64>> {
+        let x = (t - self.start) / GRID_STEP;
+        if x < 0.0 {
+            return None;
+        }
+        let i = x.floor() as usize;
+        let f = x - i as f64;
+        let (a, b) = (self.values.get(i)?, self.values.get(i + 1)?);
+        Some(a + (b - a) * f)
+    }
+}
+
+/// Pearson correlation of two series.
+fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len() as f64;
+    if a.len() < 3 {
+        return f64::NEG_INFINITY;
+    }
+    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        let (dx, dy) = (x - ma, y - mb);
+        sab += dx * dy;
+        saa += dx * dx;
+        sbb += dy * dy;
+    }
+    if saa <= 0.0 || sbb <= 0.0 {
+        return f64::NEG_INFINITY;
+    }
+    sab / (saa * sbb).sqrt()
+}
+
+/// The offsets (video time = log time + offset) whose gyro speeds correlate
+/// best with the video's, searched over every offset at which the log covers
+/// the clip: the [`CANDIDATES`] highest peaks (at least [`PEAK_GAP`] apart),
+/// best first, with their correlations. Speeds alone cannot tell a motion
+/// from its mirror image, so the full fit chooses among them.
+pub fn coarse_offset(integral: &GyroIntegral, steps: &[VisionStep]) -> Vec<(f64, f64)> {
+    let grid = UniformIntegral::new(integral);
+    let (log0, log1) = integral.span();
+    let (v0, v1) = (steps[0].t0, steps[steps.len() - 1].t1);
+    let video: Vec<f64> = steps
+        .iter()
+        .map(|s| s.rotation.norm() / (s.t1 - s.t0))
+        .collect();
+    // A gyro speed far above what the video saw is a glitch: clamped, so
+    // that one spike does not decide the correlation.
+    let mut sorted = video.clone();
+    sorted.sort_by(f64::total_cmp);
+    let cap = 1.2 * sorted[(sorted.len() * 99 / 100).min(sorted.len() - 1)] + 0.05;
+    // Offsets with the log covering the clip: log0 <= v0 - o, v1 - o <= log1,
+    // widened by the share that may be left uncovered.
+    let slack = (1.0 - MIN_COVER) * (v1 - v0);
+    let (lo, hi) = (v1 - log1 - slack, v0 - log0 + slack);
+    let mut scores: Vec<(f64, f64)> = Vec::new();
+    let (mut a, mut b) = (
+        Vec::with_capacity(steps.len()),
+        Vec::with_capacity(steps.len()),
+    );
+    let mut k = 0;
+    loop {
+        let o = lo + k as f64 * COARSE_STEP;
+        if o > hi {
+            break;
+        }
+        k += 1;
+        a.clear();
+        b.clear();
+        for (s, v) in steps.iter().zip(&video) {
+            if let (Some(w0), Some(w1)) = (grid.at(s.t0 - o), grid.at(s.t1 - o)) {
+                a.push(*v);
+                b.push(((w1 - w0).norm() / (s.t1 - s.t0)).min(cap));
+            }
+        }
+        let c = if (a.len() as f64) < MIN_COVER * steps.len() as f64 {
+            f64::NEG_INFINITY
+        } else {
+            correlation(&a, &b)
+        };
+        scores.push((o, c));
+    }
+    // Local maxima, highest first, kept apart.
+    let mut peaks: Vec<(f64, f64)> = (0..scores.len())
+        .filter(|&i| {
+            let c = scores[i].1;
+            c.is_finite()
+                && (i == 0 || scores[i - 1].1 <= c)
+                && (i + 1 == scores.len() || scores[i + 1].1 < c)
+        })
+        .map(|i| scores[i])
+        .collect();
+    peaks.sort_by(|x, y| y.1.total_cmp(&x.1));
+    let mut chosen: Vec<(f64, f64)> = Vec::new();
+    for p in peaks {
+        if chosen.len() == CANDIDATES {
+            break;
+        }
+        if chosen.iter().all(|q| (q.0 - p.0).abs() >= PEAK_GAP) {
+            chosen.push(p);
+        }
+    }
+    chosen
+}
+
+/// Correlation peaks the full fit chooses among.
+pub const CANDIDATES: usize = 4;
+/// Least distance between two candidate offsets, seconds.
+const PEAK_GAP: f64 = 0.05;
+
+/// The offset within `window` seconds of `around` where the full fit
+/// disagrees least: a millisecond grid, then a tenth of one, then the vertex
+/// of the parabola through the best and its neighbours.
+pub fn refine_offset(
+    integral: &GyroIntegral,
+    steps: &[VisionStep],
+    around: f64,
+    window: f64,
+) -> f64 {
+    let cost = |o: f64| {
+        let fit = fit_mount(integral, steps, o);
+        let kept = fit.covered - fit.glitches;
+        if (kept as f64) < MIN_COVER * 0.5 * steps.len() as f64 {
+            f64::INFINITY
+        } else {
+            fit.cost / kept as f64
+        }
+    };
+    let mut best = around;
+    for (half, step) in [(window, 0.001), (0.0015, 0.0001)] {
+        let n = (half / step).round() as i64;
+        let center = best;
+        let mut best_cost = f64::INFINITY;
+        for i in -n..=n {
+            let o = center + i as f64 * step;
+            let c = cost(o);
+            if c < best_cost {
+                best_cost = c;
+                best = o;
+            }
+        }
+        if half < window {
+            // Sub-grid: the parabola through the best and its neighbours.
+            let (cm, c0, cp) = (cost(best - step), best_cost, cost(best + step));
+            let den = cm - 2.0 * c0 + cp;
+            if den > 0.0 && cm.is_finite() && cp.is_finite() {
+                best += 0.5 * step * (cm - cp) / den;
+            }
+        }
+    }
+    best
+}
+
+/// The clocks' drift, parts per million: the offsets of the clip's quarters
+/// (each refined around `offset`) against their middle times; 0 when the
+/// quarters are too short to tell.
+pub fn drift_ppm(integral: &GyroIntegral, steps: &[VisionStep], offset: f64) -> f64 {
+    const PARTS: usize = 4;
+    let n = steps.len() / PARTS;
+    if n < 20 {
+        return 0.0;
+    }
+    let points: Vec<(f64, f64)> = steps
+        .chunks(n)
+        .take(PARTS)
+        .map(|part| {
+            let mid = 0.5 * (part[0].t0 + part[part.len() - 1].t1);
+            (mid, refine_offset(integral, part, offset, 0.003))
+        })
+        .collect();
+    let m = points.len() as f64;
+    let (mt, mo) = (
+        points.iter().map(|p| p.0).sum::<f64>() / m,
+        points.iter().map(|p| p.1).sum::<f64>() / m,
+    );
+    let (mut num, mut den) = (0.0, 0.0);
+    for (t, o) in &points {
+        num += (t - mt) * (o - mo);
+        den += (t - mt) * (t - mt);
+    }
+    if den > 0.0 {
+        num / den * 1e6
+    } else {
+        0.0
+    }
+}

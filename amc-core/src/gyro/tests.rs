@@ -1,0 +1,174 @@
+//! Recovery of a known offset, mounting, bias and drift from a simulated log.
+
+use super::*;
+use crate::so3::{exp, Rot};
+
+/// A smooth shake: body angular velocity (camera axes, rad/s) at `t`, about
+/// `dps` deg/s RMS, several incommensurate frequencies on each axis.
+fn omega(t: f64, dps: f64) -> Vector3<f64> {
+    let a = dps.to_radians() / 1.2;
+    let f = |k: f64, p: f64| (2.0 * std::f64::consts::PI * k * t + p).sin();
+    Vector3::new(
+        a * (0.8 * f(3.13, 0.0) + 0.5 * f(7.37, 1.0) + 0.3 * f(13.71, 2.0)),
+        a * (0.7 * f(2.29, 0.5) + 0.6 * f(9.17, 1.5) + 0.3 * f(17.93, 0.2)),
+        a * (0.5 * f(1.71, 0.9) + 0.4 * f(5.93, 2.5) + 0.2 * f(11.37, 1.1)),
+    )
+}
+
+/// The camera's orientations at `fps` for `seconds`, integrated finely.
+fn video(fps: f64, seconds: f64, dps: f64) -> Vec<VisionStep> {
+    let n = (fps * seconds) as usize;
+    let sub = 40;
+    let mut r = Rot::identity();
+    let (mut ts, mut rs) = (vec![0.0], vec![r]);
+    for j in 1..=n {
+        for k in 0..sub {
+            let dt = 1.0 / fps / sub as f64;
+            let t = (j - 1) as f64 / fps + (k as f64 + 0.5) * dt;
+            r *= exp(&(omega(t, dps) * dt));
+        }
+        ts.push(j as f64 / fps);
+        rs.push(r);
+    }
+    VisionStep::from_orientations(&ts, &rs)
+}
+
+struct LogSpec {
+    offset: f64,
+    mount: Rot,
+    bias: Vector3<f64>,
+    rate: f64,
+    noise: f64,
+    /// Log seconds before the video starts and after it ends.
+    before: f64,
+    after: f64,
+    drift_ppm: f64,
+    /// A spike of this many rad/s on x over `glitch.1..glitch.1 + glitch.2` (video time).
+    glitch: Option<(f64, f64, f64)>,
+}
+
+/// The log of the motion of [`video`]: log time = (video time - offset) /
+/// (1 + drift), IMU axes, bias, deterministic "noise".
+fn log(spec: &LogSpec, seconds: f64, dps: f64) -> GyroSamples {
+    let mut out = GyroSamples::default();
+    let n = ((seconds + spec.before + spec.after) * spec.rate) as usize;
+    let mut seed = 12345u64;
+    let mut noise = || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0 * 3f64.sqrt()
+    };
+    for i in 0..n {
+        let video_t = -spec.before + i as f64 / spec.rate;
+        let log_t = (video_t - spec.offset) / (1.0 + spec.drift_ppm * 1e-6);
+        let mut w = spec.mount.transpose() * omega(video_t, dps) + spec.bias;
+        w += Vector3::new(noise(), noise(), noise()) * spec.noise;
+        if let Some((amp, from, len)) = spec.glitch {
+            if (from..from + len).contains(&video_t) {
+                w.x += amp;
+            }
+        }
+        out.t.push(log_t);
+        out.w.push(w);
+    }
+    out
+}
+
+fn spec() -> LogSpec {
+    LogSpec {
+        offset: 3.2731,
+        // An FPV camera tilted up 30 deg about x, turned a little.
+        mount: exp(&Vector3::new(30f64.to_radians(), 0.05, -0.08)),
+        bias: Vector3::new(0.01, -0.02, 0.005),
+        rate: 1000.0,
+        noise: 0.01,
+        before: 5.0,
+        after: 2.0,
+        drift_ppm: 0.0,
+        glitch: None,
+    }
+}
+
+fn angle_deg(a: &Rot, b: &Rot) -> f64 {
+    crate::so3::log(&(a.transpose() * b)).norm().to_degrees()
+}
+
+#[test]
+fn offset_mounting_and_bias_come_back() {
+    for dps in [100.0, 300.0] {
+        let s = spec();
+        let steps = video(60.0, 8.0, dps);
+        let got = sync(&log(&s, 8.0, dps), &steps).unwrap();
+        let err_ms = (got.offset_s - s.offset) * 1e3;
+        let mount_deg = angle_deg(&got.mount, &s.mount);
+        assert!(
+            err_ms.abs() < 0.5,
+            "{dps} deg/s: offset off by {err_ms:.3} ms"
+        );
+        assert!(
+            mount_deg < 0.3,
+            "{dps} deg/s: mounting off by {mount_deg:.3} deg"
+        );
+        assert!((got.bias - s.bias).norm() < 0.003, "bias {:?}", got.bias);
+        assert!(got.correlation > 0.9, "{}", got.correlation);
+        assert_eq!(got.glitches, 0);
+    }
+}
+
+#[test]
+fn a_glitch_is_found_and_left_out() {
+    let mut s = spec();
+    s.glitch = Some((8.0, 4.0, 0.02));
+    let steps = video(60.0, 8.0, 200.0);
+    let got = sync(&log(&s, 8.0, 200.0), &steps).unwrap();
+    assert!((got.offset_s - s.offset).abs() < 0.0005, "{}", got.offset_s);
+    assert!(angle_deg(&got.mount, &s.mount) < 0.3);
+    assert!((1..=4).contains(&got.glitches), "{} glitches", got.glitches);
+}
+
+#[test]
+fn the_drift_of_the_clocks_comes_back() {
+    let mut s = spec();
+    s.drift_ppm = 400.0;
+    let steps = video(60.0, 20.0, 150.0);
+    let got = sync(&log(&s, 20.0, 150.0), &steps).unwrap();
+    assert!(
+        (got.drift_ppm - 400.0).abs() < 60.0,
+        "{} ppm",
+        got.drift_ppm
+    );
+    // At the clip's first frame (video time 0, log time -offset / (1 + drift)),
+    // video time = log time + offset / (1 + drift).
+    let at_start = s.offset / (1.0 + s.drift_ppm * 1e-6);
+    assert!(
+        (got.offset_s - at_start).abs() < 0.0005,
+        "{} against {at_start}",
+        got.offset_s
+    );
+}
+
+#[test]
+fn a_log_of_other_motion_is_refused() {
+    let s = spec();
+    let steps = video(60.0, 8.0, 200.0);
+    let mut other = log(&s, 8.0, 200.0);
+    // Another clip's log: motion of the same kind, at other frequencies.
+    other.w = other
+        .t
+        .iter()
+        .map(|&t| omega(2.3 * t + 40.0, 200.0))
+        .collect();
+    assert!(matches!(
+        sync(&other, &steps),
+        Err(GyroError::NoMatch { .. })
+    ));
+    let short = GyroSamples {
+        t: other.t[..1000].to_vec(),
+        w: other.w[..1000].to_vec(),
+    };
+    assert!(matches!(
+        sync(&short, &steps),
+        Err(GyroError::LogTooShort { .. })
+    ));
+}
