@@ -13,6 +13,9 @@ pub enum CliError {
     /// A run over a clip.
     #[error(transparent)]
     Run(#[from] engine::RunError),
+    /// A gyro log that cannot be read (`--gyro FILE`).
+    #[error(transparent)]
+    Gyro(#[from] engine::gyro::GyroLogError),
     /// Video input or output outside a run (writing `--metrics`).
     #[error(transparent)]
     Video(#[from] amc_video::VideoError),

@@ -143,6 +143,12 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         None,
     )?;
     say_resolved(&resolved, args.quiet);
+    // The gyro log is read before the run: a file that cannot be read fails now.
+    let gyro_log = match &args.gyro {
+        engine::gyro::GyroChoice::Off => None,
+        engine::gyro::GyroChoice::Auto => engine::gyro::clip_gyro(&input.frames),
+        engine::gyro::GyroChoice::File(p) => Some(engine::gyro::read_gyro_log(p)?),
+    };
     let also: Vec<(&'static str, &std::path::Path)> = args
         .metrics
         .iter()
@@ -160,13 +166,33 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         fps,
         timeout,
         crf: args.crf,
-        keep_per_frame: false,
+        keep_per_frame: gyro_log.is_some(),
         measure: args.metrics.is_some(),
         control: Some(control),
         progress: Some(&report),
         threads: args.run.input.threads(),
     })?;
     bar.finish();
+    let gyro = gyro_log.and_then(|log| {
+        let (t, r): (Vec<f64>, Vec<[f64; 3]>) = run
+            .per_frame
+            .iter()
+            .map(|f| (f.telemetry.t, f.telemetry.r_est))
+            .unzip();
+        match engine::gyro::sync_log(&log, &t, &r) {
+            Ok(report) => {
+                if !args.quiet {
+                    eprintln!("{}", report.line());
+                }
+                Some(report)
+            }
+            Err(e) => {
+                // The output stands on the video alone: a warning, not a failure.
+                eprintln!("warning: {e}; the output uses the video alone");
+                None
+            }
+        }
+    });
     if run.looks_truncated() {
         eprintln!(
             "warning: {} declares {} frames but only {} could be decoded: the file looks truncated or damaged",
@@ -176,8 +202,15 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         );
     }
     if let Some(p) = &args.metrics {
-        let json = serde_json::to_string_pretty(&run).expect("a run summary is plain data");
-        amc_video::write_atomic(p, json.as_bytes())?;
+        let mut json = serde_json::to_value(&run).expect("a run summary is plain data");
+        if let (Some(g), Some(map)) = (&gyro, json.as_object_mut()) {
+            map.insert(
+                "gyro".into(),
+                serde_json::to_value(g).expect("a gyro report is plain data"),
+            );
+        }
+        let text = serde_json::to_string_pretty(&json).expect("plain data");
+        amc_video::write_atomic(p, text.as_bytes())?;
     }
     if !args.quiet {
         let mut line = format!(
@@ -190,9 +223,10 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         );
         if let Some(m) = &run.metrics {
             line += &format!(
-                ": normal flow {:.3} px, frame change {:.4}, valid {:.1}%, view {:.1} deg/s vs camera {:.1} deg/s",
+                ": normal flow {:.3} px, frame change {:.4}, sharpness {:.4}, valid {:.1}%, view {:.1} deg/s vs camera {:.1} deg/s",
                 m.rms_normal_flow,
                 m.rms_change,
+                m.sharpness,
                 100.0 * m.valid_fraction,
                 m.rms_speed_view_dps,
                 m.rms_speed_est_dps

@@ -8,6 +8,7 @@
 
 mod control;
 mod error;
+pub mod gyro;
 mod lens;
 mod measure;
 mod passes;

@@ -12,3 +12,4 @@ pub mod eval;
 pub mod gt;
 pub mod plot;
 pub mod synth;
+pub mod synth_gyro;

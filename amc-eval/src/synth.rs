@@ -77,6 +77,9 @@ pub struct SynthConfig {
 
     /// Anti-aliasing: N x N rays per output pixel.
     pub supersample: usize,
+
+    /// A gyro log of the clip's motion (`gyro.gcsv`), recorded as this says.
+    pub gyro: Option<crate::synth_gyro::GyroLogConfig>,
 }
 
 /// Why a clip could not be rendered.
@@ -432,6 +435,9 @@ pub fn run(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<String, SynthError> {
     let plan = plan(args)?;
+    if let Some(g) = &args.gyro {
+        g.validate()?;
+    }
     check_output(&args.output)?;
     let pano_full = load_panorama(&args.panorama)?;
     let factor = pano_downsample_factor(pano_full.width, &plan.camera);
@@ -465,6 +471,9 @@ pub fn run(
         amc_video::FOLDER_META,
         format!("{{\"fps\": {}}}\n", args.fps),
     )?;
+    if let Some(g) = &args.gyro {
+        write(crate::synth_gyro::GYRO_LOG, g.gcsv(&shake, args.seconds))?;
+    }
     out.persist()?;
 
     let lens = match args.fisheye {
@@ -476,8 +485,13 @@ pub fn run(
     } else {
         String::new()
     };
+    let gyro = if args.gyro.is_some() {
+        ", gyro.gcsv"
+    } else {
+        ""
+    };
     Ok(format!(
-        "wrote {} frames of {}x{} ({lens}, {} deg hfov, {} fps, shake {} deg/s in {}-{} Hz{rs}) with gt.csv, lens.json and meta.json to {}",
+        "wrote {} frames of {}x{} ({lens}, {} deg hfov, {} fps, shake {} deg/s in {}-{} Hz{rs}) with gt.csv, lens.json{gyro} and meta.json to {}",
         plan.frames,
         args.width,
         args.height,
@@ -509,6 +523,7 @@ impl SynthConfig {
             pan_dps: 0.0,
             rolling_shutter_ms: 0.0,
             supersample: 2,
+            gyro: None,
         }
     }
 }

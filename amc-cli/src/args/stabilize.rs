@@ -18,6 +18,14 @@ pub struct StabilizeArgs {
     /// Write per-frame telemetry (CSV: frame,t,rx,ry,rz,vx,vy,vz,...).
     #[arg(long, value_name = "FILE.csv")]
     pub telemetry: Option<PathBuf>,
+    /// The camera's gyro log: auto (the clip's own IMU track when it has one:
+    /// GoPro, Sony, DJI, Insta360), off, or a log file (Gyroflow .gcsv,
+    /// Betaflight/ArduPilot logs, phone-app logs, or a CSV of a time column in
+    /// seconds and three rates in rad/s). It is synchronized from the video
+    /// itself (offset over the log's whole span, clock drift, mounting, bias,
+    /// glitches) and reported in one line and in --metrics ("gyro").
+    #[arg(long, default_value = "auto", value_name = "auto|off|FILE")]
+    pub gyro: amc_engine::gyro::GyroChoice,
     /// Write the clip's metrics (JSON).
     #[arg(long, value_name = "FILE.json")]
     pub metrics: Option<PathBuf>,

@@ -85,6 +85,34 @@ pub struct SynthArgs {
     /// Anti-aliasing: N x N rays per output pixel.
     #[arg(long, default_value_t = 2, value_name = "N")]
     pub supersample: usize,
+    /// Also write gyro.gcsv (Gyroflow's format): the clip's motion as an IMU
+    /// records it, this many samples per second (0: no log).
+    #[arg(long, default_value_t = 0.0, value_name = "HZ")]
+    pub gyro_rate_hz: f64,
+    /// Video time of the log's first sample, seconds (video = log + offset).
+    #[arg(long, default_value_t = -2.0, allow_negative_numbers = true, value_name = "S")]
+    pub gyro_offset_s: f64,
+    /// The log's clock against the video's, parts per million.
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        allow_negative_numbers = true,
+        value_name = "PPM"
+    )]
+    pub gyro_drift_ppm: f64,
+    /// The IMU's mounting: the rotation vector (radians) taking IMU vectors
+    /// into the camera frame (x right, y down, z forward).
+    #[arg(long, default_value = "0,0,0", value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub gyro_mount_rotvec: [f64; 3],
+    /// The gyro's bias, rad/s in the IMU's axes.
+    #[arg(long, default_value = "0,0,0", value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub gyro_bias: [f64; 3],
+    /// White noise on each axis, rad/s (standard deviation).
+    #[arg(long, default_value_t = 0.0, value_name = "RAD_S")]
+    pub gyro_noise: f64,
+    /// A glitch: from video time START for LEN seconds, AMP rad/s added to the x axis.
+    #[arg(long, value_name = "START,LEN,AMP", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub gyro_glitch: Option<[f64; 3]>,
 }
 
 impl SynthArgs {
@@ -105,6 +133,29 @@ impl SynthArgs {
             pan_dps: self.pan_dps,
             rolling_shutter_ms: self.rolling_shutter_ms,
             supersample: self.supersample,
+            gyro: (self.gyro_rate_hz > 0.0).then(|| amc_eval::synth_gyro::GyroLogConfig {
+                rate_hz: self.gyro_rate_hz,
+                offset_s: self.gyro_offset_s,
+                drift_ppm: self.gyro_drift_ppm,
+                mount_rotvec: self.gyro_mount_rotvec,
+                bias: self.gyro_bias,
+                noise: self.gyro_noise,
+                glitch: self.gyro_glitch.map(|g| (g[0], g[1], g[2])),
+                ..Default::default()
+            }),
         }
+    }
+}
+
+/// `X,Y,Z`: three finite numbers.
+fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{s:?}: {e}"))?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([x, y, z]),
+        _ => Err(format!("{s:?}: three finite numbers separated by commas")),
     }
 }

@@ -135,6 +135,8 @@ pub enum GyroError {
 
 /// Lowest speed correlation accepted as a match.
 pub const MIN_CORRELATION: f64 = 0.5;
+/// Correlation peaks within this of the best are told apart by the full fit.
+const TIE: f64 = 0.05;
 const MIN_SAMPLES: usize = 50;
 const MIN_STEPS: usize = 20;
 
@@ -179,11 +181,12 @@ pub fn sync(gyro: &GyroSamples, steps: &[VisionStep]) -> Result<GyroSync, GyroEr
             needed: MIN_CORRELATION,
         });
     }
-    // Each good peak refined; the one the full fit (mounting and bias)
-    // explains best wins.
+    // The peaks nearly as good as the best (speeds alone cannot tell a
+    // motion from its mirror image) refined; the one the full fit (mounting
+    // and bias) explains best wins.
     let (offset, fit, correlation) = candidates
         .iter()
-        .filter(|c| c.1 >= MIN_CORRELATION)
+        .filter(|c| c.1 >= MIN_CORRELATION && c.1 >= best_correlation - TIE)
         .map(|&(coarse, correlation)| {
             let offset = refine_offset(&integral, &steps, coarse, 0.03);
             (offset, fit_mount(&integral, &steps, offset), correlation)

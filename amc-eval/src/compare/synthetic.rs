@@ -102,6 +102,7 @@ pub fn render(
         pan_dps: 0.0,
         rolling_shutter_ms: if seq.rolling_shutter { READOUT_MS } else { 0.0 },
         supersample: 2,
+        gyro: None,
     };
     synth::run(&synth, &|_, _| {})?;
     if !seq.rolling_shutter {

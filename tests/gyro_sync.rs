@@ -1,0 +1,207 @@
+//! `amc stabilize --gyro`: a gyro log synchronized from the video itself, with
+//! nothing typed in. Synthetic clips whose `gyro.gcsv` (`amc synth`) states
+//! the truth: offset, mounting (an FPV camera's up-tilt, turned), bias, noise
+//! and a glitch, global and rolling shutter, 100 and 300 deg/s. Real footage:
+//! cc9's phone gyro (`gyro.txt`: the data README's offset and axis mapping
+//! must come out by themselves) and karma.mp4's own GoPro track (`--gyro auto`).
+
+use amc_e2e::*;
+use serde_json::Value;
+use std::path::Path;
+
+/// `amc stabilize ARGS --metrics`: the metrics JSON and stderr.
+fn stabilize(args: &[String], dir: &Path) -> (Value, String) {
+    let metrics = dir.join("metrics.json");
+    let mut all = vec![
+        "stabilize".to_string(),
+        "-o".into(),
+        s(&dir.join("out.y4m")),
+        "--metrics".into(),
+        s(&metrics),
+    ];
+    all.extend(args.iter().cloned());
+    let r = amc_ok(&all);
+    (read_json(&metrics), r.stderr)
+}
+
+/// The angle between two rotations given as rotation vectors, degrees.
+fn angle_between(a: [f64; 3], b: [f64; 3]) -> f64 {
+    use nalgebra::{Rotation3, Vector3};
+    let (ra, rb) = (
+        Rotation3::new(Vector3::from(a)),
+        Rotation3::new(Vector3::from(b)),
+    );
+    (ra.transpose() * rb).angle().to_degrees()
+}
+
+fn vec3(v: &Value) -> [f64; 3] {
+    let a = v.as_array().expect("an array of three");
+    [0, 1, 2].map(|i| a[i].as_f64().unwrap())
+}
+
+/// A clip with its log, synchronized; the truths checked.
+fn synthetic(dps: &str, readout_ms: &str, glitch: bool) {
+    let dir = tempfile::tempdir().unwrap();
+    let clip = dir.path().join("clip");
+    let (offset, mount, bias) = (-4.3721, [0.52, -0.08, 0.15], [0.02, -0.015, 0.01]);
+    let mut args = vec![
+        "--width",
+        "640",
+        "--height",
+        "360",
+        "--seconds",
+        "5",
+        "--seed",
+        "8",
+        "--shake-dps",
+        dps,
+        "--rolling-shutter-ms",
+        readout_ms,
+        "--gyro-rate-hz",
+        "1000",
+        "--gyro-offset-s",
+        "-4.3721",
+        "--gyro-mount-rotvec",
+        "0.52,-0.08,0.15",
+        "--gyro-bias",
+        "0.02,-0.015,0.01",
+        "--gyro-noise",
+        "0.03",
+    ];
+    if glitch {
+        // 30 ms of 8 rad/s (460 deg/s) on one axis.
+        args.extend(["--gyro-glitch", "2.5,0.03,8"]);
+    }
+    synth(&clip, &args);
+    let (m, stderr) = stabilize(
+        &[s(&clip), "--gyro".into(), s(&clip.join("gyro.gcsv"))],
+        dir.path(),
+    );
+    let g = &m["gyro"];
+    let offset_ms = (json_f64(g, "/offset_s") - offset) * 1e3;
+    let mount_deg = angle_between(vec3(&g["mount_rotvec"]), mount);
+    let bias_err = vec3(&g["bias_rad_s"])
+        .iter()
+        .zip(bias)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    eprintln!(
+        "{dps} deg/s, readout {readout_ms} ms{}: offset off by {offset_ms:.3} ms, mounting by {mount_deg:.3} deg, bias by {bias_err:.4} rad/s, {} glitches",
+        if glitch { ", glitch" } else { "" },
+        g["glitches"]
+    );
+    assert!(stderr.contains("gyro: amc-synth"), "{stderr}");
+    assert!(offset_ms.abs() < 1.0, "offset off by {offset_ms:.3} ms");
+    assert!(mount_deg < 0.5, "mounting off by {mount_deg:.3} deg");
+    assert!(bias_err < 0.01, "bias off by {bias_err:.4} rad/s");
+    assert_eq!(g["log_time"], "the log's first sample");
+    if glitch {
+        assert!(
+            json_f64(g, "/glitches") >= 1.0,
+            "the glitch was not found: {g}"
+        );
+    }
+}
+
+#[test]
+fn global_shutter_100_dps() {
+    synthetic("100", "0", false);
+}
+
+#[test]
+fn rolling_shutter_300_dps_with_a_glitch() {
+    synthetic("300", "16", true);
+}
+
+#[test]
+fn cc9_offset_and_axis_mapping_come_out_of_the_sync() {
+    let dir = tempfile::tempdir().unwrap();
+    let (m, _) = stabilize(
+        &[
+            s(&data("cc9/frames")),
+            "--fps".into(),
+            "30".into(),
+            "--lens".into(),
+            s(&data("cc9/lens.json")),
+            "--gyro".into(),
+            s(&data("cc9/gyro.txt")),
+        ],
+        dir.path(),
+    );
+    let g = &m["gyro"];
+    // The folder starts at RE_frame-99: line 99 of framestamp.txt; the data
+    // README aligns the gyro once 0.022 s is added to its timestamps.
+    let stamps = std::fs::read_to_string(data("cc9/framestamp.txt")).unwrap();
+    let first: f64 = stamps.lines().nth(99).unwrap().trim().parse().unwrap();
+    let readme_offset = 0.022 - first;
+    let off_ms = (json_f64(g, "/offset_s") - readme_offset) * 1e3;
+    // The README's mapping: camera rates (-wy, -wx, -wz) of the gyro's, a
+    // half turn about (1, -1, 0) / sqrt 2.
+    let h = std::f64::consts::PI / 2f64.sqrt();
+    let mount_deg = angle_between(vec3(&g["mount_rotvec"]), [h, -h, 0.0]);
+    eprintln!("cc9: offset {off_ms:.2} ms from the README's, mounting {mount_deg:.2} deg from its axis mapping: {g}");
+    assert!(
+        off_ms.abs() < 3.0,
+        "offset {off_ms:.2} ms from the README's"
+    );
+    // The README's mapping is an axis swap; the phone's IMU sits a few degrees off it.
+    assert!(
+        mount_deg < 8.0,
+        "mounting {mount_deg:.2} deg from the README's"
+    );
+}
+
+#[test]
+fn karma_uses_its_own_gopro_track_by_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let (m, stderr) = stabilize(
+        &[s(&data("karma/karma.mp4")), "--fov".into(), "90".into()],
+        dir.path(),
+    );
+    let g = &m["gyro"];
+    eprintln!("karma: {g}");
+    assert!(stderr.contains("gyro: GoPro"), "{stderr}");
+    assert!(json_f64(g, "/samples") > 4000.0);
+    assert!((json_f64(g, "/rate_hz") - 400.0).abs() < 20.0, "{g}");
+    // Its lens given (a gimbal leaves little rotation, and a wrong focal
+    // length bends what there is), the log's speeds follow the video's.
+    assert!(json_f64(g, "/correlation") > 0.9, "{g}");
+    // The GPMF track starts with the video: tens of milliseconds apart.
+    assert!(json_f64(g, "/offset_s").abs() < 0.1, "{g}");
+    // Off: no gyro.
+    let (m, _) = stabilize(
+        &[
+            s(&data("karma/karma.mp4")),
+            "--fov".into(),
+            "90".into(),
+            "--gyro".into(),
+            "off".into(),
+        ],
+        dir.path(),
+    );
+    assert!(m.get("gyro").is_none());
+}
+
+#[test]
+fn a_gyro_log_that_cannot_be_read_is_refused_before_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("log.gcsv");
+    std::fs::write(&bad, "not a log\n1,2\n").unwrap();
+    for (log, says) in [
+        (dir.path().join("missing.gcsv"), "missing.gcsv"),
+        (bad.clone(), "no gyro log telemetry-parser knows"),
+    ] {
+        let r = run_amc(&[
+            "stabilize".to_string(),
+            s(&data("cup/cup.mp4")),
+            "-o".into(),
+            s(&dir.path().join("o.y4m")),
+            "--gyro".into(),
+            s(&log),
+        ]);
+        assert_eq!(r.code, Some(1), "{}", r.stderr);
+        assert!(r.stderr.contains(says), "{}", r.stderr);
+        assert!(!dir.path().join("o.y4m").exists());
+    }
+}
