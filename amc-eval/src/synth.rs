@@ -436,7 +436,10 @@ pub fn run(
 ) -> Result<String, SynthError> {
     let plan = plan(args)?;
     if let Some(g) = &args.gyro {
-        g.validate()?;
+        g.validate().map_err(|e| SynthError::Invalid {
+            option: e.option,
+            detail: e.detail,
+        })?;
     }
     check_output(&args.output)?;
     let pano_full = load_panorama(&args.panorama)?;

@@ -11,7 +11,6 @@
 //! `mount^T omega(t) + bias + noise`, `omega` the shake's body rate (camera
 //! axes, mid-readout time as everywhere), plus the glitch where it is.
 
-use crate::synth::SynthError;
 use amc_synth::Shake;
 use nalgebra::Vector3;
 use std::fmt::Write as _;
@@ -53,14 +52,24 @@ impl Default for GyroLogConfig {
     }
 }
 
+/// A setting outside its range: the flag, and the value with what is allowed.
+#[derive(Debug, thiserror::Error)]
+#[error("{detail}")]
+pub struct GyroLogInvalid {
+    /// The setting's CLI flag without dashes.
+    pub option: &'static str,
+    /// The value, what is allowed.
+    pub detail: String,
+}
+
 /// File name of the log in the clip's folder.
 pub const GYRO_LOG: &str = "gyro.gcsv";
 
 impl GyroLogConfig {
     /// Checks the settings (flag names as the CLI's).
-    pub fn validate(&self) -> Result<(), SynthError> {
+    pub fn validate(&self) -> Result<(), GyroLogInvalid> {
         let bad =
-            |option: &'static str, detail: String| Err(SynthError::Invalid { option, detail });
+            |option: &'static str, detail: String| Err(GyroLogInvalid { option, detail });
         if !(self.rate_hz.is_finite() && (50.0..=20_000.0).contains(&self.rate_hz)) {
             return bad(
                 "gyro-rate-hz",

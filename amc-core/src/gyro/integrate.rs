@@ -4,7 +4,7 @@
 //! rotation vectors is exact for a fixed axis and, over one frame interval
 //! (a few degrees), off by the second-order term only.
 
-use super::GyroSamples;
+use super::samples::GyroSamples;
 use nalgebra::Vector3;
 
 /// The running integral of a gyro log.

@@ -7,7 +7,8 @@
 //! Intervals whose disagreement is far above the others' (a spike, a
 //! saturated axis, a dropout) are left out and counted as glitches.
 
-use super::{GyroIntegral, VisionStep};
+use super::integrate::GyroIntegral;
+use super::samples::VisionStep;
 use crate::so3::Rot;
 use nalgebra::{Matrix3, Vector3};
 

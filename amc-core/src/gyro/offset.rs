@@ -12,7 +12,9 @@
 //! finer grid and the vertex of a parabola. The drift: the same refinement on
 //! each quarter of the clip, and the slope of their offsets in time.
 
-use super::{fit_mount, GyroIntegral, VisionStep};
+use super::integrate::GyroIntegral;
+use super::mount::fit_mount;
+use super::samples::VisionStep;
 use nalgebra::Vector3;
 
 /// Offsets tried over the log's span, seconds.

@@ -149,7 +149,7 @@ impl AutoDeghost {
     /// Frame `index` of the clip arrived: measured when it is one of the
     /// first or an [`EVERY`]th; returns the threshold in force from it on.
     pub fn observe(&mut self, index: u64, frame: &FrameRef<'_>) -> Option<Deghost> {
-        if index < FIRST_FRAMES || index % EVERY == 0 {
+        if index < FIRST_FRAMES || index.is_multiple_of(EVERY) {
             if let Some(sigma) = self.meter.measure(frame) {
                 if self.estimates.len() == KEPT {
                     self.estimates.remove(0);
