@@ -146,15 +146,40 @@ fn check(source: &str, format: Option<&str>, publish_to: &str, muxer: &'static s
     assert_eq!(meta["codec"], "jpeg", "{meta}");
 }
 
+/// Waits up to 5 s for no process whose command line matches `pattern` (an
+/// extended regular expression, `pgrep -f`); panics naming those left.
+fn none_left(pattern: &str) {
+    let start = Instant::now();
+    loop {
+        let out = Command::new("pgrep")
+            .args(["-af", "--", pattern])
+            .output()
+            .unwrap();
+        let left = String::from_utf8_lossy(&out.stdout).into_owned();
+        if left.trim().is_empty() {
+            return;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(5),
+            "processes left behind after amc serve stopped:\n{left}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
 #[test]
 fn mpeg_ts_over_udp_reaches_viewers() {
     let port = free_udp_port();
+    let source = format!("udp://127.0.0.1:{port}?fifo_size=1000000&overrun_nonfatal=1");
     check(
-        &format!("udp://127.0.0.1:{port}?fifo_size=1000000&overrun_nonfatal=1"),
+        &source,
         Some("mpegts"),
         &format!("udp://127.0.0.1:{port}?pkt_size=1316"),
         "mpegts",
     );
+    // The server stopped while its source's ffmpeg waited on a quiet socket
+    // (the publisher gone too): that ffmpeg did not outlive it.
+    none_left(&format!("-i udp://127[.]0[.]0[.]1:{port}[?]fifo"));
 }
 
 #[test]

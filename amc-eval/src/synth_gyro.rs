@@ -68,8 +68,7 @@ pub const GYRO_LOG: &str = "gyro.gcsv";
 impl GyroLogConfig {
     /// Checks the settings (flag names as the CLI's).
     pub fn validate(&self) -> Result<(), GyroLogInvalid> {
-        let bad =
-            |option: &'static str, detail: String| Err(GyroLogInvalid { option, detail });
+        let bad = |option: &'static str, detail: String| Err(GyroLogInvalid { option, detail });
         if !(self.rate_hz.is_finite() && (50.0..=20_000.0).contains(&self.rate_hz)) {
             return bad(
                 "gyro-rate-hz",

@@ -56,6 +56,24 @@ impl Registry {
     }
 }
 
+/// Kills every child still registered (SIGKILL), for a process that is about
+/// to exit with threads still blocked on them: a live source's ffmpeg waiting
+/// on a network stream that went quiet never notices its reader has gone,
+/// and would outlive the process. Returns how many it killed.
+pub fn kill_children() -> usize {
+    let guard = registry();
+    for &pid in &guard.children {
+        #[cfg(unix)]
+        // SAFETY: as in `interrupt`: a registered child is not yet reaped.
+        unsafe {
+            libc::kill(pid as libc::pid_t, libc::SIGKILL);
+        }
+        #[cfg(not(unix))]
+        let _ = pid;
+    }
+    guard.children.len()
+}
+
 /// Kills every registered child and removes every registered partial output,
 /// then keeps the registry locked for good, so nothing new starts while the
 /// caller exits the process. Call it from a signal handler just before

@@ -202,6 +202,15 @@ pub fn run(args: &ServeConfig) -> Result<(), ServeError> {
         state.jobs.clear();
         Ok::<(), ServeError>(())
     })?;
+    // Threads still blocked on a child (a live source on a quiet network
+    // stream) end with the process; their children must not outlive it.
+    let killed = amc_video::cleanup::kill_children();
+    if killed > 0 {
+        tracing::info!(
+            children = killed,
+            "stopped the ffmpeg children still running"
+        );
+    }
     drop(owned_dir);
     tracing::info!("stopped; work directory removed");
     Ok(())
