@@ -61,27 +61,12 @@ impl Registry {
 /// on a network stream that went quiet never notices its reader has gone,
 /// and would outlive the process. Returns how many it killed.
 pub fn kill_children() -> usize {
-    let guard = registry();
-    for &pid in &guard.children {
-        #[cfg(unix)]
-        // SAFETY: as in `interrupt`: a registered child is not yet reaped.
-        unsafe {
-            libc::kill(pid as libc::pid_t, libc::SIGKILL);
-        }
-        #[cfg(not(unix))]
-        let _ = pid;
-    }
-    guard.children.len()
+    kill_all(&registry().children)
 }
 
-/// Kills every registered child and removes every registered partial output,
-/// then keeps the registry locked for good, so nothing new starts while the
-/// caller exits the process. Call it from a signal handler just before
-/// `std::process::exit`. Returns how many children and partials it cleaned up.
-pub fn interrupt() -> (usize, usize) {
-    let guard = registry();
-    let children = guard.children.len();
-    for &pid in &guard.children {
+/// SIGKILL to each of `children`; returns how many.
+fn kill_all(children: &[u32]) -> usize {
+    for &pid in children {
         #[cfg(unix)]
         // SAFETY: kill(2) has no memory-safety preconditions; the pid is a
         // child of ours that has not been reaped, so it cannot have been reused.
@@ -91,6 +76,16 @@ pub fn interrupt() -> (usize, usize) {
         #[cfg(not(unix))]
         let _ = pid;
     }
+    children.len()
+}
+
+/// Kills every registered child and removes every registered partial output,
+/// then keeps the registry locked for good, so nothing new starts while the
+/// caller exits the process. Call it from a signal handler just before
+/// `std::process::exit`. Returns how many children and partials it cleaned up.
+pub fn interrupt() -> (usize, usize) {
+    let guard = registry();
+    let children = kill_all(&guard.children);
     let partials = guard.partials.len();
     for p in &guard.partials {
         if p.is_dir() {
