@@ -73,10 +73,8 @@ fn synthetic(dps: &str, readout_ms: &str, glitch: bool) {
         args.extend(["--gyro-glitch", "2.5,0.03,8"]);
     }
     synth(&clip, &args);
-    let (m, stderr) = stabilize(
-        &[s(&clip), "--gyro".into(), s(&clip.join("gyro.gcsv"))],
-        dir.path(),
-    );
+    // The folder's own gyro.gcsv, found by `--gyro auto` (the default).
+    let (m, stderr) = stabilize(&[s(&clip)], dir.path());
     let g = &m["gyro"];
     let offset_ms = (json_f64(g, "/offset_s") - offset) * 1e3;
     let mount_deg = angle_between(vec3(&g["mount_rotvec"]), mount);

@@ -15,8 +15,7 @@ use thiserror::Error;
 /// Which gyro log a run uses (`--gyro`).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub enum GyroChoice {
-    /// The clip's own IMU track when it has one (GoPro, Sony, DJI,
-    /// Insta360), else none.
+    /// The clip's own log when it has one ([`clip_gyro`]), else none.
     #[default]
     Auto,
     /// None.
@@ -66,11 +65,27 @@ pub enum GyroLogError {
     },
 }
 
-/// The clip's own IMU track, if it has one (`None`: no track, or not a format
-/// telemetry-parser reads).
+/// The clip's own gyro log, if it has one: for a video, its embedded IMU
+/// track (GoPro, Sony, DJI, Insta360), else a Gyroflow log beside it with the
+/// same name (`clip.gcsv` for `clip.mp4`, as Gyroflow looks for it); for a
+/// folder of frames, its `gyro.gcsv` (as `amc synth` writes it). `None`:
+/// none, or none that can be read.
 pub fn clip_gyro(video: &Path) -> Option<GyroLog> {
-    read_with_telemetry_parser(video).ok().flatten()
+    if video.is_dir() {
+        let log = video.join(FOLDER_LOG);
+        return log.is_file().then(|| read_gyro_log(&log).ok()).flatten();
+    }
+    if let Some(log) = read_with_telemetry_parser(video).ok().flatten() {
+        return Some(log);
+    }
+    let sidecar = video.with_extension("gcsv");
+    (sidecar != video && sidecar.is_file())
+        .then(|| read_gyro_log(&sidecar).ok())
+        .flatten()
 }
+
+/// A folder of frames' gyro log.
+pub const FOLDER_LOG: &str = "gyro.gcsv";
 
 /// Reads the log at `path`: any format telemetry-parser knows, else a plain
 /// CSV of a time column (the one that increases) and three rates in rad/s.

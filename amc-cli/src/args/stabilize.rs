@@ -19,7 +19,8 @@ pub struct StabilizeArgs {
     #[arg(long, value_name = "FILE.csv")]
     pub telemetry: Option<PathBuf>,
     /// The camera's gyro log: auto (the clip's own IMU track when it has one:
-    /// GoPro, Sony, DJI, Insta360), off, or a log file (Gyroflow .gcsv,
+    /// GoPro, Sony, DJI, Insta360; else CLIP.gcsv beside it, or gyro.gcsv in
+    /// a folder of frames), off, or a log file (Gyroflow .gcsv,
     /// Betaflight/ArduPilot logs, phone-app logs, or a CSV of a time column in
     /// seconds and three rates in rad/s). It is synchronized from the video
     /// itself (offset over the log's whole span, clock drift, mounting, bias,
