@@ -208,10 +208,9 @@ impl std::str::FromStr for DeghostLevel {
         if v.eq_ignore_ascii_case("off") {
             return Ok(DeghostLevel::Levels(0.0));
         }
+        // The range is checked by `RenderParams::validate`, as every option's.
         match v.parse::<f64>() {
-            Ok(x) if x.is_finite() && (0.0..=super::robust::MAX_DEGHOST).contains(&x) => {
-                Ok(DeghostLevel::Levels(x))
-            }
+            Ok(x) if x.is_finite() => Ok(DeghostLevel::Levels(x)),
             _ => Err(AmcError::invalid(
                 "deghost",
                 format!("{s:?}"),
