@@ -166,33 +166,21 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         fps,
         timeout,
         crf: args.crf,
-        keep_per_frame: gyro_log.is_some(),
+        keep_per_frame: false,
         measure: args.metrics.is_some(),
         control: Some(control),
         progress: Some(&report),
+        gyro: gyro_log.as_ref(),
         threads: args.run.input.threads(),
     })?;
     bar.finish();
-    let gyro = gyro_log.and_then(|log| {
-        let (t, r): (Vec<f64>, Vec<[f64; 3]>) = run
-            .per_frame
-            .iter()
-            .map(|f| (f.telemetry.t, f.telemetry.r_est))
-            .unzip();
-        match engine::gyro::sync_log(&log, &t, &r) {
-            Ok(report) => {
-                if !args.quiet {
-                    eprintln!("{}", report.line());
-                }
-                Some(report)
-            }
-            Err(e) => {
-                // The output stands on the video alone: a warning, not a failure.
-                eprintln!("warning: {e}; the output uses the video alone");
-                None
-            }
-        }
-    });
+    if let (Some(g), false) = (&run.gyro, args.quiet) {
+        eprintln!("{}", g.line());
+    }
+    // A log that does not fit the video: the output stands on the video alone.
+    for w in &run.warnings {
+        eprintln!("warning: {w}");
+    }
     if run.looks_truncated() {
         eprintln!(
             "warning: {} declares {} frames but only {} could be decoded: the file looks truncated or damaged",
@@ -202,13 +190,7 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         );
     }
     if let Some(p) = &args.metrics {
-        let mut json = serde_json::to_value(&run).expect("a run summary is plain data");
-        if let (Some(g), Some(map)) = (&gyro, json.as_object_mut()) {
-            map.insert(
-                "gyro".into(),
-                serde_json::to_value(g).expect("a gyro report is plain data"),
-            );
-        }
+        let json = serde_json::to_value(&run).expect("a run summary is plain data");
         let text = serde_json::to_string_pretty(&json).expect("plain data");
         amc_video::write_atomic(p, text.as_bytes())?;
     }

@@ -40,5 +40,5 @@ pub use camera::CameraModel;
 pub use framing::Zoom;
 pub use image::{Frame, FrameRef, PixelFormat};
 pub use options::{LensSpec, ReadoutSpec, StabilizerOptions};
-pub use stabilizer::{Stabilizer, StabilizerParams, Telemetry};
+pub use stabilizer::{GivenPose, Stabilizer, StabilizerParams, Telemetry};
 pub use view::{Mode, Roll};

@@ -220,6 +220,14 @@ pub struct GyroReport {
     pub residual_rad_s: f64,
     /// Correlation of the log's and the video's angular speeds at the offset.
     pub correlation: f64,
+    /// Frames whose pose and readout path came from the gyro, held to the
+    /// picture (0 when the log was only synchronized, not fused).
+    pub fused_frames: usize,
+    /// Frame intervals where the gyro glitched and the picture bridged it.
+    pub glitch_intervals_bridged: usize,
+    /// Frames where tracking was lost, or disagreed with a sound log, that
+    /// the gyro bridged.
+    pub frames_bridged: usize,
 }
 
 impl GyroReport {
@@ -230,7 +238,7 @@ impl GyroReport {
             .sqrt()
             .to_degrees();
         format!(
-            "gyro: {} ({} samples, {:.0} Hz): offset {:+.4} s (video = log + offset, log time from {}), drift {:+.0} ppm, mounting {angle:.1} deg (rotvec {:.4} {:.4} {:.4} rad), bias {:.4} {:.4} {:.4} rad/s, {} glitches, residual {:.3} rad/s",
+            "gyro: {} ({} samples, {:.0} Hz): offset {:+.4} s (video = log + offset, log time from {}), drift {:+.0} ppm, mounting {angle:.1} deg (rotvec {:.4} {:.4} {:.4} rad), bias {:.4} {:.4} {:.4} rad/s, {} glitches, residual {:.3} rad/s; fused {} frames ({} glitch intervals bridged by the picture, {} frames by the gyro)",
             self.source,
             self.samples,
             self.rate_hz,
@@ -245,13 +253,20 @@ impl GyroReport {
             self.bias_rad_s[2],
             self.glitches,
             self.residual_rad_s,
+            self.fused_frames,
+            self.glitch_intervals_bridged,
+            self.frames_bridged,
         )
     }
 }
 
 /// Synchronizes `log` with a run's frames (their times and estimated
 /// orientations as rotation vectors).
-pub fn sync_log(log: &GyroLog, t: &[f64], r_est: &[[f64; 3]]) -> Result<GyroReport, GyroLogError> {
+pub fn sync_log(
+    log: &GyroLog,
+    t: &[f64],
+    r_est: &[[f64; 3]],
+) -> Result<(GyroSync, GyroReport), GyroLogError> {
     let rots: Vec<_> = r_est
         .iter()
         .map(|r| amc_core::so3::exp(&Vector3::from(*r)))
@@ -262,7 +277,7 @@ pub fn sync_log(log: &GyroLog, t: &[f64], r_est: &[[f64; 3]]) -> Result<GyroRepo
         error,
     })?;
     let m = s.mount_rotvec();
-    Ok(GyroReport {
+    let report = GyroReport {
         source: log.source.clone(),
         samples: log.samples.t.len(),
         rate_hz: log.samples.rate_hz(),
@@ -274,5 +289,9 @@ pub fn sync_log(log: &GyroLog, t: &[f64], r_est: &[[f64; 3]]) -> Result<GyroRepo
         glitches: s.glitches,
         residual_rad_s: s.residual_rad_s,
         correlation: s.correlation,
-    })
+        fused_frames: 0,
+        glitch_intervals_bridged: 0,
+        frames_bridged: 0,
+    };
+    Ok((s, report))
 }

@@ -8,6 +8,7 @@
 
 mod control;
 mod error;
+mod fusion;
 pub mod gyro;
 mod lens;
 mod measure;

@@ -4,6 +4,8 @@
 //! One run: decode -> stabilize -> encode, with telemetry, metrics and progress.
 
 use super::control::RunControl;
+use super::fusion;
+use super::gyro::{GyroLog, GyroReport};
 use super::measure::MetricsWorker;
 use super::passes::{self, On};
 use super::stages::{Reader, Writer};
@@ -48,6 +50,9 @@ pub struct RunConfig<'a> {
     pub control: Option<&'a RunControl>,
     /// Called after every output frame.
     pub progress: Option<&'a (dyn Fn(Progress) + Sync)>,
+    /// A gyro log to synchronize with the clip and fuse with its tracking
+    /// (a first pass tracks the whole clip; see `fusion`).
+    pub gyro: Option<&'a GyroLog>,
     /// Threads of the run: 1 decodes, stabilizes and encodes on the caller's
     /// thread; 2 or more decode and encode on threads of their own beside it
     /// (see `stages`) and render each frame's rows on a pool of this many
@@ -94,6 +99,9 @@ pub struct RunSummary {
     /// The ghost-free average's threshold the run ended with, levels of 255
     /// (`deghost=auto`: set from the clip's noise; 0: the plain average).
     pub deghost_levels: f64,
+    /// The gyro log's sync and fusion, when the run was given one that fits.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gyro: Option<GyroReport>,
     /// Warnings for the user about the run (the caller adds them: e.g.
     /// `readout_ms=auto` fell back to a global shutter).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -155,6 +163,26 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
     };
     let pool = render_pool(cfg.threads)?;
     let static_zoom = static_zoom(cfg, &opts, &pool)?;
+    let mut warnings = Vec::new();
+    let fused = match cfg.gyro {
+        Some(log) => match fusion::fuse_pass(
+            cfg.input,
+            &opts,
+            &cfg.lens,
+            &cfg.params,
+            static_zoom,
+            log,
+            &pool,
+            cfg.control,
+        )? {
+            Ok(fused) => Some(fused),
+            Err(warning) => {
+                warnings.push(warning);
+                None
+            }
+        },
+        None => None,
+    };
     let src: Box<dyn FrameSource> = video::open_input(cfg.input, &opts)?;
     let info = src.info().clone();
     let threaded = cfg.threads > 1;
@@ -232,10 +260,21 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         Ok(())
     };
     let check = || cfg.control.map_or(Ok(()), RunControl::check);
+    let mut pushed = 0usize;
     while let Some(t) = src.next_frame(&mut frame)? {
         check()?;
+        // With a gyro, the fused poses (the first pass read the same frames;
+        // one more would keep the last pose).
+        let given = fused
+            .as_ref()
+            .and_then(|f| f.poses.get(pushed).or(f.poses.last()).copied());
+        pushed += 1;
         // On the pool, so that the renderer's row bands use its threads.
-        if let Some(tel) = pool.install(|| stab.push(frame.as_ref(), t))? {
+        let out = pool.install(|| match given {
+            Some(g) => stab.push_posed(frame.as_ref(), t, g),
+            None => stab.push(frame.as_ref(), t),
+        })?;
+        if let Some(tel) = out {
             emit(&stab, tel)?;
         }
     }
@@ -280,7 +319,8 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         motion: motion.summary(),
         readout_ms: cfg.params.shutter.readout_ms,
         deghost_levels: stab.deghost_levels().unwrap_or(0.0),
-        warnings: Vec::new(),
+        gyro: fused.map(|f| f.report),
+        warnings,
         per_frame,
     })
 }

@@ -214,6 +214,7 @@ pub fn run(args: &DemoConfig, say: &dyn Fn(&str)) -> Result<String, DemoError> {
             measure: true,
             control: None,
             progress: None,
+            gyro: None,
             threads: engine::default_threads(),
         })?;
         let est: Vec<_> = run

@@ -104,6 +104,7 @@ pub fn run(
             measure: true,
             control: None,
             progress: Some(&report),
+            gyro: None,
             threads: args.threads,
         };
         let run = engine::run(&cfg)?;

@@ -13,53 +13,36 @@
 //!   fraction of a millisecond by the fit's residual; and the clock drift from
 //!   the offsets of the clip's quarters;
 //! - `mount.rs`: the mounting (Wahba's problem, solved by SVD) and the bias,
-//!   robust to glitches (intervals where the gyro disagrees with the picture).
+//!   robust to glitches (intervals where the gyro disagrees with the picture);
+//! - `track.rs`: the synchronized log as camera orientations at any video time;
+//! - `fuse.rs`: each frame's pose and readout path from the gyro, held to the
+//!   picture (`smooth.rs`: the smoother that does it), glitches bridged by
+//!   vision and lost frames by the gyro (`glitch.rs`: the log's own noise and
+//!   breaks).
 //!
 //! Conventions: video time = log time + `offset_s`; `mount` takes IMU vectors
 //! into the camera frame (x right, y down, z forward); the bias is in the
 //! IMU's axes, rad/s.
 
+mod fuse;
+mod glitch;
 mod integrate;
 mod mount;
 mod offset;
 mod samples;
+mod smooth;
+mod track;
 
+pub use fuse::{fuse, FuseParams, FusedFrom, FusedPose, Fusion, VisionPose};
+pub use glitch::{breaks, noise_rad_s};
 pub use integrate::GyroIntegral;
 pub use mount::{fit_mount, MountFit};
 pub use offset::{coarse_offset, refine_offset};
-pub use samples::{GyroSamples, VisionStep};
+pub use samples::{GyroSamples, GyroSync, VisionStep};
+pub use smooth::{random_walk_smoother, smooth_robust};
+pub use track::GyroTrack;
 
-use crate::so3::{self, Rot, Tangent};
-use nalgebra::Vector3;
 use thiserror::Error;
-
-/// What the sync found.
-#[derive(Clone, Debug, PartialEq)]
-pub struct GyroSync {
-    /// Video time = log time + `offset_s`, at the clip's first frame.
-    pub offset_s: f64,
-    /// How much faster the log's clock runs than the video's, parts per
-    /// million: the offset grows by `drift_ppm` microseconds per second of video.
-    pub drift_ppm: f64,
-    /// The rotation taking IMU vectors into the camera frame.
-    pub mount: Rot,
-    /// The gyro's bias, rad/s, in the IMU's axes.
-    pub bias: Vector3<f64>,
-    /// Frame intervals where the gyro disagrees with the picture (spikes,
-    /// saturation, dropouts) and that the fit left out.
-    pub glitches: usize,
-    /// RMS disagreement of the other intervals, rad/s.
-    pub residual_rad_s: f64,
-    /// The correlation of angular speeds at the offset found (1: the same).
-    pub correlation: f64,
-}
-
-impl GyroSync {
-    /// The mounting as a rotation vector, radians.
-    pub fn mount_rotvec(&self) -> Tangent {
-        so3::log(&self.mount)
-    }
-}
 
 /// Why a log cannot be synchronized.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -155,6 +138,7 @@ pub fn sync(gyro: &GyroSamples, steps: &[VisionStep]) -> Result<GyroSync, GyroEr
     let offset_s = offset - drift_ppm * 1e-6 * (t_mid - t_first);
     Ok(GyroSync {
         offset_s,
+        t_first,
         drift_ppm,
         mount: fit.mount,
         bias: fit.bias,

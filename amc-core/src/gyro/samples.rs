@@ -51,3 +51,33 @@ impl VisionStep {
             .collect()
     }
 }
+
+/// What the sync found.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GyroSync {
+    /// Video time = log time + `offset_s`, at the clip's first frame.
+    pub offset_s: f64,
+    /// The video time `offset_s` is stated at: the clip's first frame.
+    pub t_first: f64,
+    /// How much faster the log's clock runs than the video's, parts per
+    /// million: the offset grows by `drift_ppm` microseconds per second of video.
+    pub drift_ppm: f64,
+    /// The rotation taking IMU vectors into the camera frame.
+    pub mount: Rot,
+    /// The gyro's bias, rad/s, in the IMU's axes.
+    pub bias: Vector3<f64>,
+    /// Frame intervals where the gyro disagrees with the picture (spikes,
+    /// saturation, dropouts) and that the fit left out.
+    pub glitches: usize,
+    /// RMS disagreement of the other intervals, rad/s.
+    pub residual_rad_s: f64,
+    /// The correlation of angular speeds at the offset found (1: the same).
+    pub correlation: f64,
+}
+
+impl GyroSync {
+    /// The mounting as a rotation vector, radians.
+    pub fn mount_rotvec(&self) -> Tangent {
+        so3::log(&self.mount)
+    }
+}

@@ -39,6 +39,7 @@ use std::collections::VecDeque;
 use tracking::Tracking;
 
 pub use params::StabilizerParams;
+pub use push::GivenPose;
 pub use setup::MAX_RENDER_SHARE;
 pub use telemetry::Telemetry;
 

@@ -8,13 +8,146 @@ use super::tracking::Tracked;
 use super::Stabilizer;
 use crate::error::AmcError;
 use crate::image::{Frame, FrameRef};
-use crate::shutter::RollingProjector;
+use crate::shutter::{IntraFrame, RollingProjector};
+use crate::so3::Rot;
+use crate::tracker::TrackInfo;
+
+/// A frame's motion given from outside the tracker ([`Stabilizer::push_posed`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GivenPose {
+    /// `R_{0,j}`, mid-readout.
+    pub pose: Rot,
+    /// Its motion during the readout (zero with a global shutter).
+    pub path: IntraFrame,
+    /// How tracking went on it, for the telemetry.
+    pub info: TrackInfo,
+}
 
 impl Stabilizer {
     /// Pushes frame `t` seconds into the clip. Returns the telemetry of the
     /// output frame that became ready (`None` while the lookahead fills); read
     /// the pixels with [`Stabilizer::output`].
     pub fn push(&mut self, frame: FrameRef<'_>, t: f64) -> Result<Option<Telemetry>, AmcError> {
+        let dt = self.begin(&frame, t)?;
+        let lookahead = self.params.view.lookahead as u64;
+        // Pipelined, the output that became ready at the previous push is
+        // rendered now, beside the tracking of this frame (the ring still
+        // holds every frame it needs: this one is added after).
+        let pending = self.pipelined && self.received > lookahead + self.rendering.next_out;
+        let src = (self.width, self.height);
+        let (tracked, rendered) = if pending {
+            let (tracking, rendering) = (&mut self.tracking, &mut self.rendering);
+            let (ring, params) = (&self.ring, &self.params);
+            join(
+                || tracking.track(&frame, t),
+                || Some(rendering.render_next(ring, params, src)),
+            )
+        } else {
+            (self.tracking.track(&frame, t), None)
+        };
+        self.enqueue(&frame, t, dt, tracked);
+        Ok(self.ready(rendered))
+    }
+
+    /// Pushes frame `t` seconds into the clip with its motion known (a gyro
+    /// fused with a first pass's tracking, [`crate::gyro::fuse`]): nothing is
+    /// tracked; the frame is filtered, framed and rendered with `given` as
+    /// [`Stabilizer::push`] would with the tracker's. Frames of one clip go
+    /// through one of the two.
+    pub fn push_posed(
+        &mut self,
+        frame: FrameRef<'_>,
+        t: f64,
+        given: GivenPose,
+    ) -> Result<Option<Telemetry>, AmcError> {
+        let dt = self.begin(&frame, t)?;
+        let lookahead = self.params.view.lookahead as u64;
+        let pending = self.pipelined && self.received > lookahead + self.rendering.next_out;
+        let rendered = pending.then(|| self.render_next());
+        let tracked = Tracked {
+            pose: given.pose,
+            path: given.path,
+            rendered: given.path,
+            info: given.info,
+        };
+        self.enqueue(&frame, t, dt, tracked);
+        Ok(self.ready(rendered))
+    }
+
+    /// Checks a pushed frame and starts the stream's clock and output on the
+    /// first; returns the time since the previous frame (0 for the first).
+    fn begin(&mut self, frame: &FrameRef<'_>, t: f64) -> Result<f64, AmcError> {
+        self.check_frame(frame, t)?;
+        let dt = self.last_t.map_or(0.0, |p| t - p);
+        self.last_t = Some(t);
+        if self.format.is_none() {
+            self.format = Some(frame.format);
+            let (w, h) = self.output_size();
+            self.rendering.output = Frame::new(w, h, frame.format);
+        }
+        Ok(dt)
+    }
+
+    /// Filters the view with a tracked frame and adds it to the ring.
+    fn enqueue(&mut self, frame: &FrameRef<'_>, t: f64, dt: f64, tracked: Tracked) {
+        let Tracked {
+            pose: r_est,
+            path: intra,
+            rendered: rendered_path,
+            info,
+        } = tracked;
+        self.view_fwd = if self.received == 0 {
+            r_est
+        } else {
+            self.params.view.step(&self.view_fwd, &r_est, dt)
+        };
+        let capacity = self.params.render.n_avg + self.params.view.lookahead;
+        if self.ring.len() >= capacity {
+            if let Some(old) = self.ring.pop_front() {
+                self.spare.push((old.frame, old.rows));
+            }
+        }
+        let (mut buf, mut rows) = self
+            .spare
+            .pop()
+            .unwrap_or_else(|| (Frame::new(0, 0, frame.format), RollingProjector::default()));
+        rows.set(&rendered_path, self.height);
+        buf.copy_from(frame);
+        // Tail padding for the vectorized sampler's dword gathers.
+        buf.data
+            .extend_from_slice(&[0; crate::render::kernels::FRAME_PADDING]);
+        let deghost = self
+            .auto_deghost
+            .as_mut()
+            .and_then(|a| a.observe(self.received, frame));
+        self.ring.push_back(Buffered {
+            frame: buf,
+            index: self.received,
+            t,
+            r_est,
+            intra,
+            rows,
+            info,
+            view_fwd: self.view_fwd,
+            deghost,
+        });
+        self.received += 1;
+    }
+
+    /// The output ready after a push: the one rendered beside it when
+    /// pipelined, else the next one once the lookahead is full.
+    fn ready(&mut self, rendered: Option<Telemetry>) -> Option<Telemetry> {
+        if self.pipelined {
+            rendered
+        } else if self.received > self.params.view.lookahead as u64 {
+            Some(self.render_next())
+        } else {
+            None
+        }
+    }
+
+    /// Checks a pushed frame against the stream's size, format and clock.
+    fn check_frame(&self, frame: &FrameRef<'_>, t: f64) -> Result<(), AmcError> {
         if frame.width != self.width || frame.height != self.height {
             return Err(AmcError::FrameSizeChanged {
                 expected_w: self.width,
@@ -60,81 +193,7 @@ impl Stabilizer {
                 return Err(AmcError::NonMonotonicTimestamp { t, prev });
             }
         }
-        let dt = self.last_t.map_or(0.0, |p| t - p);
-        self.last_t = Some(t);
-        if self.format.is_none() {
-            self.format = Some(frame.format);
-            let (w, h) = self.output_size();
-            self.rendering.output = Frame::new(w, h, frame.format);
-        }
-
-        let lookahead = self.params.view.lookahead as u64;
-        // Pipelined, the output that became ready at the previous push is
-        // rendered now, beside the tracking of this frame (the ring still
-        // holds every frame it needs: this one is added after).
-        let pending = self.pipelined && self.received > lookahead + self.rendering.next_out;
-        let src = (self.width, self.height);
-        let (tracked, rendered) = if pending {
-            let (tracking, rendering) = (&mut self.tracking, &mut self.rendering);
-            let (ring, params) = (&self.ring, &self.params);
-            join(
-                || tracking.track(&frame, t),
-                || Some(rendering.render_next(ring, params, src)),
-            )
-        } else {
-            (self.tracking.track(&frame, t), None)
-        };
-        let Tracked {
-            pose: r_est,
-            path: intra,
-            rendered: rendered_path,
-            info,
-        } = tracked;
-        self.view_fwd = if self.received == 0 {
-            r_est
-        } else {
-            self.params.view.step(&self.view_fwd, &r_est, dt)
-        };
-
-        let capacity = self.params.render.n_avg + self.params.view.lookahead;
-        if self.ring.len() >= capacity {
-            if let Some(old) = self.ring.pop_front() {
-                self.spare.push((old.frame, old.rows));
-            }
-        }
-        let (mut buf, mut rows) = self
-            .spare
-            .pop()
-            .unwrap_or_else(|| (Frame::new(0, 0, frame.format), RollingProjector::default()));
-        rows.set(&rendered_path, self.height);
-        buf.copy_from(&frame);
-        // Tail padding for the vectorized sampler's dword gathers.
-        buf.data
-            .extend_from_slice(&[0; crate::render::kernels::FRAME_PADDING]);
-        let deghost = self
-            .auto_deghost
-            .as_mut()
-            .and_then(|a| a.observe(self.received, &frame));
-        self.ring.push_back(Buffered {
-            frame: buf,
-            index: self.received,
-            t,
-            r_est,
-            intra,
-            rows,
-            info,
-            view_fwd: self.view_fwd,
-            deghost,
-        });
-        self.received += 1;
-
-        if self.pipelined {
-            Ok(rendered)
-        } else if self.received > lookahead {
-            Ok(Some(self.render_next()))
-        } else {
-            Ok(None)
-        }
+        Ok(())
     }
 
     /// After the last frame: returns the next output still held back by the

@@ -189,6 +189,7 @@ pub fn stabilize(
         measure: spec.options.measure,
         control: Some(control),
         progress: None,
+        gyro: None,
         threads: limits.threads,
     })
     .map_err(|e| run_error(e, &spec.input))

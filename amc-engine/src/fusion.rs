@@ -1,0 +1,95 @@
+//! A run with a gyro log: a first pass tracks the whole clip from the
+//! picture, the log is synchronized with it ([`gyro::sync_log`]), and the
+//! two are fused ([`amc_core::gyro::fuse`]) into each frame's pose and
+//! readout path, which the main pass renders without tracking again.
+
+use super::control::RunControl;
+use super::gyro::{self, GyroLog, GyroReport};
+use super::RunError;
+use amc_core::gyro::{fuse, FuseParams, FusedFrom, GyroTrack, VisionPose};
+use amc_core::{so3, CameraModel, Frame, GivenPose, Stabilizer, StabilizerParams, Telemetry};
+use amc_video::{self as video, InputOptions};
+use nalgebra::Vector3;
+use std::path::Path;
+
+/// What the first pass and the fusion hand to the main pass.
+pub(crate) struct Fused {
+    /// One per frame of the clip, in order.
+    pub poses: Vec<GivenPose>,
+    pub report: GyroReport,
+}
+
+/// Tracks `input` from the picture alone, synchronizes `log` with it and
+/// fuses the two. `Ok(Err(warning))`: the log does not fit the video (the
+/// run goes on from the picture alone, with the warning).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn fuse_pass(
+    input: &Path,
+    opts: &InputOptions,
+    lens: &CameraModel,
+    params: &StabilizerParams,
+    static_zoom: Option<f64>,
+    log: &GyroLog,
+    pool: &rayon::ThreadPool,
+    control: Option<&RunControl>,
+) -> Result<Result<Fused, String>, RunError> {
+    let check = || control.map_or(Ok(()), RunControl::check);
+    let mut src = video::open_input(input, opts)?;
+    let info = src.info().clone();
+    let mut stab = Stabilizer::new(lens, info.width, info.height, params.clone())?;
+    if let Some(z) = static_zoom {
+        stab.set_static_zoom(z);
+    }
+    stab.set_rendering(false);
+    let mut frame = Frame::new(info.width, info.height, opts.pixel_format);
+    let mut seen: Vec<Telemetry> = Vec::new();
+    while let Some(t) = src.next_frame(&mut frame)? {
+        check()?;
+        if let Some(tel) = pool.install(|| stab.push(frame.as_ref(), t))? {
+            seen.push(tel);
+        }
+    }
+    while let Some(tel) = stab.finish() {
+        seen.push(tel);
+    }
+    check()?;
+    if seen.is_empty() {
+        return Err(RunError::NoFrames {
+            path: input.to_path_buf(),
+        });
+    }
+    let (t, r): (Vec<f64>, Vec<[f64; 3]>) = seen.iter().map(|s| (s.t, s.r_est)).unzip();
+    let (sync, mut report) = match gyro::sync_log(log, &t, &r) {
+        Ok(found) => found,
+        Err(e) => return Ok(Err(format!("{e}; the output uses the video alone"))),
+    };
+    let track = GyroTrack::new(&log.samples, &sync);
+    let vision: Vec<VisionPose> = seen
+        .iter()
+        .map(|s| VisionPose {
+            t: s.t,
+            pose: so3::exp(&Vector3::from(s.r_est)),
+            lost: s.track.lost,
+        })
+        .collect();
+    let readout_s = params.shutter.readout_ms * 1e-3;
+    let fusion = fuse(&track, &vision, readout_s, &FuseParams::default())?;
+    report.fused_frames = fusion
+        .frames
+        .iter()
+        .filter(|f| f.from == FusedFrom::Gyro)
+        .count();
+    report.glitch_intervals_bridged = fusion.glitch_intervals;
+    report.frames_bridged = fusion.bridged_frames;
+    let poses = fusion
+        .frames
+        .iter()
+        .zip(&seen)
+        .map(|(f, s)| GivenPose {
+            pose: f.pose,
+            path: f.path,
+            info: s.track,
+        })
+        .collect();
+    Ok(Ok(Fused { poses, report }))
+}
