@@ -128,6 +128,11 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
     ];
     paths.extend(args.telemetry.iter().map(|p| ("telemetry", p.as_path())));
     paths.extend(args.metrics.iter().map(|p| ("metrics", p.as_path())));
+    paths.extend(
+        args.export_gcsv
+            .iter()
+            .map(|p| ("export-gcsv", p.as_path())),
+    );
     engine::check_distinct(&paths)?;
     if !args.quiet && args.output.is_file() {
         eprintln!(
@@ -153,6 +158,11 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         .metrics
         .iter()
         .map(|p| ("metrics", p.as_path()))
+        .chain(
+            args.export_gcsv
+                .iter()
+                .map(|p| ("export-gcsv", p.as_path())),
+        )
         .collect();
     let bar = progress::Bar::new("stabilize", !args.quiet);
     let report = |p| bar.update(p);
@@ -166,7 +176,7 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         fps,
         timeout,
         crf: args.crf,
-        keep_per_frame: false,
+        keep_per_frame: args.export_gcsv.is_some(),
         measure: args.metrics.is_some(),
         control: Some(control),
         progress: Some(&report),
@@ -180,6 +190,11 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
     // A log that does not fit the video: the output stands on the video alone.
     for w in &run.warnings {
         eprintln!("warning: {w}");
+    }
+    if let Some(p) = &args.export_gcsv {
+        let frames: Vec<amc_core::Telemetry> =
+            run.per_frame.iter().map(|f| f.telemetry.clone()).collect();
+        amc_video::write_atomic(p, engine::gcsv::gcsv(&frames, run.readout_ms).as_bytes())?;
     }
     if run.looks_truncated() {
         eprintln!(

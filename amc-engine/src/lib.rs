@@ -9,6 +9,7 @@
 mod control;
 mod error;
 mod fusion;
+pub mod gcsv;
 pub mod gyro;
 mod lens;
 mod measure;

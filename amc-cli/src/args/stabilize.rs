@@ -24,9 +24,16 @@ pub struct StabilizeArgs {
     /// Betaflight/ArduPilot logs, phone-app logs, or a CSV of a time column in
     /// seconds and three rates in rad/s). It is synchronized from the video
     /// itself (offset over the log's whole span, clock drift, mounting, bias,
-    /// glitches) and reported in one line and in --metrics ("gyro").
+    /// glitches), fused with the tracking (each frame's pose and rows from the
+    /// gyro, held to the picture) and reported in one line and in --metrics ("gyro").
     #[arg(long, default_value = "auto", value_name = "auto|off|FILE")]
     pub gyro: amc_engine::gyro::GyroChoice,
+    /// Write the clip's motion (fused, or from the video alone) as Gyroflow's
+    /// .gcsv: the camera's body rate per frame interval in its axes (x right,
+    /// y down, z forward), in video time, with the readout; a clip with no log
+    /// can be finished in Gyroflow, or read back with --gyro.
+    #[arg(long, value_name = "FILE.gcsv")]
+    pub export_gcsv: Option<PathBuf>,
     /// Write the clip's metrics (JSON).
     #[arg(long, value_name = "FILE.json")]
     pub metrics: Option<PathBuf>,
