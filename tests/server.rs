@@ -174,6 +174,18 @@ fn jobs_report_progress_and_cancel_cleanly() {
         );
     }
     assert!(done["metrics"].get("metrics").is_none(), "{done}");
+    // karma.mp4 carries its GoPro gyro track: gyro=auto (the default) used it.
+    let gyro = &done["metrics"]["gyro"];
+    assert!(
+        gyro["source"]
+            .as_str()
+            .is_some_and(|s| s.starts_with("GoPro")),
+        "{done}"
+    );
+    assert!(
+        gyro["fused_frames"].as_u64().is_some_and(|n| n > 300),
+        "{done}"
+    );
     assert!(
         done["motion"]["rms_speed_est_dps"].as_f64().is_some(),
         "{done}"

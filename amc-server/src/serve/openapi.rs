@@ -309,7 +309,8 @@ pub fn spec() -> Value {
                 "valid_fraction": {"type": "number", "description": "Mean share of pixels covered by every averaged frame"},
                 "min_valid_fraction": {"type": "number", "description": "Lowest per-frame share of fully covered pixels"},
                 "readout_ms": {"type": "number", "minimum": 0, "maximum": 100, "description": "Rolling-shutter readout time used, ms (0 = global shutter): readout_ms, the lens file's, or the estimate of readout_ms=auto"},
-                "warnings": {"type": "array", "items": {"type": "string"}, "description": "What the user should know about the run: fov=auto fell back to 70 deg, readout_ms=auto fell back to 0 (the CLI's warnings)"}
+                "warnings": {"type": "array", "items": {"type": "string"}, "description": "What the user should know about the run: fov=auto fell back to 70 deg, readout_ms=auto fell back to 0 (the CLI's warnings)"},
+                "gyro": {"type": ["object", "null"], "description": "With gyro=auto and a clip that carries its own gyro track: the track's sync and fusion as the CLI's --metrics reports them (source, samples, rate_hz, offset_s, log_time, drift_ppm, mount_rotvec, bias_rad_s, glitches, residual_rad_s, correlation, fused_frames, glitch_intervals_bridged, frames_bridged); null without one"}
             }},
             "JobMotion": {"type": "object", "properties": {
                 "rms_speed_est_dps": {"type": "number", "description": "RMS angular speed of the camera (estimated), deg/s"},

@@ -49,6 +49,10 @@ pub struct JobOptions {
     pub format: OutputFormat,
     /// Measure the paper's image metrics (normal flow, frame change, sharpness).
     pub measure: bool,
+    /// `gyro=auto` (the default): use the clip's own IMU track (GoPro, Sony,
+    /// DJI, Insta360) when it has one, synchronized and fused as the CLI's
+    /// `--gyro auto` does; `gyro=off`: the picture alone.
+    pub gyro: bool,
 }
 
 /// The service's own options: name, help, allowed values.
@@ -62,6 +66,11 @@ pub const SERVICE_OPTIONS: &[(&str, &str, Allowed)] = &[
         "metrics",
         "true or false: measure normal flow, frame change and sharpness (default true)",
         Allowed::Words(&["true", "false"]),
+    ),
+    (
+        "gyro",
+        "auto or off: use the clip's own gyro track (GoPro, Sony, DJI, Insta360), synchronized from the video and fused with it, as the CLI's --gyro auto (default auto)",
+        Allowed::Words(&["auto", "off"]),
     ),
 ];
 
@@ -80,6 +89,7 @@ impl JobOptions {
         let mut stabilizer = StabilizerOptions::default();
         let mut format = OutputFormat::Mp4;
         let mut measure = true;
+        let mut gyro = true;
         for (key, value) in form_urlencoded::parse(query.unwrap_or("").as_bytes()) {
             let value = value.as_ref();
             match key.as_ref() {
@@ -101,6 +111,17 @@ impl JobOptions {
                         ))
                     })?
                 }
+                "gyro" => {
+                    gyro = match value.trim().to_ascii_lowercase().as_str() {
+                        "auto" => true,
+                        "off" => false,
+                        _ => {
+                            return Err(ApiError::BadOption(format!(
+                                "invalid gyro: {value:?} (allowed: auto or off)"
+                            )))
+                        }
+                    }
+                }
                 name if STABILIZER_OPTIONS.iter().any(|o| o.name == name) => stabilizer
                     .set(name, value)
                     .map_err(|e| ApiError::BadOption(e.to_string()))?,
@@ -120,6 +141,7 @@ impl JobOptions {
             stabilizer,
             format,
             measure,
+            gyro,
         })
     }
 }
@@ -144,6 +166,8 @@ mod tests {
         assert_eq!(o.stabilizer.lens, LensSpec::Fov(90.0));
         assert_eq!(o.format, OutputFormat::Webm);
         assert!(!o.measure);
+        assert!(o.gyro);
+        assert!(!JobOptions::from_query(Some("gyro=off")).unwrap().gyro);
         assert_eq!(o.stabilizer.readout, amc_core::ReadoutSpec::FromLens);
         for (q, want) in [
             ("readout_ms=auto", amc_core::ReadoutSpec::Auto),
@@ -171,6 +195,7 @@ mod tests {
             ("n_track=-3", "n_track"),
             ("readout_ms=abc", "readout_ms"),
             ("readout_ms=100.5", "readout_ms"),
+            ("gyro=maybe", "gyro"),
         ] {
             let e = JobOptions::from_query(Some(q)).unwrap_err();
             assert!(matches!(e, ApiError::BadOption(_)), "{q}");

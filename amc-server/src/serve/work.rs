@@ -175,6 +175,12 @@ pub fn stabilize(
     }
     params.shutter.readout_ms = readout.readout_ms;
     let lens = lens.camera;
+    // `gyro=auto`: the clip's own track, when it has one it can read.
+    let gyro = spec
+        .options
+        .gyro
+        .then(|| engine::gyro::clip_gyro(&spec.input))
+        .flatten();
     engine::run(&RunConfig {
         input: &spec.input,
         output: Some(&spec.output),
@@ -189,7 +195,7 @@ pub fn stabilize(
         measure: spec.options.measure,
         control: Some(control),
         progress: None,
-        gyro: None,
+        gyro: gyro.as_ref(),
         threads: limits.threads,
     })
     .map_err(|e| run_error(e, &spec.input))

@@ -177,6 +177,10 @@ pub struct JobMetrics {
     /// fell back to 70 deg, `readout_ms=auto` to 0), without its `warning: `.
     #[serde(default)]
     pub warnings: Vec<String>,
+    /// With `gyro=auto` and a clip with its own gyro track: its sync and
+    /// fusion, as the CLI's `--metrics` reports them.
+    #[serde(default)]
+    pub gyro: Option<serde_json::Value>,
 }
 
 /// The motion a finished job's telemetry shows.
@@ -205,6 +209,10 @@ impl JobMetrics {
             min_valid_fraction: s.motion.min_valid_fraction,
             readout_ms: s.readout_ms,
             warnings: s.warnings.clone(),
+            gyro: s
+                .gyro
+                .as_ref()
+                .map(|g| serde_json::to_value(g).expect("a gyro report is plain data")),
         }
     }
 }
