@@ -44,6 +44,9 @@ pub struct GyroLog {
     /// rebases them) or `"the log's own timestamps"` (a plain CSV).
     pub time_base: &'static str,
     pub samples: GyroSamples,
+    /// The log's times are the video's (a camera's per-frame record, such
+    /// as GoPro's image orientation): the offset is 0, not searched.
+    pub video_clock: bool,
 }
 
 /// Why a gyro log cannot be used.
@@ -124,6 +127,22 @@ fn parse_with_telemetry_parser(path: &Path) -> Result<Option<GyroLog>, String> {
         Arc::new(AtomicBool::new(false)),
     )
     .map_err(|e| e.to_string())?;
+    let camera = match input.camera_model() {
+        Some(model) => format!("{} ({model})", input.camera_type()),
+        None => input.camera_type(),
+    };
+    // Stabilized in the camera (GoPro's IORI): the picture did not move as
+    // the body did; its own orientation is the motion to sync and fuse.
+    if let Some(samples) = picture_motion(&input) {
+        return Ok(Some(GyroLog {
+            source: format!(
+                "{camera}, the picture's orientation (stabilized in the camera: CORI x IORI)"
+            ),
+            time_base: "the video's frames (the camera's per-frame record)",
+            samples,
+            video_clock: true,
+        }));
+    }
     let imu = telemetry_parser::util::normalized_imu(&input, None).map_err(|e| e.to_string())?;
     let mut samples = GyroSamples::default();
     for s in &imu {
@@ -142,15 +161,56 @@ fn parse_with_telemetry_parser(path: &Path) -> Result<Option<GyroLog>, String> {
     if samples.t.is_empty() {
         return Ok(None);
     }
-    let camera = match input.camera_model() {
-        Some(model) => format!("{} ({model})", input.camera_type()),
-        None => input.camera_type(),
-    };
     Ok(Some(GyroLog {
         source: camera,
         time_base: "the log's first sample",
         samples,
+        video_clock: false,
     }))
+}
+
+/// The motion of the picture of a clip stabilized in the camera, where
+/// the camera records it (GoPro's IORI, the image's orientation in the body,
+/// beside CORI, the body's; telemetry-parser multiplies them per frame): the
+/// body rate between consecutive orientations, stamped at their middle.
+/// `None`: no in-camera stabilization recorded.
+fn picture_motion(input: &telemetry_parser::Input) -> Option<GyroSamples> {
+    use telemetry_parser::tags_impl::{GetWithType, GroupId, TagId, TimeQuaternion};
+    let samples = input.samples.as_ref()?;
+    let stabilized = samples.iter().any(|s| {
+        s.tag_map
+            .as_ref()
+            .is_some_and(|m| m.contains_key(&GroupId::ImageOrientation))
+    });
+    if !stabilized {
+        return None;
+    }
+    let mut track: Vec<(f64, nalgebra::UnitQuaternion<f64>)> = Vec::new();
+    for s in samples {
+        let Some(map) = s.tag_map.as_ref().and_then(|m| m.get(&GroupId::Quaternion)) else {
+            continue;
+        };
+        let Some(arr) = map.get_t(TagId::Data) as Option<&Vec<TimeQuaternion<f64>>> else {
+            continue;
+        };
+        for q in arr {
+            let t = q.t * 1e-3;
+            let v = nalgebra::Quaternion::new(q.v.w, q.v.x, q.v.y, q.v.z);
+            if t.is_finite() && v.norm() > 0.5 && track.last().is_none_or(|l| t > l.0) {
+                track.push((t, nalgebra::UnitQuaternion::from_quaternion(v)));
+            }
+        }
+    }
+    if track.len() < 2 {
+        return None;
+    }
+    let mut out = GyroSamples::default();
+    for pair in track.windows(2) {
+        let ((t0, q0), (t1, q1)) = (pair[0], pair[1]);
+        out.t.push(0.5 * (t0 + t1));
+        out.w.push((q0.inverse() * q1).scaled_axis() / (t1 - t0));
+    }
+    Some(out)
 }
 
 /// A CSV of four numeric columns (an optional header line): the one that
@@ -197,6 +257,7 @@ fn read_plain_csv(path: &Path) -> Result<GyroLog, GyroLogError> {
         source: format!("{name} (CSV)"),
         time_base: "the log's own timestamps",
         samples,
+        video_clock: false,
     })
 }
 
@@ -272,7 +333,12 @@ pub fn sync_log(
         .map(|r| amc_core::so3::exp(&Vector3::from(*r)))
         .collect();
     let steps = VisionStep::from_orientations(t, &rots);
-    let s: GyroSync = gyro::sync(&log.samples, &steps).map_err(|error| GyroLogError::Sync {
+    let synced = if log.video_clock {
+        gyro::sync_at(&log.samples, &steps, 0.0)
+    } else {
+        gyro::sync(&log.samples, &steps)
+    };
+    let s: GyroSync = synced.map_err(|error| GyroLogError::Sync {
         source_name: log.source.clone(),
         error,
     })?;

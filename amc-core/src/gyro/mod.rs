@@ -37,7 +37,7 @@ pub use fuse::{fuse, FuseParams, FusedFrom, FusedPose, Fusion, VisionPose};
 pub use glitch::{breaks, noise_rad_s};
 pub use integrate::GyroIntegral;
 pub use mount::{fit_mount, MountFit};
-pub use offset::{coarse_offset, refine_offset};
+pub use offset::{coarse_offset, refine_offset, speed_correlation};
 pub use samples::{GyroSamples, GyroSync, VisionStep};
 pub use smooth::{random_walk_smoother, smooth_robust};
 pub use track::GyroTrack;
@@ -77,9 +77,8 @@ const TIE: f64 = 0.05;
 const MIN_SAMPLES: usize = 50;
 const MIN_STEPS: usize = 20;
 
-/// Synchronizes `gyro` with the video's `steps`: the offset over the log's
-/// whole span, the clock drift, the mounting, the bias and the glitches.
-pub fn sync(gyro: &GyroSamples, steps: &[VisionStep]) -> Result<GyroSync, GyroError> {
+/// Checks a log and the video's steps (the steps kept: those finite and forward).
+fn checked(gyro: &GyroSamples, steps: &[VisionStep]) -> Result<Vec<VisionStep>, GyroError> {
     if gyro.t.len() < MIN_SAMPLES || gyro.w.len() != gyro.t.len() {
         return Err(GyroError::TooFewSamples {
             samples: gyro.t.len().min(gyro.w.len()),
@@ -104,6 +103,45 @@ pub fn sync(gyro: &GyroSamples, steps: &[VisionStep]) -> Result<GyroSync, GyroEr
             needed: MIN_STEPS,
         });
     }
+    Ok(steps)
+}
+
+/// [`sync`] of a log whose clock is the video's (`offset_s` known, no drift):
+/// a camera's per-frame record such as GoPro's image orientation. The
+/// mounting, the bias and the glitches are fitted; a log whose speeds do not
+/// follow the video's at that offset is refused as [`sync`] refuses one.
+pub fn sync_at(
+    gyro: &GyroSamples,
+    steps: &[VisionStep],
+    offset_s: f64,
+) -> Result<GyroSync, GyroError> {
+    let steps = checked(gyro, steps)?;
+    let integral = GyroIntegral::new(gyro);
+    let correlation = speed_correlation(&integral, &steps, offset_s);
+    if !(correlation >= MIN_CORRELATION) {
+        return Err(GyroError::NoMatch {
+            correlation,
+            needed: MIN_CORRELATION,
+        });
+    }
+    let fit = fit_mount(&integral, &steps, offset_s);
+    Ok(GyroSync {
+        offset_s,
+        t_first: steps[0].t0,
+        drift_ppm: 0.0,
+        mount: fit.mount,
+        bias: fit.bias,
+        glitches: fit.glitches,
+        residual_rad_s: fit.residual_rad_s,
+        correlation,
+    })
+}
+
+/// Synchronizes `gyro` with the video's `steps`: the offset over the log's
+/// whole span, the clock drift, the mounting, the bias and the glitches.
+pub fn sync(gyro: &GyroSamples, steps: &[VisionStep]) -> Result<GyroSync, GyroError> {
+    let steps = checked(gyro, steps)?;
+    let steps = &steps[..];
     let integral = GyroIntegral::new(gyro);
     let video_s = steps[steps.len() - 1].t1 - steps[0].t0;
     let log_s = integral.span().1 - integral.span().0;

@@ -72,6 +72,19 @@ fn correlation(a: &[f64], b: &[f64]) -> f64 {
     sab / (saa * sbb).sqrt()
 }
 
+/// The correlation of the log's angular speeds with the video's at `offset`
+/// (video time = log time + offset), over the intervals the log covers.
+pub fn speed_correlation(integral: &GyroIntegral, steps: &[VisionStep], offset: f64) -> f64 {
+    let (video, log): (Vec<f64>, Vec<f64>) = steps
+        .iter()
+        .filter_map(|s| {
+            let g = integral.speed(s.t0 - offset, s.t1 - offset)?;
+            Some((s.rotation.norm() / (s.t1 - s.t0), g))
+        })
+        .unzip();
+    correlation(&video, &log)
+}
+
 /// The offsets (video time = log time + offset) whose gyro speeds correlate
 /// best with the video's, searched over every offset at which the log covers
 /// the clip: the [`CANDIDATES`] highest peaks (at least [`PEAK_GAP`] apart),

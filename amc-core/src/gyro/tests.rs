@@ -255,3 +255,29 @@ fn fusion_beats_vision_bridges_a_glitch_and_lost_frames() {
     );
     assert!(end < 0.05, "{end:.4} deg at the end");
 }
+
+/// A log on the video's own clock (a camera's per-frame record): at the
+/// offset given, the mounting and bias come back; another clip's motion is
+/// refused there as the search refuses it.
+#[test]
+fn a_log_on_the_videos_clock_is_fitted_at_its_offset() {
+    let s = spec();
+    let steps = video(60.0, 8.0, 200.0);
+    let gyro = log(&s, 8.0, 200.0);
+    let got = sync_at(&gyro, &steps, s.offset).unwrap();
+    assert_eq!(got.offset_s, s.offset);
+    assert!(angle_deg(&got.mount, &s.mount) < 0.3);
+    assert!((got.bias - s.bias).norm() < 0.003, "bias {:?}", got.bias);
+    let other = GyroSamples {
+        t: gyro.t.clone(),
+        w: gyro
+            .t
+            .iter()
+            .map(|&t| omega(2.3 * t + 40.0, 200.0))
+            .collect(),
+    };
+    assert!(matches!(
+        sync_at(&other, &steps, s.offset),
+        Err(GyroError::NoMatch { .. })
+    ));
+}
