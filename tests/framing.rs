@@ -51,7 +51,10 @@ fn no_border_on_real_footage() {
         for (label, flags) in [
             ("online", vec![]),
             ("offline", vec!["--lookahead", "30"]),
-            ("saccade", vec!["--mode", "saccade"]),
+            // Saccade mode frames as the paper by default (a fixed crop, the
+            // uncovered edge shown: saccade_keeps_a_fixed_crop_by_default);
+            // its `zoom auto` must still show no border.
+            ("saccade", vec!["--mode", "saccade", "--zoom", "auto"]),
             ("static", vec!["--zoom", "static"]),
             ("none", vec!["--mode", "none"]),
         ] {
@@ -137,4 +140,46 @@ fn zoom_none_keeps_the_papers_margin() {
     assert_eq!((w, h), (0.75 * iw, 0.75 * ih));
     let zoom = Csv::read(&telemetry).col("zoom");
     assert!(zoom.iter().all(|z| (z - 1.0 / 0.75).abs() < 1e-4));
+}
+
+/// Saccade mode holds its view with a fixed crop, the paper's (`zoom none`,
+/// a 12.5% margin), unless `--zoom` says otherwise: a per-frame zoom moved the
+/// held view, and `zoom auto`'s smaller crop budget re-centred it often.
+#[test]
+fn saccade_keeps_a_fixed_crop_by_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str]| {
+        let metrics = dir.path().join("saccade.json");
+        let mut args = vec![
+            "stabilize".to_string(),
+            s(&data("cup/cup.mp4")),
+            "-o".into(),
+            s(&dir.path().join("saccade.y4m")),
+            "--mode".into(),
+            "saccade".into(),
+            "--metrics".into(),
+            s(&metrics),
+            "-q".into(),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        amc_ok(&args);
+        read_json(&metrics)
+    };
+    let default = run(&[]);
+    let auto = run(&["--zoom", "auto"]);
+    let saccades = |m: &serde_json::Value| json_f64(m, "/motion/saccades");
+    let change = |m: &serde_json::Value| json_f64(m, "/metrics/rms_change");
+    eprintln!(
+        "cup, saccade: default {} re-centres, frame change {:.4}; --zoom auto {} re-centres, {:.4}",
+        saccades(&default),
+        change(&default),
+        saccades(&auto),
+        change(&auto)
+    );
+    assert_eq!(
+        json_f64(&default, "/output_size/0"),
+        0.75 * json_f64(&default, "/input_size/0")
+    );
+    assert!(saccades(&default) < saccades(&auto));
+    assert!(change(&default) < change(&auto));
 }

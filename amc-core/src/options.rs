@@ -8,6 +8,7 @@
 //! its name in kebab-case.
 
 use crate::error::AmcError;
+use crate::framing::Zoom;
 use crate::shutter::MAX_READOUT_MS;
 use crate::stabilizer::StabilizerParams;
 use crate::view::Mode;
@@ -163,7 +164,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         name: "zoom",
         flag: "zoom",
         value_name: "auto|static|none",
-        help: "framing: auto (per frame, the least zoom that shows no border, smoothed, within --max-crop), static (one zoom for the whole clip; files only) or none (crop --margin from each side) (default auto)",
+        help: "framing: auto (per frame, the least zoom that shows no border, smoothed, within --max-crop), static (one zoom for the whole clip; files only) or none (crop --margin from each side) (default auto; none in saccade mode: a fixed crop for a fixed view, as the paper frames it)",
         allowed: Allowed::Words(&["auto", "static", "none"]),
     },
     OptionSpec {
@@ -322,6 +323,9 @@ pub struct StabilizerOptions {
     pub lens: LensSpec,
     /// How the rolling-shutter readout is known.
     pub readout: ReadoutSpec,
+    /// Whether `zoom` was set: if not, saccade mode frames as the paper
+    /// does (`zoom = none`), the other modes `zoom = auto`.
+    pub zoom_given: bool,
 }
 
 impl StabilizerOptions {
@@ -329,7 +333,23 @@ impl StabilizerOptions {
     pub fn with_mode(mode: Mode) -> Self {
         let mut o = Self::default();
         o.params.view.mode = mode;
+        o.mode_framing();
         o
+    }
+
+    /// The framing a mode has by default, unless `zoom` was set: a fixed
+    /// view re-centred when needed (saccade) keeps a fixed crop, the paper's
+    /// (`zoom = none`, `margin` from each side, the uncovered edge shown):
+    /// a per-frame zoom would move the held view, and the smaller crop budget
+    /// of `zoom = auto` made it re-centre twice a second on handheld footage.
+    fn mode_framing(&mut self) {
+        if !self.zoom_given {
+            self.params.framing.zoom = if self.params.view.mode == Mode::Saccade {
+                Zoom::None
+            } else {
+                Zoom::Auto
+            };
+        }
     }
 
     /// Sets the option `name` (an [`OPTIONS`] name) from its text `value`.
@@ -349,7 +369,10 @@ impl StabilizerOptions {
                 })?;
         let p = &mut self.params;
         match spec.name {
-            "mode" => p.view.mode = value.trim().parse()?,
+            "mode" => {
+                p.view.mode = value.trim().parse()?;
+                self.mode_framing();
+            }
             "roll" => p.view.roll = value.trim().parse()?,
             "fov" => self.lens = LensSpec::parse_fov(value)?,
             "readout_ms" => self.readout = ReadoutSpec::parse(value)?,
@@ -359,7 +382,10 @@ impl StabilizerOptions {
             "interpolation" => p.render.interpolation = value.trim().parse()?,
             "n_track" => p.tracker.n_track = parse_value(spec, value)?,
             "margin" => p.render.margin = parse_value(spec, value)?,
-            "zoom" => p.framing.zoom = value.trim().parse()?,
+            "zoom" => {
+                p.framing.zoom = value.trim().parse()?;
+                self.zoom_given = true;
+            }
             "max_crop" => p.framing.max_crop = parse_value(spec, value)?,
             "track_width" => p.track_width = parse_value(spec, value)?,
             "lookahead" => p.view.lookahead = parse_value(spec, value)?,
