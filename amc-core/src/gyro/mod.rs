@@ -55,9 +55,7 @@ pub enum GyroError {
     #[error("the video has {steps} frame intervals with motion (at least {needed} are needed)")]
     TooFewFrames { steps: usize, needed: usize },
     /// The log cannot cover the clip at any offset.
-    #[error(
-        "the gyro log ({log_s:.1} s) is shorter than the video ({video_s:.1} s): it cannot cover it"
-    )]
+    #[error("the gyro log ({log_s:.1} s) cannot cover half of the video ({video_s:.1} s)")]
     LogTooShort { log_s: f64, video_s: f64 },
     /// No offset makes the log's motion the video's.
     #[error(
@@ -145,7 +143,7 @@ pub fn sync(gyro: &GyroSamples, steps: &[VisionStep]) -> Result<GyroSync, GyroEr
     let integral = GyroIntegral::new(gyro);
     let video_s = steps[steps.len() - 1].t1 - steps[0].t0;
     let log_s = integral.span().1 - integral.span().0;
-    if log_s < 0.9 * video_s {
+    if log_s < offset::MIN_COVER * video_s {
         return Err(GyroError::LogTooShort { log_s, video_s });
     }
     let candidates = coarse_offset(&integral, &steps);

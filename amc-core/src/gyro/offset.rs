@@ -21,8 +21,10 @@ use nalgebra::Vector3;
 pub const COARSE_STEP: f64 = 0.002;
 /// Resampling step of the log's integral for the coarse search, seconds.
 const GRID_STEP: f64 = 0.0005;
-/// Share of the clip's frame intervals the log must cover at an offset.
-const MIN_COVER: f64 = 0.9;
+/// Share of the clip's frame intervals the log must cover at an offset: a
+/// flight controller armed after the camera started, or stopped before it,
+/// covers part of the clip (the rest is the picture's alone).
+pub const MIN_COVER: f64 = 0.5;
 
 /// The log's integral on a uniform grid.
 struct UniformIntegral {

@@ -281,3 +281,17 @@ fn a_log_on_the_videos_clock_is_fitted_at_its_offset() {
         Err(GyroError::NoMatch { .. })
     ));
 }
+
+/// A log that starts after the video (a flight controller armed late)
+/// covers part of the clip: synchronized on that part.
+#[test]
+fn a_log_covering_part_of_the_clip_is_synchronized() {
+    let mut s = spec();
+    // From 3 s into the 8 s clip to its end.
+    s.before = -3.0;
+    s.after = 0.0;
+    let steps = video(60.0, 8.0, 200.0);
+    let got = sync(&log(&s, 8.0, 200.0), &steps).unwrap();
+    assert!((got.offset_s - s.offset).abs() < 0.0005, "{}", got.offset_s);
+    assert!(angle_deg(&got.mount, &s.mount) < 0.3);
+}
