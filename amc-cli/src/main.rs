@@ -141,19 +141,48 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         );
     }
     say_rate(&input.frames, fps, timeout, args.quiet);
-    let resolved = engine::resolve(
-        &options,
-        &input.frames,
-        &engine::input_options(fps, timeout),
-        None,
-    )?;
-    say_resolved(&resolved, args.quiet);
     // The gyro log is read before the run: a file that cannot be read fails now.
     let gyro_log = match &args.gyro {
         engine::gyro::GyroChoice::Off => None,
         engine::gyro::GyroChoice::Auto => engine::gyro::clip_gyro(&input.frames),
         engine::gyro::GyroChoice::File(p) => Some(engine::gyro::read_gyro_log(p)?),
     };
+    // The readout the clip records (GoPro's SROT, ...) answers `auto`
+    // better than an estimate, and stands in for the unset default.
+    let recorded = gyro_log
+        .as_ref()
+        .and_then(|g| g.readout_ms.map(|ms| (ms, g.source.clone())));
+    let mut options = options;
+    let readout_asked = options.readout.clone();
+    if let (Some((ms, _)), amc_core::ReadoutSpec::Auto) = (&recorded, &readout_asked) {
+        options.readout = amc_core::ReadoutSpec::Ms(*ms);
+    }
+    let mut resolved = engine::resolve(
+        &options,
+        &input.frames,
+        &engine::input_options(fps, timeout),
+        None,
+    )?;
+    // `auto`, or the default where the lens file states none.
+    let use_recorded = match readout_asked {
+        amc_core::ReadoutSpec::Auto => true,
+        amc_core::ReadoutSpec::FromLens => {
+            resolved.readout.note == amc_core::plan::ReadoutNote::Given
+        }
+        amc_core::ReadoutSpec::Ms(_) => false,
+    };
+    match &recorded {
+        Some((ms, source)) if use_recorded => {
+            resolved.params.shutter.readout_ms = *ms;
+            resolved.readout.readout_ms = *ms;
+            resolved.readout.note = amc_core::plan::ReadoutNote::Given;
+            if !args.quiet {
+                eprintln!("readout: {ms:.1} ms (recorded by the camera: {source})");
+            }
+        }
+        _ => {}
+    }
+    say_resolved(&resolved, args.quiet);
     let also: Vec<(&'static str, &std::path::Path)> = args
         .metrics
         .iter()

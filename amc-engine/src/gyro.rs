@@ -47,6 +47,9 @@ pub struct GyroLog {
     /// The log's times are the video's (a camera's per-frame record, such
     /// as GoPro's image orientation): the offset is 0, not searched.
     pub video_clock: bool,
+    /// The sensor's readout the clip records (GoPro's SROT, Sony, DJI,
+    /// Insta360, a `.gcsv`'s `frame_readout_time`), milliseconds.
+    pub readout_ms: Option<f64>,
 }
 
 /// Why a gyro log cannot be used.
@@ -131,6 +134,9 @@ fn parse_with_telemetry_parser(path: &Path) -> Result<Option<GyroLog>, String> {
         Some(model) => format!("{} ({model})", input.camera_type()),
         None => input.camera_type(),
     };
+    let readout_ms = input
+        .frame_readout_time()
+        .filter(|ms| ms.is_finite() && *ms > 0.0 && *ms <= amc_core::shutter::MAX_READOUT_MS);
     // Stabilized in the camera (GoPro's IORI): the picture did not move as
     // the body did; its own orientation is the motion to sync and fuse.
     if let Some(samples) = picture_motion(&input) {
@@ -141,6 +147,7 @@ fn parse_with_telemetry_parser(path: &Path) -> Result<Option<GyroLog>, String> {
             time_base: "the video's frames (the camera's per-frame record)",
             samples,
             video_clock: true,
+            readout_ms,
         }));
     }
     let imu = telemetry_parser::util::normalized_imu(&input, None).map_err(|e| e.to_string())?;
@@ -166,6 +173,7 @@ fn parse_with_telemetry_parser(path: &Path) -> Result<Option<GyroLog>, String> {
         time_base: "the log's first sample",
         samples,
         video_clock: false,
+        readout_ms,
     }))
 }
 
@@ -258,6 +266,7 @@ fn read_plain_csv(path: &Path) -> Result<GyroLog, GyroLogError> {
         time_base: "the log's own timestamps",
         samples,
         video_clock: false,
+        readout_ms: None,
     })
 }
 
