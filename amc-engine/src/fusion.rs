@@ -1,22 +1,49 @@
 //! A run with a gyro log: a first pass tracks the whole clip from the
 //! picture, the log is synchronized with it ([`gyro::sync_log`]), and the
 //! two are fused ([`amc_core::gyro::fuse`]) into each frame's pose and
-//! readout path, which the main pass renders without tracking again.
+//! readout path, which the main pass renders without tracking again. A clip
+//! that fits in [`CACHE_BYTES`] is kept from the first pass for the main
+//! one, so it is decoded once.
 
 use super::control::RunControl;
 use super::gyro::{self, GyroLog, GyroReport};
+use super::stages::Reader;
 use super::RunError;
 use amc_core::gyro::{fuse, FuseParams, FusedFrom, GyroTrack, VisionPose};
 use amc_core::{so3, CameraModel, Frame, GivenPose, Stabilizer, StabilizerParams, Telemetry};
-use amc_video::{self as video, InputOptions};
+use amc_video::{self as video, FrameSource, InputOptions, VideoError, VideoInfo};
 use nalgebra::Vector3;
 use std::path::Path;
+
+/// Most bytes of decoded frames the first pass keeps for the main one.
+pub const CACHE_BYTES: usize = 1 << 30;
 
 /// What the first pass and the fusion hand to the main pass.
 pub(crate) struct Fused {
     /// One per frame of the clip, in order.
     pub poses: Vec<GivenPose>,
     pub report: GyroReport,
+    /// The clip's frames, when they fit in [`CACHE_BYTES`].
+    pub cached: Option<CachedClip>,
+}
+
+/// A clip's frames as the first pass decoded them, played again.
+pub(crate) struct CachedClip {
+    info: VideoInfo,
+    frames: std::vec::IntoIter<(Frame, f64)>,
+}
+
+impl FrameSource for CachedClip {
+    fn info(&self) -> &VideoInfo {
+        &self.info
+    }
+
+    fn next_frame(&mut self, buf: &mut Frame) -> Result<Option<f64>, VideoError> {
+        Ok(self.frames.next().map(|(mut frame, t)| {
+            std::mem::swap(buf, &mut frame);
+            t
+        }))
+    }
 }
 
 /// Tracks `input` from the picture alone, synchronizes `log` with it and
@@ -34,8 +61,11 @@ pub(crate) fn fuse_pass(
     control: Option<&RunControl>,
 ) -> Result<Result<Fused, String>, RunError> {
     let check = || control.map_or(Ok(()), RunControl::check);
-    let mut src = video::open_input(input, opts)?;
+    let src = video::open_input(input, opts)?;
     let info = src.info().clone();
+    let mut src = Reader::new(src, opts.pixel_format, pool.current_num_threads() > 1);
+    let mut cache: Option<Vec<(Frame, f64)>> = Some(Vec::new());
+    let mut cached_bytes = 0usize;
     let mut stab = Stabilizer::new(lens, info.width, info.height, params.clone())?;
     if let Some(z) = static_zoom {
         stab.set_static_zoom(z);
@@ -48,7 +78,13 @@ pub(crate) fn fuse_pass(
         if let Some(tel) = pool.install(|| stab.push(frame.as_ref(), t))? {
             seen.push(tel);
         }
+        cached_bytes += frame.data.len();
+        match cache.as_mut() {
+            Some(c) if cached_bytes <= CACHE_BYTES => c.push((frame.clone(), t)),
+            _ => cache = None,
+        }
     }
+    drop(src);
     while let Some(tel) = stab.finish() {
         seen.push(tel);
     }
@@ -91,5 +127,13 @@ pub(crate) fn fuse_pass(
             info: s.track,
         })
         .collect();
-    Ok(Ok(Fused { poses, report }))
+    let cached = cache.map(|frames| CachedClip {
+        info,
+        frames: frames.into_iter(),
+    });
+    Ok(Ok(Fused {
+        poses,
+        report,
+        cached,
+    }))
 }

@@ -164,7 +164,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
     let pool = render_pool(cfg.threads)?;
     let static_zoom = static_zoom(cfg, &opts, &pool)?;
     let mut warnings = Vec::new();
-    let fused = match cfg.gyro {
+    let mut fused = match cfg.gyro {
         Some(log) => match fusion::fuse_pass(
             cfg.input,
             &opts,
@@ -183,7 +183,10 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         },
         None => None,
     };
-    let src: Box<dyn FrameSource> = video::open_input(cfg.input, &opts)?;
+    let src: Box<dyn FrameSource> = match fused.as_mut().and_then(|f| f.cached.take()) {
+        Some(clip) => Box::new(clip),
+        None => video::open_input(cfg.input, &opts)?,
+    };
     let info = src.info().clone();
     let threaded = cfg.threads > 1;
     let mut stab = Stabilizer::new(&cfg.lens, info.width, info.height, cfg.params.clone())?;
