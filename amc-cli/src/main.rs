@@ -205,6 +205,7 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         fps,
         timeout,
         crf: args.crf,
+        preset: args.preset,
         keep_per_frame: args.export_gcsv.is_some(),
         measure: args.metrics.is_some(),
         control: Some(control),

@@ -42,6 +42,8 @@ pub struct RunConfig<'a> {
     pub timeout: Duration,
     /// Encoder quality (x264/VP9 CRF), when not the default.
     pub crf: Option<u8>,
+    /// x264's preset for mp4/mkv outputs, when not the default.
+    pub preset: Option<amc_video::X264Preset>,
     /// Keep per-frame records (for plots); memory grows with clip length.
     pub keep_per_frame: bool,
     /// Measure the quality metrics (costs about as much as stabilizing at 720p).
@@ -202,6 +204,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
             spec.audio_from = info.has_audio.then(|| cfg.input.to_path_buf());
             spec.timeout = cfg.timeout;
             spec.crf = cfg.crf;
+            spec.preset = cfg.preset;
             spec.pixel_format = format;
             spec.ffmpeg_threads = ffmpeg_threads;
             Some(Writer::new(video::create_output(path, &spec)?, threaded))

@@ -210,6 +210,7 @@ pub fn run(args: &DemoConfig, say: &dyn Fn(&str)) -> Result<String, DemoError> {
             fps: Some(fps),
             timeout: Duration::from_secs(120),
             crf: None,
+            preset: None,
             keep_per_frame: true,
             measure: true,
             control: None,

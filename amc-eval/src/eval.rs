@@ -100,6 +100,7 @@ pub fn run(
             fps: args.fps,
             timeout,
             crf: None,
+            preset: None,
             keep_per_frame: true,
             measure: true,
             control: None,

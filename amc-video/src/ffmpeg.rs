@@ -414,11 +414,12 @@ impl Container {
 
     /// Video codec arguments for quality `crf` (codec default when `None`;
     /// checked against [`Container::max_crf`] beforehand).
-    fn video_args(self, crf: Option<u8>) -> Vec<String> {
+    fn video_args(self, crf: Option<u8>, preset: Option<crate::X264Preset>) -> Vec<String> {
         let v = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
         match self {
             Container::Mp4 | Container::Mkv => {
-                let mut a = v(&["-c:v", "libx264", "-preset", "veryfast", "-crf"]);
+                let preset = preset.unwrap_or(crate::X264Preset::FILES);
+                let mut a = v(&["-c:v", "libx264", "-preset", preset.as_str(), "-crf"]);
                 a.push(crf.unwrap_or(20).to_string());
                 a
             }
@@ -531,7 +532,7 @@ impl FfmpegSink {
             // (I420 frames are padded before piping: see `frame_pipe`.)
             more.extend(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2"].map(String::from));
         }
-        more.extend(container.video_args(spec.crf));
+        more.extend(container.video_args(spec.crf, spec.preset));
         if let Some(n) = spec.ffmpeg_threads {
             more.extend(["-threads".into(), n.to_string()]);
             more.extend(["-filter_threads".into(), n.to_string()]);

@@ -31,6 +31,7 @@ mod h264_decoder;
 mod images;
 mod mkv;
 mod open;
+mod preset;
 mod probe;
 mod process;
 mod spec;
@@ -50,6 +51,7 @@ pub use open::{
     check_output, check_parent_dir, create_output, ffmpeg_available, frame_size, inspect,
     native_format, native_output_format, open_input, open_stream,
 };
+pub use preset::{X264Preset, X264_PRESETS};
 pub use spec::{
     InputOptions, Inspection, OutputSpec, VideoInfo, DEFAULT_IMAGE_FPS, FOLDER_META,
     IMAGE_EXTENSIONS,

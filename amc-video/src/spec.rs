@@ -119,6 +119,9 @@ pub struct OutputSpec {
     /// 0..=63, default 32): lower is better and larger. A value outside the
     /// format's range is an error.
     pub crf: Option<u8>,
+    /// x264's preset for mp4/mkv (default [`X264Preset::FILES`]); other
+    /// formats ignore it.
+    pub preset: Option<crate::X264Preset>,
     /// The format of the frames the caller will give (default
     /// [`PixelFormat::Rgb8`]). It fixes the pixel format of the pipe to an
     /// ffmpeg encoder: [`PixelFormat::Yuv420p`] frames then reach it as they
@@ -141,6 +144,7 @@ impl OutputSpec {
             audio_from: None,
             timeout: InputOptions::default().timeout,
             crf: None,
+            preset: None,
             pixel_format: PixelFormat::Rgb8,
             ffmpeg_threads: None,
         }

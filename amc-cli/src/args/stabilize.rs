@@ -41,6 +41,12 @@ pub struct StabilizeArgs {
     /// for .webm (default 32); lower is better and larger.
     #[arg(long, value_parser = clap::value_parser!(u8).range(0..=63))]
     pub crf: Option<u8>,
+    /// x264 preset for .mp4/.mkv: ultrafast, superfast, veryfast (default),
+    /// faster, fast, medium, slow, slower or veryslow; faster presets leave
+    /// more of the CPU to the stabilizer and write larger files
+    /// (docs/speed.md, the encoder's share).
+    #[arg(long, value_name = "PRESET")]
+    pub preset: Option<amc_video::X264Preset>,
     /// No progress bar or summary.
     #[arg(short, long)]
     pub quiet: bool,

@@ -191,6 +191,7 @@ pub fn stabilize(
         fps: None,
         timeout: limits.ffmpeg_timeout,
         crf: None,
+        preset: None,
         keep_per_frame: false,
         measure: spec.options.measure,
         control: Some(control),
