@@ -20,6 +20,7 @@
 //! Offline: the smoother sees the whole clip (lookahead); see
 //! `docs/gyro.md` for the measured accuracy.
 
+use super::glitch::median;
 use super::smooth::smooth_robust;
 use super::track::GyroTrack;
 use crate::error::AmcError;
@@ -331,14 +332,6 @@ fn weigh(
         / 3.0;
     let vision_var = ((spread_var - gyro_var) / 2.0).max(0.01 * spread_var);
     (vision_var / gyro_var.max(f64::MIN_POSITIVE)).clamp(LAMBDA_RANGE.0, LAMBDA_RANGE.1)
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let k = v.len() / 2;
-    *v.select_nth_unstable_by(k, f64::total_cmp).1
 }
 
 /// A frame's readout path from vision alone: its angular velocity (the

@@ -59,7 +59,8 @@ pub fn breaks(gyro: &GyroSamples) -> Vec<f64> {
     out
 }
 
-fn median(v: &mut [f64]) -> f64 {
+/// The median of `v` (reordered), 0 when empty.
+pub(super) fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
         return 0.0;
     }
