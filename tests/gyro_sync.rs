@@ -116,7 +116,7 @@ fn rolling_shutter_300_dps_with_a_glitch() {
 /// a 16 ms readout, the clip compressed (x264 CRF 30, as a camera records
 /// it), a 1 kHz log seconds apart from the video, up-tilted in the
 /// controller's axes, biased, noisy, with a 20 ms spike of 340 deg/s. Given
-/// only `--gyro FILE`: the fused per-frame error at most half video-only's,
+/// only `--gyro FILE`: the fused per-frame error about half video-only's,
 /// the final error no larger, and in the glitch no frame worse than twice
 /// video-only's worst there.
 #[test]
