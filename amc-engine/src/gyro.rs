@@ -139,7 +139,7 @@ fn parse_with_telemetry_parser(path: &Path) -> Result<Option<GyroLog>, String> {
         .filter(|ms| ms.is_finite() && *ms > 0.0 && *ms <= amc_core::shutter::MAX_READOUT_MS);
     // Stabilized in the camera (GoPro's IORI): the picture did not move as
     // the body did; its own orientation is the motion to sync and fuse.
-    if let Some(samples) = picture_motion(&input) {
+    if let Some(samples) = picture_motion(&input)? {
         return Ok(Some(GyroLog {
             source: format!(
                 "{camera}, the picture's orientation (stabilized in the camera: CORI x IORI)"
@@ -181,17 +181,21 @@ fn parse_with_telemetry_parser(path: &Path) -> Result<Option<GyroLog>, String> {
 /// the camera records it (GoPro's IORI, the image's orientation in the body,
 /// beside CORI, the body's; telemetry-parser multiplies them per frame): the
 /// body rate between consecutive orientations, stamped at their middle.
-/// `None`: no in-camera stabilization recorded.
-fn picture_motion(input: &telemetry_parser::Input) -> Option<GyroSamples> {
+/// `None`: no in-camera stabilization recorded; an error where it is
+/// recorded but the picture's orientation cannot be read (the body's gyro
+/// would put back the shake the camera removed).
+fn picture_motion(input: &telemetry_parser::Input) -> Result<Option<GyroSamples>, String> {
     use telemetry_parser::tags_impl::{GetWithType, GroupId, TagId, TimeQuaternion};
-    let samples = input.samples.as_ref()?;
+    let Some(samples) = input.samples.as_ref() else {
+        return Ok(None);
+    };
     let stabilized = samples.iter().any(|s| {
         s.tag_map
             .as_ref()
             .is_some_and(|m| m.contains_key(&GroupId::ImageOrientation))
     });
     if !stabilized {
-        return None;
+        return Ok(None);
     }
     let mut track: Vec<(f64, nalgebra::UnitQuaternion<f64>)> = Vec::new();
     for s in samples {
@@ -210,7 +214,11 @@ fn picture_motion(input: &telemetry_parser::Input) -> Option<GyroSamples> {
         }
     }
     if track.len() < 2 {
-        return None;
+        return Err(
+            "the clip was stabilized in the camera (IORI) but the picture's orientation \
+                    cannot be read from it: its gyro is the body's motion, not the picture's"
+                .into(),
+        );
     }
     let mut out = GyroSamples::default();
     for pair in track.windows(2) {
@@ -218,7 +226,7 @@ fn picture_motion(input: &telemetry_parser::Input) -> Option<GyroSamples> {
         out.t.push(0.5 * (t0 + t1));
         out.w.push((q0.inverse() * q1).scaled_axis() / (t1 - t0));
     }
-    Some(out)
+    Ok(Some(out))
 }
 
 /// A CSV of four numeric columns (an optional header line): the one that
