@@ -222,9 +222,10 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         eprintln!("warning: {w}");
     }
     if let Some(p) = &args.export_gcsv {
-        let frames: Vec<amc_core::Telemetry> =
-            run.per_frame.iter().map(|f| f.telemetry.clone()).collect();
-        amc_video::write_atomic(p, engine::gcsv::gcsv(&frames, run.readout_ms).as_bytes())?;
+        amc_video::write_atomic(
+            p,
+            engine::gcsv::gcsv(&run.per_frame, run.readout_ms).as_bytes(),
+        )?;
     }
     if run.looks_truncated() {
         eprintln!(

@@ -94,12 +94,6 @@ pub(crate) fn fuse_pass(
             path: input.to_path_buf(),
         });
     }
-    let (t, r): (Vec<f64>, Vec<[f64; 3]>) = seen.iter().map(|s| (s.t, s.r_est)).unzip();
-    let (sync, mut report) = match gyro::sync_log(log, &t, &r) {
-        Ok(found) => found,
-        Err(e) => return Ok(Err(format!("{e}; the output uses the video alone"))),
-    };
-    let track = GyroTrack::new(&log.samples, &sync);
     let vision: Vec<VisionPose> = seen
         .iter()
         .map(|s| VisionPose {
@@ -108,6 +102,12 @@ pub(crate) fn fuse_pass(
             lost: s.track.lost,
         })
         .collect();
+    let (t, rots): (Vec<f64>, Vec<_>) = vision.iter().map(|v| (v.t, v.pose)).unzip();
+    let (sync, mut report) = match gyro::sync_log(log, &t, &rots) {
+        Ok(found) => found,
+        Err(e) => return Ok(Err(format!("{e}; the output uses the video alone"))),
+    };
+    let track = GyroTrack::new(&log.samples, &sync);
     let readout_s = params.shutter.readout_ms * 1e-3;
     let fusion = fuse(&track, &vision, readout_s, &FuseParams::default())?;
     report.fused_frames = fusion

@@ -5,11 +5,11 @@
 //! camera's axes: x right, y down, z forward), in video time (offset 0),
 //! with the readout as `frame_readout_time`.
 
-use amc_core::Telemetry;
+use super::FrameRecord;
 use std::fmt::Write as _;
 
-/// The `.gcsv` text of `frames` (in order), read out over `readout_ms`.
-pub fn gcsv(frames: &[Telemetry], readout_ms: f64) -> String {
+/// The `.gcsv` text of a run's `frames` (in order), read out over `readout_ms`.
+pub fn gcsv(frames: &[FrameRecord], readout_ms: f64) -> String {
     let mut out = String::from(
         "GYROFLOW IMU LOG\nversion,1.3\nid,amc\nvendor,amc\norientation,XYZ\n\
          note,camera motion estimated from the video by amc (camera axes: x right y down z forward)\n",
@@ -19,8 +19,8 @@ pub fn gcsv(frames: &[Telemetry], readout_ms: f64) -> String {
     }
     out.push_str("tscale,1\ngscale,1\nt,gx,gy,gz\n");
     for pair in frames.windows(2) {
-        let t = 0.5 * (pair[0].t + pair[1].t);
-        let w = pair[1].rate_est;
+        let t = 0.5 * (pair[0].telemetry.t + pair[1].telemetry.t);
+        let w = pair[1].telemetry.rate_est;
         let _ = writeln!(out, "{t:.6},{:.7},{:.7},{:.7}", w[0], w[1], w[2]);
     }
     out
@@ -33,11 +33,14 @@ mod tests {
     /// A sample per interval, at its middle, with the later frame's rate.
     #[test]
     fn one_sample_per_frame_interval() {
-        let frames: Vec<Telemetry> = (0..3)
-            .map(|j| Telemetry {
-                t: j as f64 * 0.5,
-                rate_est: [j as f64, -1.0, 0.25],
-                ..Telemetry::default()
+        let frames: Vec<FrameRecord> = (0..3)
+            .map(|j| FrameRecord {
+                telemetry: amc_core::Telemetry {
+                    t: j as f64 * 0.5,
+                    rate_est: [j as f64, -1.0, 0.25],
+                    ..amc_core::Telemetry::default()
+                },
+                metrics: Default::default(),
             })
             .collect();
         let text = gcsv(&frames, 12.5);

@@ -339,17 +339,13 @@ impl GyroReport {
 }
 
 /// Synchronizes `log` with a run's frames (their times and estimated
-/// orientations as rotation vectors).
+/// orientations `R_{0,j}`).
 pub fn sync_log(
     log: &GyroLog,
     t: &[f64],
-    r_est: &[[f64; 3]],
+    rots: &[amc_core::so3::Rot],
 ) -> Result<(GyroSync, GyroReport), GyroLogError> {
-    let rots: Vec<_> = r_est
-        .iter()
-        .map(|r| amc_core::so3::exp(&Vector3::from(*r)))
-        .collect();
-    let steps = VisionStep::from_orientations(t, &rots);
+    let steps = VisionStep::from_orientations(t, rots);
     let synced = if log.video_clock {
         gyro::sync_at(&log.samples, &steps, 0.0)
     } else {

@@ -139,7 +139,6 @@ pub fn sync_at(
 /// whole span, the clock drift, the mounting, the bias and the glitches.
 pub fn sync(gyro: &GyroSamples, steps: &[VisionStep]) -> Result<GyroSync, GyroError> {
     let steps = checked(gyro, steps)?;
-    let steps = &steps[..];
     let integral = GyroIntegral::new(gyro);
     let video_s = steps[steps.len() - 1].t1 - steps[0].t0;
     let log_s = integral.span().1 - integral.span().0;

@@ -5,6 +5,8 @@
 //! (vision's error). A tridiagonal system, solved in `O(n)`; weights 0 bridge
 //! gaps. Robust: samples far from the others' fit are weighted down (Huber).
 
+use super::glitch::median;
+
 /// Pulled toward 0 so that all-zero weights still solve.
 const RIDGE: f64 = 1e-12;
 /// Huber's constant, in robust standard deviations.
@@ -66,8 +68,7 @@ pub fn smooth_robust(y: &[[f64; 3]], w: &[f64], lambda: f64, rounds: usize) -> V
         if kept.is_empty() {
             break;
         }
-        kept.sort_by(f64::total_cmp);
-        let limit = HUBER * (1.4826 * kept[kept.len() / 2]).max(1e-12);
+        let limit = HUBER * (1.4826 * median(&mut kept)).max(1e-12);
         for ((wt, w0), r) in weights.iter_mut().zip(w).zip(&r) {
             *wt = if *r > limit { w0 * limit / r } else { *w0 };
         }

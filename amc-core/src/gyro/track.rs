@@ -22,6 +22,8 @@ pub struct GyroTrack {
     /// The IMU's orientation at each sample, relative to the first.
     q: Vec<Rot>,
     sync: GyroSync,
+    /// The log's mean sample rate, Hz.
+    rate_hz: f64,
     /// The log's white noise, rad/s per axis.
     noise_rad_s: f64,
     /// Video times where the log's signal breaks ([`glitch::breaks`]).
@@ -49,6 +51,7 @@ impl GyroTrack {
             w,
             q,
             sync: sync.clone(),
+            rate_hz: gyro.rate_hz(),
             noise_rad_s: glitch::noise_rad_s(gyro),
             breaks: Vec::new(),
         };
@@ -72,10 +75,7 @@ impl GyroTrack {
 
     /// Mean sample rate, Hz.
     pub fn rate_hz(&self) -> f64 {
-        match (self.t.first(), self.t.last()) {
-            (Some(a), Some(b)) if b > a => (self.t.len() - 1) as f64 / (b - a),
-            _ => 0.0,
-        }
+        self.rate_hz
     }
 
     /// Video time of log time `tau` (the inverse of [`GyroTrack::log_time`]).

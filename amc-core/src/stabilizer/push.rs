@@ -29,11 +29,10 @@ impl Stabilizer {
     /// the pixels with [`Stabilizer::output`].
     pub fn push(&mut self, frame: FrameRef<'_>, t: f64) -> Result<Option<Telemetry>, AmcError> {
         let dt = self.begin(&frame, t)?;
-        let lookahead = self.params.view.lookahead as u64;
         // Pipelined, the output that became ready at the previous push is
         // rendered now, beside the tracking of this frame (the ring still
         // holds every frame it needs: this one is added after).
-        let pending = self.pipelined && self.received > lookahead + self.rendering.next_out;
+        let pending = self.output_pending();
         let src = (self.width, self.height);
         let (tracked, rendered) = if pending {
             let (tracking, rendering) = (&mut self.tracking, &mut self.rendering);
@@ -61,9 +60,7 @@ impl Stabilizer {
         given: GivenPose,
     ) -> Result<Option<Telemetry>, AmcError> {
         let dt = self.begin(&frame, t)?;
-        let lookahead = self.params.view.lookahead as u64;
-        let pending = self.pipelined && self.received > lookahead + self.rendering.next_out;
-        let rendered = pending.then(|| self.render_next());
+        let rendered = self.output_pending().then(|| self.render_next());
         let tracked = Tracked {
             pose: given.pose,
             path: given.path,
@@ -132,6 +129,13 @@ impl Stabilizer {
             deghost,
         });
         self.received += 1;
+    }
+
+    /// Pipelined, whether the previous push made an output ready that is
+    /// not rendered yet.
+    fn output_pending(&self) -> bool {
+        let lookahead = self.params.view.lookahead as u64;
+        self.pipelined && self.received > lookahead + self.rendering.next_out
     }
 
     /// The output ready after a push: the one rendered beside it when
