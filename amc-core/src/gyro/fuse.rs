@@ -21,12 +21,12 @@
 //! `docs/gyro.md` for the measured accuracy.
 
 use super::glitch::median;
+use super::path::{vision_path, PathFit};
 use super::smooth::smooth_robust;
 use super::track::GyroTrack;
 use crate::error::AmcError;
-use crate::shutter::{IntraFrame, INTRA_TERMS};
+use crate::shutter::IntraFrame;
 use crate::so3::{self, Rot, Tangent};
-use nalgebra::{Matrix4, Vector4};
 
 /// When the gyro and the picture disagree.
 #[derive(Clone, Debug, PartialEq)]
@@ -115,8 +115,6 @@ pub struct Fusion {
     pub lambda: f64,
 }
 
-/// Readout samples the path is fitted to.
-const PATH_SAMPLES: usize = 17;
 /// The smoother's reweightings.
 const ROBUST_ROUNDS: usize = 3;
 /// Bounds of the smoother's `lambda` (a noiseless gyro, a noiseless picture).
@@ -332,68 +330,4 @@ fn weigh(
         / 3.0;
     let vision_var = ((spread_var - gyro_var) / 2.0).max(0.01 * spread_var);
     (vision_var / gyro_var.max(f64::MIN_POSITIVE)).clamp(LAMBDA_RANGE.0, LAMBDA_RANGE.1)
-}
-
-/// A frame's readout path from vision alone: its angular velocity (the
-/// central difference of its neighbours' poses) times the readout.
-fn vision_path(frames: &[VisionPose], j: usize, readout_s: f64) -> IntraFrame {
-    let (a, b) = (j.saturating_sub(1), (j + 1).min(frames.len() - 1));
-    let dt = frames[b].t - frames[a].t;
-    if b == a || dt <= 0.0 {
-        return IntraFrame::ZERO;
-    }
-    // The rate in frame j's axes.
-    let w = frames[j].pose.transpose()
-        * frames[a].pose
-        * so3::log(&(frames[a].pose.transpose() * frames[b].pose))
-        / dt;
-    IntraFrame {
-        phi: w * readout_s,
-        ..IntraFrame::ZERO
-    }
-}
-
-/// The least-squares fit of `a(s) = s phi + s^2 psi + s^3 chi + s^4 xi` to
-/// the gyro's rotation at readout fractions `s` in `[-1/2, 1/2]`.
-struct PathFit {
-    s: [f64; PATH_SAMPLES],
-    /// `(A^T A)^-1 A^T`, one row per term.
-    solve: [[f64; PATH_SAMPLES]; INTRA_TERMS],
-}
-
-impl PathFit {
-    fn new() -> Self {
-        let s: [f64; PATH_SAMPLES] =
-            std::array::from_fn(|k| -0.5 + k as f64 / (PATH_SAMPLES - 1) as f64);
-        let mut ata = Matrix4::zeros();
-        for &sk in &s {
-            let row = Vector4::new(sk, sk * sk, sk.powi(3), sk.powi(4));
-            ata += row * row.transpose();
-        }
-        let inv = ata
-            .try_inverse()
-            .expect("the readout samples span four powers");
-        let mut solve = [[0.0; PATH_SAMPLES]; INTRA_TERMS];
-        for (k, &sk) in s.iter().enumerate() {
-            let col = inv * Vector4::new(sk, sk * sk, sk.powi(3), sk.powi(4));
-            for (term, row) in solve.iter_mut().enumerate() {
-                row[k] = col[term];
-            }
-        }
-        Self { s, solve }
-    }
-
-    /// Frame `t`'s path over a readout of `readout_s`, `None` where the log
-    /// does not cover it.
-    fn path(&self, track: &GyroTrack, t: f64, readout_s: f64) -> Option<IntraFrame> {
-        let mid = track.pose(t)?;
-        let mut a = [Tangent::zeros(); PATH_SAMPLES];
-        for (ak, &sk) in a.iter_mut().zip(&self.s) {
-            *ak = so3::log(&(mid.transpose() * track.pose(t + sk * readout_s)?));
-        }
-        let terms: [Tangent; INTRA_TERMS] = std::array::from_fn(|term| {
-            a.iter().zip(&self.solve[term]).map(|(ak, c)| ak * *c).sum()
-        });
-        Some(IntraFrame::from_terms(terms))
-    }
 }

@@ -18,7 +18,8 @@
 //! - `fuse.rs`: each frame's pose and readout path from the gyro, held to the
 //!   picture (`smooth.rs`: the smoother that does it), glitches bridged by
 //!   vision and lost frames by the gyro (`glitch.rs`: the log's own noise and
-//!   breaks).
+//!   breaks); `online.rs`: the same, causal, one frame at a time (a live
+//!   feed, one pass over a long clip); `path.rs`: a frame's readout path.
 //!
 //! Conventions: video time = log time + `offset_s`; `mount` takes IMU vectors
 //! into the camera frame (x right, y down, z forward); the bias is in the
@@ -29,6 +30,8 @@ mod glitch;
 mod integrate;
 mod mount;
 mod offset;
+mod online;
+mod path;
 mod samples;
 mod smooth;
 mod track;
@@ -38,6 +41,7 @@ pub use glitch::{breaks, noise_rad_s};
 pub use integrate::GyroIntegral;
 pub use mount::{fit_mount, MountFit};
 pub use offset::{coarse_offset, refine_offset, speed_correlation};
+pub use online::{OnlineFusion, OnlineParams};
 pub use samples::{GyroSamples, GyroSync, VisionStep};
 pub use smooth::{random_walk_smoother, smooth_robust};
 pub use track::GyroTrack;

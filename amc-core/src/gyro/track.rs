@@ -73,6 +73,11 @@ impl GyroTrack {
         &self.breaks
     }
 
+    /// The sync it was made with.
+    pub fn sync(&self) -> &GyroSync {
+        &self.sync
+    }
+
     /// Mean sample rate, Hz.
     pub fn rate_hz(&self) -> f64 {
         self.rate_hz
