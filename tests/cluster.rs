@@ -419,6 +419,86 @@ fn a_cancelled_job_stops_its_worker_within_a_second() {
     assert!(infra.objects_of(&id).is_empty());
 }
 
+/// A gyro log sent with the clip (the `gyro` form part) goes into the bucket beside the
+/// upload, reaches the worker, is used (the job's metrics report its sync and fusion), and
+/// leaves the bucket with the upload; one that cannot be read is refused before a job exists.
+#[test]
+fn a_gyro_log_travels_beside_the_upload_and_leaves_with_it() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(infra) = Infra::start() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let (clip, video) = amc_e2e::synth_clip_with_gyro(dir.path(), 2.0);
+    let (video, lens, log) = (
+        std::fs::read(video).unwrap(),
+        std::fs::read(clip.join("lens.json")).unwrap(),
+        std::fs::read(clip.join("gyro.gcsv")).unwrap(),
+    );
+    let api = infra.replica(&[]);
+    let form = |log: &[u8]| {
+        post_multipart(
+            &api.url("/jobs?metrics=false"),
+            &[
+                ("video", "clip.mp4", "video/mp4", &video),
+                ("lens", "lens.json", "application/json", &lens),
+                ("gyro", "flight.gcsv", "text/csv", log),
+            ],
+        )
+    };
+    // Refused at once: no row, nothing in the bucket.
+    let r = form(b"not a log\n1,2\n");
+    assert_eq!(r.status, 400, "{}", r.text());
+    assert!(
+        r.text().contains("no gyro log telemetry-parser knows"),
+        "{}",
+        r.text()
+    );
+    assert_eq!(infra.rows(), 0);
+    assert_eq!(infra.s3.object_count(), 0);
+    // Queued before any worker runs: the log sits beside the upload.
+    let r = form(&log);
+    assert_eq!(r.status, 202, "{}", r.text());
+    let id = r.json()["id"].as_str().unwrap().to_string();
+    let objects = infra.objects_of(&id);
+    assert!(
+        objects.iter().any(|k| k.ends_with(&format!("{id}/input"))),
+        "{objects:?}"
+    );
+    assert!(
+        objects
+            .iter()
+            .any(|k| k.ends_with(&format!("{id}/gyro.gcsv"))),
+        "{objects:?}"
+    );
+    let worker = infra.worker(&[]);
+    let v = wait_finished(&api, &id, Duration::from_secs(120));
+    assert_eq!(v["state"], "done", "{v}\n{}", worker.log());
+    let g = &v["metrics"]["gyro"];
+    assert!(
+        g["source"]
+            .as_str()
+            .is_some_and(|s| s.contains("amc-synth")),
+        "{v}"
+    );
+    let offset_ms = (g["offset_s"].as_f64().unwrap() - amc_e2e::GYRO_CLIP_OFFSET_S) * 1e3;
+    assert!(
+        offset_ms.abs() < 2.0,
+        "offset off by {offset_ms:.3} ms: {g}"
+    );
+    assert!(g["fused_frames"].as_u64().is_some_and(|n| n > 60), "{g}");
+    // Done: the upload and its log have left the bucket; the results stay.
+    let objects = infra.objects_of(&id);
+    assert!(
+        objects
+            .iter()
+            .all(|k| !k.ends_with("/input") && !k.contains("/gyro")),
+        "{objects:?}"
+    );
+    assert_eq!(delete(&api.url(&format!("/jobs/{id}"))).status, 204);
+    assert!(infra.objects_of(&id).is_empty());
+    api.assert_no_scratch_left(Duration::from_secs(5));
+    assert_empty(worker.work_parent.path(), "the worker");
+}
+
 /// How many migrations the server embeds: one file each in amc-server/migrations.
 fn migration_count() -> usize {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../amc-server/migrations");

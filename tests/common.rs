@@ -394,6 +394,37 @@ pub fn synth(dir: &Path, args: &[&str]) {
     assert!(dir.join("gt.csv").exists() && dir.join("lens.json").exists());
 }
 
+/// A short clip and the gyro log its camera recorded, as a client uploads them: `amc synth`
+/// renders `dir/clip` (320x180, 60 frames/s, `seconds` long, 150 deg/s of shake, its
+/// `gyro.gcsv` at 1 kHz starting [`GYRO_CLIP_OFFSET_S`] from the video, and `lens.json`), then
+/// the frames are encoded into `dir/clip.mp4`. Returns the folder and the video.
+pub fn synth_clip_with_gyro(dir: &Path, seconds: f64) -> (PathBuf, PathBuf) {
+    let clip = dir.join("clip");
+    let secs = seconds.to_string();
+    let offset = GYRO_CLIP_OFFSET_S.to_string();
+    synth(
+        &clip,
+        &[
+            "--seconds",
+            &secs,
+            "--seed",
+            "3",
+            "--shake-dps",
+            "150",
+            "--gyro-rate-hz",
+            "1000",
+            "--gyro-offset-s",
+            &offset,
+        ],
+    );
+    let video = dir.join("clip.mp4");
+    fixtures::encode_frames(&clip, 60, &video);
+    (clip, video)
+}
+
+/// Video time of the first sample of [`synth_clip_with_gyro`]'s log, seconds.
+pub const GYRO_CLIP_OFFSET_S: f64 = -1.25;
+
 /// `amc synth` arguments of the scenario tests' clips (`ground_truth.rs`, `paper_effect.rs`):
 /// 10 s of 320x180 at 60 frames/s, shaking in the 12-20 Hz band (each row adds its speed, its
 /// seed, and its lens or pan).

@@ -42,6 +42,24 @@ pub fn lavfi(out: &Path, sources: &[&str], args: &[&str]) {
     ffmpeg(&a);
 }
 
+/// Encodes a folder of PNG frames (`frame-%06d.png`, as `amc synth` writes them) at `fps` into
+/// `out` as a camera records it: H.264, x264 CRF 30, yuv420p.
+pub fn encode_frames(frames: &Path, fps: u32, out: &Path) {
+    ffmpeg(&[
+        OsStr::new("-framerate"),
+        OsStr::new(&fps.to_string()),
+        OsStr::new("-i"),
+        frames.join("frame-%06d.png").as_os_str(),
+        OsStr::new("-c:v"),
+        OsStr::new("libx264"),
+        OsStr::new("-crf"),
+        OsStr::new("30"),
+        OsStr::new("-pix_fmt"),
+        OsStr::new("yuv420p"),
+        out.as_os_str(),
+    ]);
+}
+
 /// One `width`x`height` picture of ffmpeg's `testsrc2` pattern; the format follows `out`'s
 /// extension (`.png`, `.jpg`...).
 pub fn test_picture(out: &Path, width: u32, height: u32) {

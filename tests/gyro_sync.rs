@@ -153,19 +153,7 @@ fn fused_motion_halves_the_per_frame_error_and_bridges_a_glitch() {
         ],
     );
     let video = dir.path().join("clip.mp4");
-    amc_e2e::fixtures::ffmpeg(&[
-        "-framerate",
-        "60",
-        "-i",
-        &s(&clip.join("frame-%06d.png")),
-        "-c:v",
-        "libx264",
-        "-crf",
-        "30",
-        "-pix_fmt",
-        "yuv420p",
-        &s(&video),
-    ]);
+    amc_e2e::fixtures::encode_frames(&clip, 60, &video);
     let run = |gyro: &str| {
         let telemetry = dir.path().join(format!("{}.csv", gyro.len()));
         let r = amc_ok(&[

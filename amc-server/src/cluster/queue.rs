@@ -43,6 +43,7 @@ fn migrator() -> Migrator {
                 "tenants",
                 include_str!("../../migrations/0002_tenants.sql"),
             ),
+            migration(3, "gyro", include_str!("../../migrations/0003_gyro.sql")),
         ]),
         ..Migrator::DEFAULT
     }
@@ -123,6 +124,8 @@ pub struct NewJob<'a> {
     pub width: i32,
     pub height: i32,
     pub input_key: &'a str,
+    /// The client's gyro log, stored beside the upload.
+    pub gyro_key: Option<&'a str>,
     pub frames_total: Option<i64>,
 }
 
@@ -140,6 +143,8 @@ pub struct Claim {
     pub width: i32,
     pub height: i32,
     pub input_key: String,
+    /// The client's gyro log, beside the upload (removed with it).
+    pub gyro_key: Option<String>,
     pub frames_total: Option<i64>,
 }
 
@@ -214,8 +219,8 @@ impl Queue {
 
     pub async fn insert(&self, job: &NewJob<'_>) -> Result<JobRow, ClusterError> {
         let sql = format!(
-            "INSERT INTO amc_jobs (id, options, format, lens, width, height, input_key, frames_total, tenant) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9) RETURNING {COLUMNS}"
+            "INSERT INTO amc_jobs (id, options, format, lens, width, height, input_key, frames_total, tenant, gyro_key) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10) RETURNING {COLUMNS}"
         );
         let row = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(job.id)
@@ -227,6 +232,7 @@ impl Queue {
             .bind(job.input_key)
             .bind(job.frames_total)
             .bind(job.tenant)
+            .bind(job.gyro_key)
             .fetch_one(&self.pool)
             .await
             .map_err(ClusterError::db("queueing a job"))?;
@@ -442,7 +448,7 @@ impl Queue {
                    ORDER BY seq LIMIT 1 FOR UPDATE SKIP LOCKED) c \
              WHERE j.id = c.id \
              RETURNING j.id, j.tenant, j.attempts, j.options, j.format, j.lens, j.width, j.height, \
-                 j.input_key, j.frames_total",
+                 j.input_key, j.frames_total, j.gyro_key",
         )
         .bind(worker)
         .bind(secs(lease))
@@ -462,6 +468,7 @@ impl Queue {
                 width: r.try_get("width")?,
                 height: r.try_get("height")?,
                 input_key: r.try_get("input_key")?,
+                gyro_key: r.try_get("gyro_key")?,
                 frames_total: r.try_get("frames_total")?,
             })
         };

@@ -3,6 +3,8 @@
 //!
 //! Keys, under the configured prefix:
 //! - `jobs/{id}/input`: the upload, written once by the replica that took it;
+//! - `jobs/{id}/gyro.{ext}`: a gyro log sent with it (the `gyro` form
+//!   field), written and removed with the upload;
 //! - `jobs/{id}/{attempt}/output.{ext}` and `.../telemetry.csv`: one
 //!   worker's results. Each claim writes under its own attempt number, so a
 //!   worker that was presumed dead cannot overwrite another's output, and
@@ -110,6 +112,15 @@ impl Store {
     /// Where a job's upload goes.
     pub fn input_key(&self, tenant: &str, id: &str) -> String {
         self.job_key(tenant, id, "/input")
+    }
+
+    /// Where a job's gyro log goes: `gyro.EXT` (`gyro` without one), the
+    /// extension the worker's copy needs for telemetry-parser.
+    pub fn gyro_key(&self, tenant: &str, id: &str, extension: Option<&str>) -> String {
+        match extension {
+            Some(ext) => self.job_key(tenant, id, &format!("/gyro.{ext}")),
+            None => self.job_key(tenant, id, "/gyro"),
+        }
     }
 
     /// Where one claim of a job writes its output.

@@ -68,7 +68,7 @@ pub fn receive_upload(
     let result = runtime.block_on(async {
         let scratch = Scratch::new(root, budget.clone()).map_err(|e| (500, e.to_string()))?;
         let mut body = Some(body);
-        let received = upload::receive(&headers, &mut body, &scratch, max_bytes).await;
+        let received = upload::receive(&headers, &mut body, &scratch, max_bytes, false).await;
         drop(scratch);
         received.map_err(refusal)
     });

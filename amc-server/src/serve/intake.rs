@@ -1,6 +1,8 @@
 //! What `POST /stabilize` and `POST /jobs` share: admission (or 503), the
-//! options (or 400), the upload (or 400/413/415) and its inspection (or 415/422).
+//! options (or 400), the upload (or 400/413/415), its gyro log (or 400) and
+//! its inspection (or 415/422).
 
+use super::gyro_log;
 use super::options::JobOptions;
 use super::problem::{count, ApiError};
 use super::state::AppState;
@@ -120,8 +122,12 @@ async fn accept_parts(
         body,
         &scratch,
         state.limits.max_upload_bytes,
+        !options.gyro,
     )
     .await?;
+    if let Some(log) = &upload.gyro {
+        gyro_log::check(log).await?;
+    }
     let video = upload.video.clone();
     let limits = state.limits.clone();
     let inspection = tokio::task::spawn_blocking(move || work::inspect(&video, &limits))

@@ -2,7 +2,7 @@
 //!
 //! | route | what |
 //! |---|---|
-//! | `POST /stabilize` | clip in (raw body or multipart), stabilized clip out, metrics in `X-Amc-*` headers |
+//! | `POST /stabilize` | clip in (raw body, or multipart with an optional lens file and gyro log), stabilized clip out, metrics in `X-Amc-*` headers |
 //! | `POST /jobs`, `GET /jobs`, `GET/DELETE /jobs/{id}`, `GET /jobs/{id}/output`, `GET /jobs/{id}/telemetry.csv` | batch jobs |
 //! | `GET /live` (WebSocket) | the stabilized live feed: a JPEG then a JSON telemetry message per frame |
 //! | `GET /live/ingest` (WebSocket) | a publisher's JPEG frames, when there is no `--live-source` |
@@ -20,7 +20,7 @@
 //! request or job, and the work directory itself is removed on shutdown.
 //!
 //! Layers, each using only those below it: `config` (flags, limits) and
-//! `problem`, `options`, `storage`, `metrics` at the bottom; `live` (its hub)
+//! `problem`, `options`, `storage`, `metrics`, `gyro_log` at the bottom; `live` (its hub)
 //! and `jobs` (its store); `state` (what handlers share); `work`, `intake`;
 //! the handlers (`stabilize`, `jobs`, `live`, `ops`, `openapi`); `access`
 //! (each request's log line), `headers` (CSP, CORS); `router` (routes,
@@ -31,6 +31,7 @@ pub(crate) mod access;
 pub(crate) mod config;
 #[doc(hidden)]
 pub mod fuzzing;
+pub(crate) mod gyro_log;
 mod headers;
 pub(crate) mod intake;
 pub(crate) mod jobs;

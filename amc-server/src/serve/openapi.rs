@@ -53,21 +53,25 @@ fn query_parameters() -> Vec<Value> {
 fn upload_body() -> Value {
     json!({
         "required": true,
-        "description": "The clip: the raw body with a video/* content type, or multipart/form-data with a `video` file and an optional `lens` file (the project's lens JSON, an OpenCV calibration or a Gyroflow profile).",
+        "description": "The clip: the raw body with a video/* content type, or multipart/form-data with a `video` file, an optional `lens` file (the project's lens JSON, an OpenCV calibration or a Gyroflow profile) and an optional `gyro` log (any format telemetry-parser reads, or a CSV of a time and three rates; used instead of the clip's own track; refused with gyro=off).",
         "content": {
             "video/*": {"schema": {"type": "string", "format": "binary", "minLength": 1}},
             "application/octet-stream": {"schema": {"type": "string", "format": "binary", "minLength": 1}},
             "multipart/form-data": {"schema": {"type": "object", "required": ["video"], "additionalProperties": false, "properties": {
                 "video": {"type": "string", "format": "binary", "minLength": 1},
-                "lens": {"type": "string", "description": "The lens file's text (UTF-8 JSON or YAML, at most 1 MiB)"}
+                "lens": {"type": "string", "description": "The lens file's text (UTF-8 JSON or YAML, at most 1 MiB)"},
+                "gyro": {"type": "string", "format": "binary", "minLength": 1, "description": "A gyro log for the clip, at most 64 MiB: a camera's file (GoPro, Sony, DJI, Insta360), a flight controller's blackbox (Betaflight, ArduPilot .log), Gyroflow's .gcsv, a phone app's log, or a CSV of a time column and three rates in rad/s. Its file name's extension is kept (telemetry-parser tells some formats by it). Synchronized with the video and fused, as the CLI's --gyro FILE; reported in the job's metrics.gyro"}
             }}}
         }
     })
 }
 
 fn upload_errors(responses: &mut Map<String, Value>) {
-    responses.insert("400".into(), problem("A bad option (the message names it and the allowed range), an empty body or a broken upload"));
-    responses.insert("413".into(), problem("The upload is over --max-upload-mb"));
+    responses.insert("400".into(), problem("A bad option (the message names it and the allowed range), an empty body, a broken upload, a `gyro` log that cannot be read or is empty, or a `gyro` log with gyro=off"));
+    responses.insert(
+        "413".into(),
+        problem("The upload is over --max-upload-mb, or the `gyro` log over 64 MiB"),
+    );
     responses.insert("415".into(), problem("Not a video ffmpeg can decode"));
     responses.insert(
         "422".into(),
@@ -310,7 +314,7 @@ pub fn spec() -> Value {
                 "min_valid_fraction": {"type": "number", "description": "Lowest per-frame share of fully covered pixels"},
                 "readout_ms": {"type": "number", "minimum": 0, "maximum": 100, "description": "Rolling-shutter readout time used, ms (0 = global shutter): readout_ms, the lens file's, or the estimate of readout_ms=auto"},
                 "warnings": {"type": "array", "items": {"type": "string"}, "description": "What the user should know about the run: fov=auto fell back to 70 deg, readout_ms=auto fell back to 0 (the CLI's warnings)"},
-                "gyro": {"type": ["object", "null"], "description": "With gyro=auto and a clip that carries its own gyro track: the track's sync and fusion as the CLI's --metrics reports them (source, samples, rate_hz, offset_s, log_time, drift_ppm, mount_rotvec, bias_rad_s, glitches, residual_rad_s, correlation, fused_frames, glitch_intervals_bridged, frames_bridged); null without one"}
+                "gyro": {"type": ["object", "null"], "description": "With a `gyro` log sent with the clip, or gyro=auto and a clip that carries its own gyro track: the log's sync and fusion as the CLI's --metrics reports them (source, samples, rate_hz, offset_s, log_time, drift_ppm, mount_rotvec, bias_rad_s, glitches, residual_rad_s, correlation, fused_frames, glitch_intervals_bridged, frames_bridged); null without one"}
             }},
             "JobMotion": {"type": "object", "properties": {
                 "rms_speed_est_dps": {"type": "number", "description": "RMS angular speed of the camera (estimated), deg/s"},

@@ -51,7 +51,8 @@ pub struct JobOptions {
     pub measure: bool,
     /// `gyro=auto` (the default): use the clip's own IMU track (GoPro, Sony,
     /// DJI, Insta360) when it has one, synchronized and fused as the CLI's
-    /// `--gyro auto` does; `gyro=off`: the picture alone.
+    /// `--gyro auto` does, or the `gyro` form field's log when one is sent;
+    /// `gyro=off`: the picture alone (and a `gyro` form field is refused).
     pub gyro: bool,
 }
 
@@ -69,7 +70,7 @@ pub const SERVICE_OPTIONS: &[(&str, &str, Allowed)] = &[
     ),
     (
         "gyro",
-        "auto or off: use the clip's own gyro track (GoPro, Sony, DJI, Insta360), synchronized from the video and fused with it, as the CLI's --gyro auto (default auto)",
+        "auto or off: use the clip's own gyro track (GoPro, Sony, DJI, Insta360), synchronized from the video and fused with it, as the CLI's --gyro auto (default auto); a `gyro` form field (a log file) is used instead of the track, and cannot go with off",
         Allowed::Words(&["auto", "off"]),
     ),
 ];

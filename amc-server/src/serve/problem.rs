@@ -29,6 +29,9 @@ pub enum ApiError {
     /// The upload is larger than `--max-upload-mb`.
     #[error("the upload is larger than the limit of {limit_mb} MB (set by --max-upload-mb)")]
     TooLarge { limit_mb: u64 },
+    /// A `gyro` form field over its own limit (`upload::MAX_GYRO_BYTES`).
+    #[error("the gyro log is larger than the limit of {limit_mib} MiB")]
+    GyroTooLarge { limit_mib: u64 },
     /// Not a video ffmpeg can decode (or a content type that is not video).
     #[error("{0}")]
     Unsupported(String),
@@ -102,7 +105,9 @@ impl ApiError {
     pub fn status(&self) -> StatusCode {
         match self {
             ApiError::BadOption(_) | ApiError::BadRequest(_) => StatusCode::BAD_REQUEST,
-            ApiError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
+            ApiError::TooLarge { .. } | ApiError::GyroTooLarge { .. } => {
+                StatusCode::PAYLOAD_TOO_LARGE
+            }
             ApiError::Unsupported(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             ApiError::Unprocessable(_) => StatusCode::UNPROCESSABLE_ENTITY,
             ApiError::Unauthorized(_) => StatusCode::UNAUTHORIZED,
@@ -122,7 +127,7 @@ impl ApiError {
         match self {
             ApiError::BadOption(_) => "bad-option",
             ApiError::BadRequest(_) => "bad-request",
-            ApiError::TooLarge { .. } => "too-large",
+            ApiError::TooLarge { .. } | ApiError::GyroTooLarge { .. } => "too-large",
             ApiError::Unsupported(_) => "unsupported-media",
             ApiError::Unprocessable(_) => "unprocessable-video",
             ApiError::JobNotFound(_) => "job-not-found",

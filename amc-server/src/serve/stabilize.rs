@@ -78,6 +78,9 @@ async fn stabilize(state: &Arc<AppState>, request: Request) -> Result<Response, 
     let summary = result?;
     guard.disarm();
     local.scratch.remove(&spec.input);
+    if let Some(log) = &spec.gyro_log {
+        local.scratch.remove(log);
+    }
     let file = tokio::fs::File::open(&spec.output)
         .await
         .map_err(|e| ApiError::Internal(format!("cannot read the result: {e}")))?;

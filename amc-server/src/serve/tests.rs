@@ -53,6 +53,57 @@ fn delete(uri: &str) -> Request<Body> {
     Request::delete(uri).body(Body::empty()).unwrap()
 }
 
+/// A `multipart/form-data` request of `parts` (name, file name, bytes).
+fn form(uri: &str, parts: &[(&str, &str, &[u8])]) -> Request<Body> {
+    let mut body = Vec::new();
+    for (name, file, bytes) in parts {
+        body.extend_from_slice(
+            format!("--XyZ\r\nContent-Disposition: form-data; name=\"{name}\"; filename=\"{file}\"\r\nContent-Type: application/octet-stream\r\n\r\n")
+                .as_bytes(),
+        );
+        body.extend_from_slice(bytes);
+        body.extend_from_slice(b"\r\n");
+    }
+    body.extend_from_slice(b"--XyZ--\r\n");
+    Request::post(uri)
+        .header("content-type", "multipart/form-data; boundary=XyZ")
+        .body(Body::from(body))
+        .unwrap()
+}
+
+/// A `gyro` form field that cannot be used is a 400 naming why, before the
+/// clip is looked at, and leaves nothing in the scratch space.
+#[tokio::test]
+async fn gyro_fields_that_cannot_be_used_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let app = app(state(dir.path()));
+    for (uri, gyro, says) in [
+        ("/stabilize?gyro=off", &b"t,gx,gy,gz\n"[..], "gyro=off"),
+        (
+            "/jobs",
+            &b"not a log\n1,2\n"[..],
+            "no gyro log telemetry-parser knows",
+        ),
+        ("/jobs", &b""[..], "is empty"),
+    ] {
+        let req = form(
+            uri,
+            &[
+                ("video", "v.mp4", b"not checked yet"),
+                ("gyro", "f.gcsv", gyro),
+            ],
+        );
+        let (s, ctype, j) = call(&app, req).await;
+        assert_eq!(s, StatusCode::BAD_REQUEST, "{uri}: {j}");
+        assert_eq!(ctype, "application/problem+json");
+        let detail = j["detail"].as_str().unwrap();
+        assert!(detail.contains(says), "{uri}: {detail}");
+        assert!(!detail.contains("req-"), "{uri}: {detail}");
+    }
+    let left = std::fs::read_dir(dir.path().join("work")).unwrap().count();
+    assert_eq!(left, 0, "scratch folders left");
+}
+
 #[tokio::test]
 async fn routes_and_errors() {
     let dir = tempfile::tempdir().unwrap();
@@ -276,6 +327,7 @@ async fn the_schema_states_what_is_accepted() {
     assert_eq!(form["additionalProperties"], false, "{form}");
     assert_eq!(form["properties"]["lens"]["type"], "string");
     assert!(form["properties"]["lens"].get("format").is_none(), "{form}");
+    assert_eq!(form["properties"]["gyro"]["format"], "binary", "{form}");
     let list = doc["paths"]["/jobs"]["get"]["parameters"]
         .as_array()
         .unwrap();

@@ -1,7 +1,8 @@
 //! Receiving a clip: the raw request body (a video content type) or
-//! `multipart/form-data` with a `video` file and an optional `lens` file.
-//! Bytes go straight to the request's scratch folder, counted against the
-//! upload limit and the disk budget as they arrive, never held in memory.
+//! `multipart/form-data` with a `video` file, an optional `lens` file and an
+//! optional `gyro` log. Bytes go straight to the request's scratch folder,
+//! counted against the upload limit and the disk budget as they arrive,
+//! never held in memory.
 
 use super::problem::ApiError;
 use super::storage::Scratch;
@@ -15,12 +16,24 @@ use tokio::io::AsyncWriteExt;
 /// Longest lens file accepted (a calibration is a few kilobytes).
 pub const MAX_LENS_BYTES: usize = 1 << 20;
 
+/// Longest gyro log accepted: a 1 kHz flight-controller blackbox of a
+/// quarter of an hour, or a camera's whole MP4 sent as its own log, fits.
+pub const MAX_GYRO_BYTES: u64 = 64 << 20;
+
+/// The gyro log's name in the scratch folder, before its extension. Not
+/// `input.gcsv`: that is the clip's sidecar, which `gyro=auto` looks for.
+const GYRO_FILE: &str = "gyro-log";
+
 /// A received clip.
 #[derive(Debug)]
 pub struct Upload {
     pub video: PathBuf,
     /// The text of a lens file sent as the `lens` form field.
     pub lens: Option<String>,
+    /// A gyro log sent as the `gyro` form field, in the scratch folder
+    /// (with the extension the client's file name had: telemetry-parser
+    /// tells some formats by it).
+    pub gyro: Option<PathBuf>,
     pub bytes: u64,
 }
 
@@ -102,12 +115,14 @@ pub fn linger(mut rest: BodyDataStream) {
 }
 
 /// Receives the clip into `scratch`. `body` is taken once fully read; on an
-/// error it is left for the caller to [`linger`] on.
+/// error it is left for the caller to [`linger`] on. `gyro_off`: the query
+/// said `gyro=off`, so a `gyro` field is refused as soon as it starts.
 pub async fn receive(
     headers: &HeaderMap,
     body: &mut Option<BodyDataStream>,
     scratch: &Scratch,
     max_bytes: u64,
+    gyro_off: bool,
 ) -> Result<Upload, ApiError> {
     let content_type = headers
         .get(header::CONTENT_TYPE)
@@ -118,17 +133,24 @@ pub async fn receive(
         .get(header::CONTENT_LENGTH)
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.parse::<u64>().ok());
-    if declared.is_some_and(|n| n > max_bytes) {
-        return Err(ApiError::TooLarge {
-            limit_mb: max_bytes / 1_000_000,
-        });
-    }
     let essence = content_type
         .split(';')
         .next()
         .unwrap_or("")
         .trim()
         .to_ascii_lowercase();
+    // A form may carry a lens file and a gyro log beside the clip (each
+    // part's own limit is checked as it arrives).
+    let most = if essence == "multipart/form-data" {
+        max_bytes.saturating_add(MAX_GYRO_BYTES + MAX_LENS_BYTES as u64)
+    } else {
+        max_bytes
+    };
+    if declared.is_some_and(|n| n > most) {
+        return Err(ApiError::TooLarge {
+            limit_mb: max_bytes / 1_000_000,
+        });
+    }
     let video = scratch.file("input");
     let upload = if essence == "multipart/form-data" {
         let Some(stream) = body.take() else {
@@ -137,8 +159,15 @@ pub async fn receive(
         // The form parser owns the stream while it works; on an error the
         // unread rest comes back through `shared` to be lingered on.
         let shared = SharedStream(Arc::new(Mutex::new(Some(stream))));
-        let result =
-            receive_multipart(&content_type, shared.clone(), scratch, &video, max_bytes).await;
+        let result = receive_multipart(
+            &content_type,
+            shared.clone(),
+            scratch,
+            &video,
+            max_bytes,
+            gyro_off,
+        )
+        .await;
         if result.is_err() {
             *body = shared.0.lock().unwrap_or_else(|e| e.into_inner()).take();
         }
@@ -158,6 +187,7 @@ pub async fn receive(
         Upload {
             video,
             lens: None,
+            gyro: None,
             bytes,
         }
     } else {
@@ -201,6 +231,7 @@ async fn receive_multipart(
     scratch: &Scratch,
     video: &Path,
     max_bytes: u64,
+    gyro_off: bool,
 ) -> Result<Upload, ApiError> {
     // The form is parsed with `multer` directly: axum's `Multipart` extractor,
     // used on a request built here, would apply its default 2 MB body limit
@@ -211,6 +242,7 @@ async fn receive_multipart(
     let mut form = multer::Multipart::new(stream, boundary);
     let mut got_video = None;
     let mut lens = None;
+    let mut gyro = None;
     let bad = |e: multer::Error| ApiError::BadRequest(format!("invalid multipart/form-data: {e}"));
     while let Some(mut field) = form.next_field().await.map_err(bad)? {
         match field.name().unwrap_or("") {
@@ -239,9 +271,37 @@ async fn receive_multipart(
                     ApiError::BadOption("the lens file is not UTF-8 text (JSON or YAML)".into())
                 })?);
             }
+            "gyro" => {
+                if gyro_off {
+                    return Err(ApiError::BadOption(
+                        "gyro=off contradicts the `gyro` form field: send the log without \
+                         gyro=off (or gyro=auto) to use it, or gyro=off without the log"
+                            .into(),
+                    ));
+                }
+                if gyro.is_some() {
+                    return Err(ApiError::BadRequest("more than one `gyro` field".into()));
+                }
+                let path = scratch.file(&gyro_file_name(field.file_name()));
+                let mut file = Incoming::create(&path, scratch, MAX_GYRO_BYTES).await?;
+                while let Some(chunk) = field.chunk().await.map_err(interrupted)? {
+                    file.push(&chunk).await.map_err(|e| match e {
+                        ApiError::TooLarge { .. } => ApiError::GyroTooLarge {
+                            limit_mib: MAX_GYRO_BYTES >> 20,
+                        },
+                        e => e,
+                    })?;
+                }
+                if file.finish().await? == 0 {
+                    return Err(ApiError::BadOption(
+                        "the `gyro` form field is empty: send the gyro log's file".into(),
+                    ));
+                }
+                gyro = Some(path);
+            }
             other => {
                 return Err(ApiError::BadRequest(format!(
-                    "unknown form field {other:?} (known: video, lens)"
+                    "unknown form field {other:?} (known: video, lens, gyro)"
                 )))
             }
         }
@@ -252,6 +312,36 @@ async fn receive_multipart(
     Ok(Upload {
         video: video.to_path_buf(),
         lens,
+        gyro,
         bytes,
     })
+}
+
+/// The gyro log's scratch name: [`GYRO_FILE`] with the client's extension
+/// when it is a plain one (`.gcsv`, `.bbl`, `.log`, `.csv`, `.mp4`);
+/// anything else in the client's name is dropped (it names a path here).
+fn gyro_file_name(client_name: Option<&str>) -> String {
+    let ext = client_name
+        .and_then(|n| Path::new(n).extension())
+        .and_then(|e| e.to_str())
+        .filter(|e| !e.is_empty() && e.len() <= 8 && e.chars().all(|c| c.is_ascii_alphanumeric()));
+    match ext {
+        Some(e) => format!("{GYRO_FILE}.{}", e.to_ascii_lowercase()),
+        None => GYRO_FILE.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::gyro_file_name;
+
+    #[test]
+    fn gyro_file_names_keep_only_a_plain_extension() {
+        assert_eq!(gyro_file_name(Some("flight.GCSV")), "gyro-log.gcsv");
+        assert_eq!(gyro_file_name(Some("../../etc/x.bbl")), "gyro-log.bbl");
+        assert_eq!(gyro_file_name(Some("a.b/c")), "gyro-log");
+        assert_eq!(gyro_file_name(Some("x.tar-gz")), "gyro-log");
+        assert_eq!(gyro_file_name(Some("noext")), "gyro-log");
+        assert_eq!(gyro_file_name(None), "gyro-log");
+    }
 }

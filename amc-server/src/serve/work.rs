@@ -21,6 +21,9 @@ pub struct WorkSpec {
     pub output: PathBuf,
     pub telemetry: Option<PathBuf>,
     pub lens_text: Option<String>,
+    /// The client's gyro log (the `gyro` form field), used instead of the
+    /// clip's own track; checked when the upload was taken.
+    pub gyro_log: Option<PathBuf>,
     pub options: JobOptions,
     /// Frame size found by the inspection (a `fov` lens needs no second probe).
     pub input_size: (usize, usize),
@@ -41,6 +44,7 @@ impl WorkSpec {
             telemetry: with_telemetry
                 .then(|| scratch.file(&JobFile::Telemetry.name(options.format))),
             lens_text: upload.lens,
+            gyro_log: upload.gyro,
             options,
             input_size: (inspection.info.width, inspection.info.height),
         }
@@ -175,12 +179,17 @@ pub fn stabilize(
     }
     params.shutter.readout_ms = readout.readout_ms;
     let lens = lens.camera;
-    // `gyro=auto`: the clip's own track, when it has one it can read.
-    let gyro = spec
-        .options
-        .gyro
-        .then(|| engine::gyro::clip_gyro(&spec.input))
-        .flatten();
+    let gyro = match &spec.gyro_log {
+        // The client's log: read again here, where the run is (a worker
+        // has only the file); intake refused one that cannot be read.
+        Some(path) => Some(super::gyro_log::read(path)?),
+        // `gyro=auto`: the clip's own track, when it has one it can read.
+        None => spec
+            .options
+            .gyro
+            .then(|| engine::gyro::clip_gyro(&spec.input))
+            .flatten(),
+    };
     engine::run(&RunConfig {
         input: &spec.input,
         output: Some(&spec.output),

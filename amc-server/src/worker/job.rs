@@ -90,6 +90,25 @@ async fn run_in(
         }
         Err(e) => return Ending::HandBack(format!("cannot download the upload: {e}")),
     }
+    // The client's gyro log, named as the replica stored it: its extension
+    // tells telemetry-parser some formats.
+    let gyro_log = match &claim.gyro_key {
+        Some(key) => {
+            let name = key.rsplit('/').next().unwrap_or("gyro");
+            let path = scratch.join(format!(
+                "gyro-log{}",
+                name.strip_prefix("gyro").unwrap_or("")
+            ));
+            match store.download(key, &path).await {
+                Ok(_) => Some(path),
+                Err(e) if e.not_found() => {
+                    return Ending::Failed("the gyro log is no longer in the store".into())
+                }
+                Err(e) => return Ending::HandBack(format!("cannot download the gyro log: {e}")),
+            }
+        }
+        None => None,
+    };
     let options = match JobOptions::from_query(Some(&claim.options)) {
         Ok(o) => o,
         Err(e) => return Ending::Failed(e.to_string()),
@@ -101,6 +120,7 @@ async fn run_in(
         output: scratch.join(JobFile::Output.name(options.format)),
         telemetry: Some(telemetry.clone()),
         lens_text: claim.lens.clone(),
+        gyro_log,
         options,
         input_size: (claim.width.max(0) as usize, claim.height.max(0) as usize),
     };
@@ -220,9 +240,11 @@ async fn record(state: &Arc<WorkerState>, claim: &Claim, ending: Ending) -> &'st
             match queue.finish(claim, &state.name, &outcome).await {
                 Ok(true) => {
                     tracing::info!(job = %id, frames = summary.frames, fps = summary.frames_per_second, "job done");
-                    // The upload is no longer needed.
-                    if let Err(e) = store.delete(&claim.input_key).await {
-                        tracing::warn!(job = %id, error = %e, "cannot remove a done job's upload; it goes when the job expires");
+                    // The upload (and its gyro log) is no longer needed.
+                    for key in std::iter::once(&claim.input_key).chain(&claim.gyro_key) {
+                        if let Err(e) = store.delete(key).await {
+                            tracing::warn!(job = %id, error = %e, "cannot remove a done job's upload; it goes when the job expires");
+                        }
                     }
                     "done"
                 }
@@ -251,6 +273,9 @@ async fn record(state: &Arc<WorkerState>, claim: &Claim, ending: Ending) -> &'st
                 Ok(true) => {
                     tracing::warn!(job = %id, error = %reason, "job failed");
                     let _ = store.delete(&claim.input_key).await;
+                    if let Some(key) = &claim.gyro_key {
+                        let _ = store.delete(key).await;
+                    }
                     "failed"
                 }
                 Ok(false) => {

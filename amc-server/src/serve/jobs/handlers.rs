@@ -137,6 +137,9 @@ async fn run(state: Arc<AppState>, job: Arc<Job>, spec: WorkSpec) {
                 let inner = lock(&job.inner);
                 if let Some(scratch) = &inner.scratch {
                     scratch.remove(&spec.input);
+                    if let Some(log) = &spec.gyro_log {
+                        scratch.remove(log);
+                    }
                     scratch.account(&spec.output);
                     if let Some(t) = &spec.telemetry {
                         scratch.account(t);

@@ -82,6 +82,20 @@ pub async fn create(
     } = intake;
     let key = cluster.store.input_key(tenant, &id);
     cluster.store.put_file(&key, &upload.video).await?;
+    // The client's gyro log goes beside the upload, under the job's
+    // prefix: removed with the upload, and with the job's other objects.
+    let gyro_key = match &upload.gyro {
+        Some(log) => {
+            let ext = log.extension().and_then(|e| e.to_str());
+            let gyro_key = cluster.store.gyro_key(tenant, &id, ext);
+            if let Err(e) = cluster.store.put_file(&gyro_key, log).await {
+                let _ = cluster.store.delete(&key).await;
+                return Err(e.into());
+            }
+            Some(gyro_key)
+        }
+        None => None,
+    };
     let job = NewJob {
         id: &id,
         tenant,
@@ -91,14 +105,17 @@ pub async fn create(
         width: inspection.info.width as i32,
         height: inspection.info.height as i32,
         input_key: &key,
+        gyro_key: gyro_key.as_deref(),
         frames_total: inspection.info.frame_count.map(|n| n as i64),
     };
     let row = match cluster.queue.insert(&job).await {
         Ok(row) => row,
         Err(e) => {
             // Nothing the client sent is kept for a job that does not exist.
-            if let Err(d) = cluster.store.delete(&key).await {
-                tracing::warn!(job = %id, error = %d, "cannot remove the upload of a job that was not queued");
+            for k in std::iter::once(&key).chain(&gyro_key) {
+                if let Err(d) = cluster.store.delete(k).await {
+                    tracing::warn!(job = %id, error = %d, "cannot remove the upload of a job that was not queued");
+                }
             }
             return Err(e.into());
         }

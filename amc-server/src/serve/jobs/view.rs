@@ -177,8 +177,8 @@ pub struct JobMetrics {
     /// fell back to 70 deg, `readout_ms=auto` to 0), without its `warning: `.
     #[serde(default)]
     pub warnings: Vec<String>,
-    /// With `gyro=auto` and a clip with its own gyro track: its sync and
-    /// fusion, as the CLI's `--metrics` reports them.
+    /// With a `gyro` form field's log, or `gyro=auto` and a clip with its
+    /// own gyro track: its sync and fusion, as the CLI's `--metrics` reports them.
     #[serde(default)]
     pub gyro: Option<serde_json::Value>,
 }
