@@ -1,18 +1,17 @@
 //! A run with a gyro log: a first pass tracks the whole clip from the
-//! picture, the log is synchronized with it ([`gyro::sync_log`]), and the
-//! two are fused ([`amc_core::gyro::fuse`]) into each frame's pose and
+//! picture, the log is synchronized with it and the two are fused
+//! ([`amc_gyrolog::fuse_log`], as the page does) into each frame's pose and
 //! readout path, which the main pass renders without tracking again. A clip
 //! that fits in [`CACHE_BYTES`] is kept from the first pass for the main
 //! one, so it is decoded once.
 
 use super::control::RunControl;
-use super::gyro::{self, GyroLog, GyroReport};
+use super::gyro::{GyroLog, GyroReport};
 use super::stages::Reader;
 use super::RunError;
-use amc_core::gyro::{fuse, FuseParams, FusedFrom, GyroTrack, VisionPose};
-use amc_core::{so3, CameraModel, Frame, GivenPose, Stabilizer, StabilizerParams, Telemetry};
+use amc_core::{CameraModel, Frame, GivenPose, Stabilizer, StabilizerParams, Telemetry};
+use amc_gyrolog::{fuse_log, video_only_warning, FuseLogError, FusedLog};
 use amc_video::{self as video, FrameSource, InputOptions, VideoError, VideoInfo};
-use nalgebra::Vector3;
 use std::path::Path;
 
 /// Most bytes of decoded frames the first pass keeps for the main one.
@@ -94,39 +93,12 @@ pub(crate) fn fuse_pass(
             path: input.to_path_buf(),
         });
     }
-    let vision: Vec<VisionPose> = seen
-        .iter()
-        .map(|s| VisionPose {
-            t: s.t,
-            pose: so3::exp(&Vector3::from(s.r_est)),
-            lost: s.track.lost,
-        })
-        .collect();
-    let (t, rots): (Vec<f64>, Vec<_>) = vision.iter().map(|v| (v.t, v.pose)).unzip();
-    let (sync, mut report) = match gyro::sync_log(log, &t, &rots) {
-        Ok(found) => found,
-        Err(e) => return Ok(Err(format!("{e}; the output uses the video alone"))),
-    };
-    let track = GyroTrack::new(&log.samples, &sync);
     let readout_s = params.shutter.readout_ms * 1e-3;
-    let fusion = fuse(&track, &vision, readout_s, &FuseParams::default())?;
-    report.fused_frames = fusion
-        .frames
-        .iter()
-        .filter(|f| f.from == FusedFrom::Gyro)
-        .count();
-    report.glitch_intervals_bridged = fusion.glitch_intervals;
-    report.frames_bridged = fusion.bridged_frames;
-    let poses = fusion
-        .frames
-        .iter()
-        .zip(&seen)
-        .map(|(f, s)| GivenPose {
-            pose: f.pose,
-            path: f.path,
-            info: s.track,
-        })
-        .collect();
+    let FusedLog { poses, report } = match fuse_log(log, &seen, readout_s) {
+        Ok(fused) => fused,
+        Err(FuseLogError::Sync(e)) => return Ok(Err(video_only_warning(&e))),
+        Err(FuseLogError::Fuse(e)) => return Err(e.into()),
+    };
     let cached = cache.map(|frames| CachedClip {
         info,
         frames: frames.into_iter(),

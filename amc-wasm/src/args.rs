@@ -437,7 +437,9 @@ pub fn check_frame_len(
 }
 
 /// Pushes one frame of `data` (checked against the size and format) at `t`
-/// seconds into `stabilizer`; NV12 is de-interleaved into `planar` (reused).
+/// seconds into `stabilizer`, with its pose when a gyro pass gave it
+/// (`given`); NV12 is de-interleaved into `planar` (reused).
+#[allow(clippy::too_many_arguments)]
 pub fn push_frame(
     stabilizer: &mut amc_core::Stabilizer,
     format: InputFormat,
@@ -445,10 +447,14 @@ pub fn push_frame(
     height: usize,
     data: &[u8],
     t: f64,
+    given: Option<amc_core::GivenPose>,
     planar: &mut Vec<u8>,
 ) -> Result<Option<amc_core::Telemetry>, ArgError> {
     with_frame(format, width, height, data, planar, |frame| {
-        Ok(stabilizer.push(frame, t)?)
+        Ok(match given {
+            Some(given) => stabilizer.push_posed(frame, t, given)?,
+            None => stabilizer.push(frame, t)?,
+        })
     })
 }
 

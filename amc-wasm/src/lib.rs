@@ -11,6 +11,11 @@
 //! de-interleaved here). Planar frames are rendered plane by plane with no
 //! colour conversion and come out as I420 (see [`Stabilizer::new`]).
 //!
+//! A clip's own gyro log ([`ClipGyro`], read from its bytes as the CLI's
+//! `--gyro auto` reads it) is synchronized and fused with a first pass's
+//! tracking ([`GyroPass`]); the main stabilizer then renders each frame with
+//! its fused pose ([`Stabilizer::set_poses`]).
+//!
 //! Every bad input (sizes, buffer lengths, timestamps, parameters, lens files)
 //! becomes a JavaScript `Error` whose message names the value and the allowed
 //! range; nothing here panics on user input.
@@ -20,6 +25,8 @@
 //! call into the module (memory growth detaches them); copy what you keep.
 
 pub mod args;
+mod gyro;
+mod gyro_pass;
 mod input;
 mod js;
 mod kernels;
@@ -28,6 +35,8 @@ mod plan;
 mod readout;
 mod stabilizer;
 
+pub use gyro::ClipGyro;
+pub use gyro_pass::GyroPass;
 pub use kernels::{simd_enabled, simd_matches_scalar};
 pub use options::{options, resolve_options};
 pub use plan::PassPlan;

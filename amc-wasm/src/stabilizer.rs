@@ -3,7 +3,7 @@
 use crate::args::{self, nv12_to_i420, InputFormat};
 use crate::js::{err, to_js, with_lens};
 use amc_core::metrics::{FrameMetrics, MetricsAccumulator};
-use amc_core::{FrameRef, Telemetry};
+use amc_core::{FrameRef, GivenPose, Telemetry};
 use std::collections::VecDeque;
 use wasm_bindgen::prelude::*;
 
@@ -35,6 +35,9 @@ pub struct Stabilizer {
     /// The NV12 input de-interleaved to I420 (unused for the other formats).
     planar: Vec<u8>,
     metrics: Option<Metrics>,
+    /// The frames' poses still to push, from a gyro pass
+    /// ([`Stabilizer::set_poses`]); `None`: frames are tracked.
+    poses: Option<VecDeque<GivenPose>>,
 }
 
 /// Per-frame image metrics of the input and the output (for the page's plot).
@@ -92,7 +95,21 @@ impl Stabilizer {
             input: Vec::new(),
             planar: Vec::new(),
             metrics: None,
+            poses: None,
         })
+    }
+
+    /// Gives every frame of the clip its pose, in order (the `poses` of a
+    /// [`GyroPass`](crate::GyroPass)'s `fuse()`, a JSON array): frames pushed
+    /// after it are not tracked but rendered with their pose, the gyro fused
+    /// with the picture. Call before the first frame. Errors: JSON that is
+    /// no array of poses; later, a frame beyond the last pose.
+    #[wasm_bindgen(js_name = setPoses)]
+    pub fn set_poses(&mut self, poses_json: &str) -> Result<(), JsError> {
+        let poses: VecDeque<GivenPose> = serde_json::from_str(poses_json)
+            .map_err(|e| JsError::new(&format!("poses: not a gyro pass's poses ({e})")))?;
+        self.poses = Some(poses);
+        Ok(())
     }
 
     /// The pixel layout of the input frames: `"RGBA"`, `"I420"` or `"NV12"`.
@@ -312,6 +329,12 @@ impl Stabilizer {
     /// copied into WASM memory) at `t` seconds (strictly increasing). Returns
     /// the telemetry of the output frame that became ready, or `undefined`.
     pub fn push(&mut self, data: &[u8], t: f64) -> Result<JsValue, JsError> {
+        let given = match self.poses.as_mut() {
+            Some(poses) => Some(poses.pop_front().ok_or_else(|| {
+                JsError::new("more frames than the gyro pass gave poses for (setPoses)")
+            })?),
+            None => None,
+        };
         let mut planar = std::mem::take(&mut self.planar);
         let pushed = args::push_frame(
             &mut self.inner,
@@ -320,6 +343,7 @@ impl Stabilizer {
             self.height,
             data,
             t,
+            given,
             &mut planar,
         )
         .map_err(err);

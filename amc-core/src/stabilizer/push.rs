@@ -13,7 +13,8 @@ use crate::so3::Rot;
 use crate::tracker::TrackInfo;
 
 /// A frame's motion given from outside the tracker ([`Stabilizer::push_posed`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Serializable: the page hands a gyro pass's poses to its render helpers.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct GivenPose {
     /// `R_{0,j}`, mid-readout.
     pub pose: Rot,
