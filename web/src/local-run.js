@@ -27,6 +27,9 @@ export async function runLocal(file) {
   await formReady;
   state.file = file;
   const run = reset();
+  // What the previous run said of its gyro track is not this run's.
+  delete document.body.dataset.gyro;
+  delete document.body.dataset.gyroNote;
   $('again').disabled = false;
   if (state.worker) { state.worker.terminate(); state.worker = null; }
   const s = settings();
@@ -38,7 +41,7 @@ export async function runLocal(file) {
   state.worker = worker;
   const lens = await lensArg(s);
   const t0 = performance.now();
-  let start = null, readoutWarning = null, lensWarning = null;
+  let start = null, readoutWarning = null, lensWarning = null, gyroWarning = null;
   const current = () => state.run === run && state.worker === worker;
   // The stabilizer's own speed: with helpers, that of this worker's, which tracks every frame and draws 1 output in N.
   const stabilizerSpeed = (fps) => start && start.workers > 1
@@ -54,7 +57,7 @@ export async function runLocal(file) {
       document.body.dataset.workers = String(m.workers);
       $('status-text').textContent = `${m.width}x${m.height} ${m.codec} → ${m.outWidth}x${m.outHeight} ${m.outCodec}` +
         ` (${m.pixelFormat}${m.simd ? ', WASM SIMD' : ''}${m.workers > 1 ? `, ${m.workers} workers` : ''})` + (m.audioNote ? ` · ${m.audioNote}` : '') +
-        (m.lensNote ? ` · ${m.lensNote}` : '') + (m.readoutNote ? ` · ${m.readoutNote}` : '');
+        (m.lensNote ? ` · ${m.lensNote}` : '') + (m.readoutNote ? ` · ${m.readoutNote}` : '') + (m.gyro ? ` · ${m.gyro.note}` : '');
       // The field of view the stabilizer runs with (given, or fov auto's estimate; none with a lens file).
       document.body.dataset.fov = m.fov == null ? '' : String(m.fov);
       // The readout the stabilizer runs with (the setting, the lens file's, or auto's estimate).
@@ -82,6 +85,16 @@ export async function runLocal(file) {
       readoutWarning = m.warning ? m.note : null;
       document.body.dataset.readoutNote = m.note;
       $('status-text').textContent = `${m.note[0].toUpperCase()}${m.note.slice(1)}; stabilizing…`;
+    } else if (m.type === 'gyro-pass') {
+      // gyro auto with a track: the first pass (tracking only) over every frame, to sync and fuse the gyro with.
+      if (m.total) { $('progress').max = m.total; $('progress').value = m.done; }
+      $('status-text').textContent = `Tracking the clip for its gyro track (first pass): frame ${m.done}${m.total ? ' / ' + m.total : ''}`;
+    } else if (m.type === 'gyro') {
+      gyroWarning = m.warning ? m.note : null;
+      // 'fused' (each frame rendered with the gyro's pose), 'warning' (its log did not fit) or 'none' (not read).
+      document.body.dataset.gyro = m.report ? 'fused' : (m.warning ? 'warning' : 'none');
+      document.body.dataset.gyroNote = m.note;
+      $('status-text').textContent = `${m.note[0].toUpperCase()}${m.note.slice(1)}; stabilizing…`;
     } else if (m.type === 'progress') {
       if (m.total) { $('progress').max = m.total; $('progress').value = m.done; }
       $('status-text').textContent = `Frame ${m.done}${m.total ? ' / ' + m.total : ''} · ${m.fps.toFixed(0)} frames/s ` +
@@ -92,7 +105,8 @@ export async function runLocal(file) {
       $('status-text').textContent = `Done: ${m.frames} frames in ${secs.toFixed(1)} s · ${m.fps.toFixed(0)} frames/s end to end ` +
         `(decode + stabilize + measure + encode); ${stabilizerSpeed(m.stabFps)}, plot metrics ${m.metricsFps.toFixed(0)} frames/s.` +
         (lensWarning ? ` Warning: ${lensWarning.replace(/^warning: /, '')}` : '') +
-        (readoutWarning ? ` Warning: ${readoutWarning.replace(/^warning: /, '')}` : '');
+        (readoutWarning ? ` Warning: ${readoutWarning.replace(/^warning: /, '')}` : '') +
+        (gyroWarning ? ` Warning: ${gyroWarning.replace(/^warning: /, '')}` : '');
       document.body.dataset.frames = m.frames;
       document.body.dataset.fps = m.fps.toFixed(1);
       document.body.dataset.stabFps = m.stabFps.toFixed(1);
@@ -123,5 +137,5 @@ export async function runLocal(file) {
     }
   };
   state.cancel = () => { worker.terminate(); if (state.worker === worker) state.worker = null; showError('Cancelled.'); };
-  worker.postMessage({ type: 'process', file, params: s.params, lens, format: s.format, readout: s.readout });
+  worker.postMessage({ type: 'process', file, params: s.params, lens, format: s.format, readout: s.readout, gyro: s.gyro });
 }

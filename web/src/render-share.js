@@ -22,8 +22,8 @@ const MAX_QUEUED = 4;
 export class RenderShare {
   /**
    * `stab`: this thread's Stabilizer (it draws share 0); `spec`: what made
-   * it ({ width, height, paramsJson, lens, format, staticZoom? }), for the
-   * helpers' stabilizers; `helpers`: how many helper workers to start.
+   * it ({ width, height, paramsJson, lens, format, staticZoom?, poses? }:
+   * `poses`, a gyro pass's, for `setPoses`), for the helpers' stabilizers; `helpers`: how many helper workers to start.
    */
   static async open(stab, spec, helpers) {
     const count = helpers + 1;

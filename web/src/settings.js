@@ -171,8 +171,8 @@ export function buildForm(table, resolve) {
     const label = labelled(o.name, labelOf(o), titleOf(o), el);
     if (BASIC.includes(o.name)) basic.insertBefore(label, before);
     else adv.append(label);
-    // The lens file beside the field of view it overrides.
-    if (o.name === 'fov') adv.append($('lens').closest('label'));
+    // The lens file beside the field of view it overrides, and the gyro (the camera's own motion).
+    if (o.name === 'fov') adv.append($('lens').closest('label'), $('gyro').closest('label'));
     if (o.name === 'mode') basic.insertBefore(smoothingControl(table), before);
   }
   for (const o of table) {
@@ -217,8 +217,8 @@ function syncSmoothing() {
 }
 
 /**
- * The form's settings: `{ values, params, fov, readout, format, lensFile,
- * errors }`. `values` maps each option to its checked text (`null`: the
+ * The form's settings: `{ values, params, fov, readout, format, gyro,
+ * lensFile, errors }` (`gyro`: `'auto'`, the clip's own track, or `'off'`). `values` maps each option to its checked text (`null`: the
  * default); `params` (the core's StabilizerParams, without the shutter),
  * `fov` (degrees or `'auto'`) and `readout` (milliseconds, `'auto'` or
  * `null`: the lens file's, else 0) are the core's reading of them.
@@ -236,7 +236,7 @@ export function settings() {
     if (r.error) errors.push({ id: o.name, message: r.error });
     else values[o.name] = r.value;
   }
-  const out = { values, format: $('format').value, lensFile: $('lens').files[0] || null, errors };
+  const out = { values, format: $('format').value, gyro: $('gyro').value, lensFile: $('lens').files[0] || null, errors };
   if (errors.length) return out;
   try {
     Object.assign(out, RESOLVE(JSON.stringify(values)));

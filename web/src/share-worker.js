@@ -20,6 +20,8 @@ self.onmessage = async (ev) => {
       ({ count, index } = m);
       stab = new Stabilizer(m.width, m.height, m.paramsJson, m.lens, m.format);
       if (m.staticZoom) stab.setStaticZoom(m.staticZoom);
+      // A gyro run: every frame rendered with its fused pose, as in worker.js.
+      if (m.poses) stab.setPoses(m.poses);
       stab.setRenderShare(count, index);
       self.postMessage({ type: 'ready' });
     } else if (m.type === 'frame') {

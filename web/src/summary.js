@@ -10,7 +10,8 @@ const change = (a, b) => (a > 0 && Number.isFinite(b) ? `${b < a ? '−' : '+'}$
 /**
  * Summary rows `[label, original, stabilized, change]` (strings or null).
  * `s`: { frames, inSize: [w, h], outSize: [w, h], margin?, fps?, seconds?,
- *        input?: ClipMetrics, output?: ClipMetrics, motion?: MotionSummary, mode }
+ *        input?: ClipMetrics, output?: ClipMetrics, motion?: MotionSummary, mode,
+ *        gyro?: { note, warning, report } }
  * The input's angular speed is the camera's, as estimated (the output's
  * `rms_speed_est_dps`); the input accumulator has no telemetry, so its own
  * speed fields are always 0 and are not shown.
@@ -42,6 +43,8 @@ export function summaryRows(s) {
       `${pct(motion.valid_fraction)} (${pct(motion.min_valid_fraction)})`, null]);
   }
   if (s.mode === 'saccade' || (motion && motion.saccades > 0)) rows.push(['Saccades', null, String(motion ? motion.saccades : 0), null]);
+  // The clip's gyro track: fused, or why not (a warning, or not read).
+  if (s.gyro) rows.push(['Gyro', null, s.gyro.note.replace(/^gyro: /, ''), null]);
   if (Number.isFinite(s.fps)) rows.push([s.where === 'server' ? 'Processing on the server (frames/s)' : 'Processing in this browser (frames/s)', null, f(s.fps, 1), null]);
   return rows;
 }
@@ -72,6 +75,7 @@ export function localSummary(start, done, mode) {
     where: 'browser', mode, frames: done.frames, fps: done.fps,
     inSize: start ? [start.width, start.height] : null, outSize: start ? [start.outWidth, start.outHeight] : null,
     input: sum.input || null, output: sum.output || null, motion: sum.output || null,
+    gyro: (start && start.gyro) || null,
   };
 }
 

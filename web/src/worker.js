@@ -1,8 +1,9 @@
 // Stabilizes a clip off the main thread: demux (mediabunny), decode every frame
 // (WebCodecs), stabilize (amc-wasm), encode (WebCodecs) and mux (mediabunny),
 // copying the original's audio packets where the container allows.
-import init, { Stabilizer, PassPlan, simdEnabled } from './pkg/amc_wasm.js';
+import init, { Stabilizer, PassPlan, GyroPass, ClipGyro, simdEnabled } from './pkg/amc_wasm.js';
 import { pixelPath, copyOptions, colorSpaceInit } from './pixels.js';
+import { readClipGyro, gyroText } from './gyro.js';
 import { RenderShare, helperCount } from './render-share.js';
 import {
   Input, ALL_FORMATS, BlobSource, VideoSampleSink, EncodedPacketSink, VideoSample,
@@ -76,9 +77,9 @@ async function pickVideoCodec(format, width, height) {
 const PASS_PROGRESS = { lens: 'lens-pass', readout: 'readout-pass', static_zoom: 'zoom-pass' };
 
 /**
- * One pass of `plan` (a PassPlan) over `video`'s frames: each frame decoded
- * into its input buffer and pushed, until the clip ends or `plan.isFull`;
- * progress posted as `kind`.
+ * One pass of `plan` (a PassPlan, or a GyroPass, which takes every frame)
+ * over `video`'s frames: each frame decoded into its input buffer and
+ * pushed, until the clip ends or `plan.isFull`; progress posted as `kind`.
  */
 async function firstPass(plan, video, copyOpts, total, kind) {
   let n = 0, lastT = -Infinity, lastPost = 0;
@@ -153,7 +154,33 @@ function readoutNote({ readout_ms, note, estimate: e }) {
   };
 }
 
-async function processClip({ file, params, lens, format, readout }) {
+/**
+ * gyro auto with a track found: the gyro's first pass (every frame tracked
+ * by a stabilizer that does not render, made as the main one is), then the
+ * log synchronized and fused with it, as the CLI does. Returns `{ report,
+ * poses, note }` (`poses`: for `Stabilizer.setPoses`) or, when the log does
+ * not fit the video, `{ warning: true, note }` (the run goes on from the
+ * picture alone).
+ */
+async function gyroPass(parts, paramsJson, lens, { width, height, path, video, copyOpts, total, zoom }) {
+  const log = ClipGyro.fromParts(parts.source, parts.videoClock, parts.readoutMs, parts.times, parts.rates);
+  let pass;
+  try {
+    pass = new GyroPass(width, height, paramsJson, lens, path);
+    if (zoom !== null) pass.setStaticZoom(zoom);
+    await firstPass(pass, video, copyOpts, total, 'gyro-pass');
+    const found = pass.fuse(log);
+    if (found.warning) return { warning: true, note: `warning: ${found.warning}` };
+    return { report: found.report, poses: found.poses, note: gyroText(found.report), line: found.line };
+  } finally {
+    if (pass) pass.free();
+    log.free();
+  }
+}
+
+async function processClip({ file, params, lens, format, readout, gyro = 'auto' }) {
+  // gyro auto: the clip's own IMU track, read beside the demuxing (in a worker of its own).
+  const gyroRead = gyro === 'off' ? Promise.resolve(null) : readClipGyro(file);
   const input = new Input({ source: new BlobSource(file), formats: ALL_FORMATS });
   let video;
   try {
@@ -177,11 +204,22 @@ async function processClip({ file, params, lens, format, readout }) {
   const path = pixelPath(first.value);
   const outColorSpace = path === 'RGBA' ? undefined : colorSpaceInit(first.value);
   const copyOpts = copyOptions(path, width, height);
-  let stab, plan, readoutResult = null, lensResult = null, staticZoomUsed = null, fov = null;
+  let stab, plan, readoutResult = null, lensResult = null, staticZoomUsed = null, fov = null, gyroResult = null;
   try {
+    const found = await gyroRead;
+    const log = found && found.parts;
+    if (found && found.note) gyroResult = { note: found.note };
+    // The readout the clip records (GoPro's SROT, ...) answers `auto`, and
+    // stands in for the unset default where no lens file states one (as the CLI).
+    const recorded = log && log.readoutMs != null && (readout === 'auto' || (readout == null && (typeof lens === 'number' || lens === 'auto')));
+    if (recorded) readout = log.readoutMs;
     // The first passes (fov auto, readout_ms auto, zoom static), as the core plans them.
     plan = new PassPlan(width, height, JSON.stringify(params), lens, path, readout);
     ({ fov, lensResult, readoutResult, zoom: staticZoomUsed } = await makePasses(plan, video, copyOpts, total));
+    if (recorded) {
+      readoutResult = { readout_ms: readout, note: `readout ${readout.toFixed(1)} ms (recorded by the camera: ${log.source})` };
+      post('readout', readoutResult);
+    }
     // fov auto: the stabilizer (and its helpers) get the degrees found.
     if (fov !== null) lens = fov;
     stab = new Stabilizer(width, height, plan.paramsJson(), lens, path);
@@ -189,6 +227,14 @@ async function processClip({ file, params, lens, format, readout }) {
       // One zoom for the whole clip, found by its first pass.
       stab.setStaticZoom(staticZoomUsed);
       post('zoom-pass', { done: total || 0, total, zoom: staticZoomUsed });
+    }
+    if (log) {
+      gyroResult = await gyroPass(log, plan.paramsJson(), lens, { width, height, path, video, copyOpts, total, zoom: staticZoomUsed });
+      // Each frame rendered with its fused pose, not tracked again.
+      if (gyroResult.poses) stab.setPoses(gyroResult.poses);
+      post('gyro', { note: gyroResult.note, warning: !!gyroResult.warning, report: gyroResult.report || null });
+    } else if (gyroResult) {
+      post('gyro', { note: gyroResult.note, warning: false, report: null });
     }
   } catch (e) {
     first.value.close();
@@ -205,7 +251,7 @@ async function processClip({ file, params, lens, format, readout }) {
     // The helpers' stabilizers are made from this one's parameters, as it holds them.
     const paramsJson = stab.paramsJson();
     const mode = JSON.parse(paramsJson).view.mode;
-    const spec = { width, height, paramsJson, lens, format: path, staticZoom: staticZoomUsed };
+    const spec = { width, height, paramsJson, lens, format: path, staticZoom: staticZoomUsed, poses: gyroResult && gyroResult.poses };
     const helpers = helperCount(mode);
     share = await RenderShare.open(stab, spec, helpers).catch((e) => {
       // Helpers that cannot start (a browser without module workers in
@@ -220,7 +266,8 @@ async function processClip({ file, params, lens, format, readout }) {
     throw e;
   }
   try {
-    await stabilizeClip({ format, video, stats, total, width, height, first, samples, path, outColorSpace, copyOpts, codec, stab, share, ow, oh, outFormat, readoutResult, lensResult, fov: typeof lens === 'number' ? lens : null, input });
+    const gyroNote = gyroResult && { note: gyroResult.note, warning: !!gyroResult.warning, report: gyroResult.report || null };
+    await stabilizeClip({ format, video, stats, total, width, height, first, samples, path, outColorSpace, copyOpts, codec, stab, share, ow, oh, outFormat, readoutResult, lensResult, gyroNote, fov: typeof lens === 'number' ? lens : null, input });
   } finally {
     share.close();
     stab.free();
@@ -228,7 +275,7 @@ async function processClip({ file, params, lens, format, readout }) {
 }
 
 /** The main pass: every frame decoded, stabilized (its output drawn here or by a helper), encoded and muxed. */
-async function stabilizeClip({ format, video, stats, total, width, height, first, samples, path, outColorSpace, copyOpts, codec, stab, share, ow, oh, outFormat, readoutResult, lensResult, fov, input }) {
+async function stabilizeClip({ format, video, stats, total, width, height, first, samples, path, outColorSpace, copyOpts, codec, stab, share, ow, oh, outFormat, readoutResult, lensResult, gyroNote, fov, input }) {
   const container = format === 'webm' ? new WebMOutputFormat() : new Mp4OutputFormat({ fastStart: 'in-memory' });
   const outCodec = await pickVideoCodec(format, ow, oh);
   const output = new Output({ format: container, target: new BufferTarget() });
@@ -254,7 +301,7 @@ async function stabilizeClip({ format, video, stats, total, width, height, first
   post('start', { width, height, outWidth: ow, outHeight: oh, total, codec, outCodec, simd: simdEnabled(), workers: share.count,
     pixelFormat: path, decodedFormat: first.value.format,
     params: JSON.parse(stab.paramsJson()), audioNote, readoutNote: readoutResult && readoutResult.note,
-    lensNote: lensResult && lensResult.note, fov });
+    lensNote: lensResult && lensResult.note, gyro: gyroNote, fov });
 
   const t0 = performance.now();
   const inputMetrics = []; // of frames whose output the lookahead still holds back

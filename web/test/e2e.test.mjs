@@ -1,5 +1,6 @@
 // End to end in headless Chromium against `amc serve` (serving web/dist):
-// the page stabilizes cup.mp4 in the browser; clips it cannot read (HEVC, AVI,
+// the page stabilizes cup.mp4 in the browser (and karma.mp4 with its own GoPro
+// gyro track); clips it cannot read (HEVC, AVI,
 // not a video) are offered to the job API; its settings are the CLI's options;
 // the Live tab shows a looped source; against a server with API keys
 // (`--auth-keys`) the page asks for a key and watches the feed through
@@ -16,6 +17,8 @@ import { join } from 'node:path';
 import { startServer, launch, shot, ffprobeFrames, rmsFrameChange, streamTypes, dataDir, artifacts, root, amcBin } from './helpers.mjs';
 
 const cup = join(dataDir, 'cup', 'cup.mp4');
+// A GoPro HERO5's clip with its GPMF track (gyro ~400 Hz): 12 s, 362 frames.
+const karma = join(dataDir, 'karma', 'karma.mp4');
 let server, browser, tmp;
 /** Whether the test gives the pages their Content-Security-Policy (a server that sends none: a build before it did). */
 let injectCsp = false;
@@ -377,6 +380,38 @@ test('readout: checked as typed; auto makes a first pass and the stabilizer runs
   await waitState(page, ['done', 'error']);
   assert.equal(await state(page), 'done', await page.textContent('#error'));
   assert.equal(await page.evaluate(() => document.body.dataset.readoutMs), '12.5');
+  await page.close();
+});
+
+test("karma.mp4 (a GoPro's GPMF track): gyro auto reads the track in the browser, syncs and fuses it, and the summary says so; gyro off does not", async () => {
+  const { page, errors } = await newPage();
+  await openAdvanced(page);
+  // Its lens given, as the CLI's test of the same track (a gimbal leaves little rotation to estimate it from).
+  await page.fill('#fov', '90');
+  assert.equal(await page.inputValue('#gyro'), 'auto');
+  await page.setInputFiles('[data-testid=file-input]', karma);
+  await waitState(page, ['done', 'error'], 600000);
+  assert.equal(await state(page), 'done', await page.textContent('#error'));
+  const g = await page.evaluate(() => ({ gyro: document.body.dataset.gyro, note: document.body.dataset.gyroNote, frames: Number(document.body.dataset.frames) }));
+  assert.equal(g.gyro, 'fused', g.note);
+  const m = g.note.match(/^gyro: GoPro.*, offset [+-]\d+\.\d{4} s, fused (\d+) frames$/);
+  assert.ok(m, g.note);
+  const frames = ffprobeFrames(karma).frames;
+  assert.equal(g.frames, frames);
+  assert.ok(Number(m[1]) > 0.5 * frames, g.note);
+  const table = await summaryTable(page);
+  assert.match(table.Gyro[1], /^GoPro.*, offset .* s, fused \d+ frames$/);
+  await shot(page, 'gyro-karma-fused');
+  const out = ffprobeFrames(await download(page, 'karma-gyro.mp4'));
+  assert.equal(out.frames, frames);
+  // gyro off: the picture alone, no gyro row.
+  await page.selectOption('#gyro', 'off');
+  await page.click('#again');
+  await waitState(page, ['processing']);
+  await waitState(page, ['done', 'error'], 600000);
+  assert.equal(await state(page), 'done', await page.textContent('#error'));
+  assert.equal('Gyro' in (await summaryTable(page)), false);
+  assert.deepEqual(errors, []);
   await page.close();
 });
 

@@ -4,7 +4,7 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
-import { initSync, Stabilizer, ReadoutEstimator, PassPlan, simdEnabled, simdMatchesScalar, options, resolveOptions } from '../dist/pkg/amc_wasm.js';
+import { initSync, Stabilizer, ReadoutEstimator, PassPlan, GyroPass, ClipGyro, simdEnabled, simdMatchesScalar, options, resolveOptions } from '../dist/pkg/amc_wasm.js';
 
 const wasmPath = fileURLToPath(new URL('../dist/pkg/amc_wasm_bg.wasm', import.meta.url));
 initSync({ module: readFileSync(wasmPath) });
@@ -698,4 +698,77 @@ test('render share: two stabilizers fed every frame draw each output once, byte 
   const saccade = new Stabilizer(W, H, '{"view":{"mode":"saccade"}}', 70);
   throwsMsg(() => saccade.setRenderShare(2, 0), /saccade/);
   s.free(); saccade.free();
+});
+
+const sharedData = (rel) => fileURLToPath(new URL(`../../../shared/data/${rel}`, import.meta.url));
+
+test("ClipGyro reads karma.mp4's GPMF track (a GoPro HERO5): its gyro samples, ~400 Hz; a clip without one, or garbage, is null", () => {
+  const karma = readFileSync(sharedData('karma/karma.mp4'));
+  const log = ClipGyro.read(karma, 'karma.mp4');
+  assert.ok(log, 'a track');
+  assert.match(log.source, /^GoPro/);
+  // 12 s at ~400 Hz (the CLI's test of the same track: over 4000 samples).
+  assert.ok(log.samples > 4000, String(log.samples));
+  assert.ok(Math.abs(log.rateHz - 400) < 20, String(log.rateHz));
+  assert.equal(log.videoClock, false);
+  const times = log.times(), rates = log.rates();
+  assert.equal(times.length, log.samples);
+  assert.equal(rates.length, 3 * log.samples);
+  assert.ok(times.every((t, i) => i === 0 || t > times[i - 1]), 'times increase');
+  assert.ok(rates.every(Number.isFinite) && rates.some((w) => Math.abs(w) > 0.01), 'rates in rad/s, some motion');
+  // Made again from its parts (the page parses in a worker of its own).
+  const again = ClipGyro.fromParts(log.source, log.videoClock, log.readoutMs, times, rates);
+  assert.deepEqual([again.source, again.samples, again.rateHz, again.readoutMs], [log.source, log.samples, log.rateHz, log.readoutMs]);
+  assert.deepEqual(again.rates(), rates);
+  throwsMsg(() => ClipGyro.fromParts('x', false, undefined, times, rates.subarray(1)), /three per time/);
+  log.free(); again.free();
+  // No track: a phone's MP4, garbage, nothing.
+  assert.equal(ClipGyro.read(readFileSync(sharedData('cup/cup.mp4')), 'cup.mp4'), undefined);
+  assert.equal(ClipGyro.read(new Uint8Array(4096).map((_, i) => (i * 7919) & 255), 'junk.mp4'), undefined);
+  assert.equal(ClipGyro.read(new Uint8Array(0), 'empty.mp4'), undefined);
+});
+
+test('GyroPass: a first pass synchronized and fused with a matching log gives every frame its pose; the main stabilizer renders with them; a log of another clip is a warning', () => {
+  // The camera pans and tilts (the scene shifts by x(t), y(t) pixels); the
+  // log is that motion as rates (rad/s, a pinhole of 70 degrees).
+  const fps = 30, n = 90, f = W / 2 / Math.tan((35 * Math.PI) / 180);
+  const x = (t) => 20 * Math.sin(7.5 * t), y = (t) => 10 * Math.sin(5.1 * t + 1);
+  const dx = (t) => 150 * Math.cos(7.5 * t), dy = (t) => 51 * Math.cos(5.1 * t + 1);
+  const times = [], rates = [];
+  for (let t = -0.5; t < n / fps + 0.5; t += 1 / 200) {
+    times.push(t);
+    rates.push(dy(t) / f, -dx(t) / f, 0);
+  }
+  const log = ClipGyro.fromParts('test log', false, undefined, new Float64Array(times), new Float64Array(rates));
+  const frames = Array.from({ length: n }, (_, i) => frame(W, H, x(i / fps), y(i / fps)));
+  const pass = new GyroPass(W, H, '{}', 70);
+  frames.forEach((d, i) => pass.push(d, i / fps));
+  const found = pass.fuse(log);
+  pass.free();
+  assert.equal(found.warning, undefined, found.warning);
+  assert.match(found.line, /^gyro: test log \(\d+ samples, 200 Hz\): offset /);
+  assert.equal(found.report.source, 'test log');
+  assert.ok(found.report.correlation > 0.9, JSON.stringify(found.report));
+  assert.ok(Math.abs(found.report.offset_s) < 0.01, JSON.stringify(found.report));
+  assert.ok(found.report.fused_frames > 0.8 * n, JSON.stringify(found.report));
+  const poses = JSON.parse(found.poses);
+  assert.equal(poses.length, n);
+  // The main pass: every frame rendered with its pose, none beyond them.
+  const s = new Stabilizer(W, H, '{}', 70);
+  s.setPoses(found.poses);
+  let out = 0;
+  frames.forEach((d, i) => { if (s.push(d, i / fps)) out++; });
+  while (s.finish()) out++;
+  assert.equal(out, n);
+  throwsMsg(() => s.push(frames[0], 99), /more frames than the gyro pass gave poses for/);
+  throwsMsg(() => s.setPoses('{"not": "poses"}'), /poses: not a gyro pass's poses/);
+  s.free();
+  // Another clip's log (no motion where this one moves): the run goes on from the picture alone.
+  const still = ClipGyro.fromParts('still', false, undefined, new Float64Array(times), new Float64Array(rates.length));
+  const other = new GyroPass(W, H, '{}', 70);
+  frames.forEach((d, i) => other.push(d, i / fps));
+  const warned = other.fuse(still);
+  assert.match(warned.warning, /^cannot synchronize the gyro log still with the video: .*; the output uses the video alone$/);
+  assert.equal(warned.poses, undefined);
+  other.free(); still.free(); log.free();
 });
