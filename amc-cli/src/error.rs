@@ -16,6 +16,9 @@ pub enum CliError {
     /// A gyro log that cannot be read (`--gyro FILE`).
     #[error(transparent)]
     Gyro(#[from] engine::gyro::GyroLogError),
+    /// A lens database that cannot be read (`--lens-db DIR`).
+    #[error(transparent)]
+    LensDb(#[from] engine::lens_db::LensDbError),
     /// Video input or output outside a run (writing `--metrics`).
     #[error(transparent)]
     Video(#[from] amc_video::VideoError),

@@ -2,6 +2,7 @@
 //! parse, convert, call the library, print, map the error to an exit code.
 
 mod args;
+mod clip_lens;
 mod error;
 mod options;
 mod progress;
@@ -141,6 +142,12 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         );
     }
     say_rate(&input.frames, fps, timeout, args.quiet);
+    let clip = clip_lens::clip_lens(
+        &input.frames,
+        args.lens_db.as_deref(),
+        &engine::input_options(fps, timeout),
+        args.quiet,
+    )?;
     // The gyro log is read before the run: a file that cannot be read fails now.
     let gyro_log = match &args.gyro {
         engine::gyro::GyroChoice::Off => None,
@@ -157,12 +164,11 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
     if let (Some((ms, _)), amc_core::ReadoutSpec::Auto) = (&recorded, &readout_asked) {
         options.readout = amc_core::ReadoutSpec::Ms(*ms);
     }
-    let mut resolved = engine::resolve(
-        &options,
-        &input.frames,
-        &engine::input_options(fps, timeout),
-        None,
-    )?;
+    let in_opts = engine::input_options(fps, timeout);
+    let mut resolved = match &clip.pick {
+        Some(pick) => engine::resolve_known(&options, pick.lens(), &input.frames, &in_opts)?,
+        None => engine::resolve(&options, &input.frames, &in_opts, None)?,
+    };
     // `auto`, or the default where the lens file states none.
     let use_recorded = match readout_asked {
         amc_core::ReadoutSpec::Auto => true,
@@ -236,7 +242,14 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         );
     }
     if let Some(p) = &args.metrics {
-        let json = serde_json::to_value(&run).expect("a run summary is plain data");
+        let mut json = serde_json::to_value(&run).expect("a run summary is plain data");
+        // What the clip names and the profile --lens-db picked (null: none matched).
+        if let Some(c) = &clip.camera {
+            json["clip_camera"] = serde_json::to_value(c).expect("plain data");
+        }
+        if args.lens_db.is_some() {
+            json["lens_profile"] = serde_json::to_value(&clip.pick).expect("plain data");
+        }
         let text = serde_json::to_string_pretty(&json).expect("plain data");
         amc_video::write_atomic(p, text.as_bytes())?;
     }

@@ -6,12 +6,14 @@
 //! back as values, so the command line, `eval`, `demo`, `compare` and the
 //! service all drive the same engine.
 
+pub mod clip_camera;
 mod control;
 mod error;
 mod fusion;
 pub mod gcsv;
 pub mod gyro;
 mod lens;
+pub mod lens_db;
 mod measure;
 mod passes;
 mod paths;
@@ -27,7 +29,9 @@ pub use lens::{
     FALLBACK_FOV_DEG,
 };
 pub use paths::check_distinct;
-pub use readout::{resolve, resolve_readout, ReadoutNote, Resolved, ResolvedReadout};
+pub use readout::{
+    resolve, resolve_known, resolve_readout, ReadoutNote, Resolved, ResolvedReadout,
+};
 pub use run::{render_pool, run, FrameRecord, Progress, RunConfig, RunSummary, TRUNCATED_SHARE};
 pub use telemetry::TELEMETRY_HEADER;
 

@@ -45,8 +45,30 @@ pub fn resolve(
     opts: &InputOptions,
     size: Option<(usize, usize)>,
 ) -> Result<Resolved, RunError> {
+    resolve_choice(lens_choice(&options.lens)?, options, input, opts, size)
+}
+
+/// [`resolve`] with a lens known already (a profile `--lens-db` picked)
+/// in place of `options.lens`; the readout as `options` says.
+pub fn resolve_known(
+    options: &StabilizerOptions,
+    lens: ResolvedLens,
+    input: &Path,
+    opts: &InputOptions,
+) -> Result<Resolved, RunError> {
+    let size = (lens.camera.width, lens.camera.height);
+    resolve_choice(LensChoice::Known(lens), options, input, opts, Some(size))
+}
+
+fn resolve_choice(
+    lens: LensChoice,
+    options: &StabilizerOptions,
+    input: &Path,
+    opts: &InputOptions,
+    size: Option<(usize, usize)>,
+) -> Result<Resolved, RunError> {
     let mut plan = PassPlan::new(PlanChoices {
-        lens: lens_choice(&options.lens)?,
+        lens,
         readout: options.readout.clone(),
         params: options.params.clone(),
         static_zoom: false,

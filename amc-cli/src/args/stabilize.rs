@@ -15,6 +15,13 @@ pub struct StabilizeArgs {
     /// The lens, the stabilizer's options and how the input is read.
     #[command(flatten)]
     pub run: RunFlags,
+    /// A folder of Gyroflow lens profiles (such as a clone of
+    /// github.com/gyroflow/lens_profiles): the profile for the camera, lens
+    /// mode and frame size the clip records is its lens, scaled to the
+    /// clip, and named in one line and in --metrics ("lens_profile"); where
+    /// none matches, the run goes on as without it (the field of view estimated).
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["lens", "fov"])]
+    pub lens_db: Option<PathBuf>,
     /// Write per-frame telemetry (CSV: frame,t,rx,ry,rz,vx,vy,vz,...).
     #[arg(long, value_name = "FILE.csv")]
     pub telemetry: Option<PathBuf>,
