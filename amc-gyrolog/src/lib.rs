@@ -14,6 +14,7 @@
 mod error;
 mod fuse;
 mod log;
+mod mp4_guard;
 mod parse;
 mod picture;
 mod report;

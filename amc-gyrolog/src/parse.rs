@@ -2,6 +2,7 @@
 
 use crate::error::TelemetryError;
 use crate::log::GyroLog;
+use crate::mp4_guard::check_mp4_has_moov;
 use crate::picture::picture_motion;
 use amc_core::gyro::GyroSamples;
 use nalgebra::Vector3;
@@ -15,7 +16,8 @@ use std::sync::Arc;
 /// a known format without gyroscope samples; `Err`: not a format it knows,
 /// or one it cannot use. A parser that panics on a damaged file is an error
 /// like any other where panics unwind (native builds); in wasm32 a panic
-/// aborts the module instance.
+/// aborts the module instance, so the damage known to make it panic (an MP4
+/// cut short, without its `moov`) is refused before it is called.
 pub fn read_gyro_stream<R: Read + Seek>(
     stream: &mut R,
     size: usize,
@@ -39,6 +41,7 @@ fn parse<R: Read + Seek>(
     name: &Path,
 ) -> Result<Option<GyroLog>, TelemetryError> {
     let parser = |e: std::io::Error| TelemetryError::Parser(e.to_string());
+    check_mp4_has_moov(stream, size as u64).map_err(TelemetryError::Parser)?;
     let input = telemetry_parser::Input::from_stream(
         stream,
         size,
