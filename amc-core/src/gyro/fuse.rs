@@ -22,6 +22,7 @@
 
 use super::glitch::median;
 use super::path::{vision_path, PathFit};
+use super::samples::VisionPose;
 use super::smooth::smooth_robust;
 use super::track::GyroTrack;
 use crate::error::AmcError;
@@ -67,17 +68,6 @@ impl FuseParams {
         }
         Ok(())
     }
-}
-
-/// One frame as vision saw it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VisionPose {
-    /// Its time (mid-readout), seconds of video.
-    pub t: f64,
-    /// `R_{0,j}` as the tracker estimated it.
-    pub pose: Rot,
-    /// True where tracking was lost (the estimate is a guess).
-    pub lost: bool,
 }
 
 /// Where a fused frame's motion came from.

@@ -36,13 +36,13 @@ mod samples;
 mod smooth;
 mod track;
 
-pub use fuse::{fuse, FuseParams, FusedFrom, FusedPose, Fusion, VisionPose};
+pub use fuse::{fuse, FuseParams, FusedFrom, FusedPose, Fusion};
 pub use glitch::{breaks, noise_rad_s};
 pub use integrate::GyroIntegral;
 pub use mount::{fit_mount, MountFit};
 pub use offset::{coarse_offset, refine_offset, speed_correlation};
 pub use online::{OnlineFusion, OnlineParams};
-pub use samples::{GyroSamples, GyroSync, VisionStep};
+pub use samples::{GyroSamples, GyroSync, VisionPose, VisionStep};
 pub use smooth::{random_walk_smoother, smooth_robust};
 pub use track::GyroTrack;
 

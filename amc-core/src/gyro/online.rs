@@ -17,9 +17,10 @@
 //! it is the gyro's; without one, the picture's), and a frame's readout path
 //! is the gyro's own where the log covers its readout.
 
-use super::fuse::{FuseParams, FusedFrom, FusedPose, VisionPose};
+use super::fuse::{FuseParams, FusedFrom, FusedPose};
 use super::glitch::median;
 use super::path::{rate_path, PathFit};
+use super::samples::VisionPose;
 use super::track::GyroTrack;
 use crate::error::AmcError;
 use crate::shutter::IntraFrame;

@@ -2,7 +2,7 @@
 //! rows (a fourth-order fit of its rotation at the readout's samples), or,
 //! where the gyro cannot give it, vision's angular velocity times the readout.
 
-use super::fuse::VisionPose;
+use super::samples::VisionPose;
 use super::track::GyroTrack;
 use crate::shutter::{IntraFrame, INTRA_TERMS};
 use crate::so3::{self, Tangent};

@@ -81,3 +81,14 @@ impl GyroSync {
         so3::log(&self.mount)
     }
 }
+
+/// One frame as vision saw it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VisionPose {
+    /// Its time (mid-readout), seconds of video.
+    pub t: f64,
+    /// `R_{0,j}` as the tracker estimated it.
+    pub pose: Rot,
+    /// True where tracking was lost (the estimate is a guess).
+    pub lost: bool,
+}
