@@ -12,6 +12,7 @@
 //! finer grid and the vertex of a parabola. The drift: the same refinement on
 //! each quarter of the clip, and the slope of their offsets in time.
 
+use super::glitch::median;
 use super::integrate::GyroIntegral;
 use super::mount::fit_mount;
 use super::samples::VisionStep;
@@ -207,36 +208,58 @@ pub fn refine_offset(
     best
 }
 
-/// The clocks' drift, parts per million: the offsets of the clip's quarters
-/// (each refined around `offset`) against their middle times; 0 when the
-/// quarters are too short to tell.
+/// The clocks' drift, parts per million: the offsets of the clip's parts
+/// (a second or more each, four to sixteen of them, each refined around
+/// `offset`) against their middle times, by the median of the pairwise slopes
+/// (a part with a glitch or poor texture does not tilt it); 0 when the parts
+/// are too short to tell or the slope is not clear of the offsets' own
+/// scatter ([`DRIFT_SIGMAS`] standard errors): a spurious drift of a few ppm
+/// moves the offset by tens of microseconds over a clip, which a fast shake
+/// turns into per-frame error.
 pub fn drift_ppm(integral: &GyroIntegral, steps: &[VisionStep], offset: f64) -> f64 {
-    const PARTS: usize = 4;
-    let n = steps.len() / PARTS;
-    if n < 20 {
+    const MIN_STEPS: usize = 20;
+    let parts = (steps.len() / 60).clamp(4, 16);
+    let n = steps.len() / parts;
+    if n < MIN_STEPS {
         return 0.0;
     }
     let points: Vec<(f64, f64)> = steps
         .chunks(n)
-        .take(PARTS)
+        .take(parts)
         .map(|part| {
             let mid = 0.5 * (part[0].t0 + part[part.len() - 1].t1);
             (mid, refine_offset(integral, part, offset, 0.003))
         })
         .collect();
-    let m = points.len() as f64;
-    let (mt, mo) = (
-        points.iter().map(|p| p.0).sum::<f64>() / m,
-        points.iter().map(|p| p.1).sum::<f64>() / m,
-    );
-    let (mut num, mut den) = (0.0, 0.0);
-    for (t, o) in &points {
-        num += (t - mt) * (o - mo);
-        den += (t - mt) * (t - mt);
+    let mut slopes = Vec::new();
+    for (i, a) in points.iter().enumerate() {
+        for b in &points[i + 1..] {
+            if b.0 > a.0 {
+                slopes.push((b.1 - a.1) / (b.0 - a.0));
+            }
+        }
     }
-    if den > 0.0 {
-        num / den * 1e6
+    if slopes.is_empty() {
+        return 0.0;
+    }
+    let slope = median(&mut slopes);
+    let mut rest: Vec<f64> = points.iter().map(|(t, o)| o - slope * t).collect();
+    let intercept = median(&mut rest);
+    let mut residuals: Vec<f64> = points
+        .iter()
+        .map(|(t, o)| (o - slope * t - intercept).abs())
+        .collect();
+    let scale = 1.4826 * median(&mut residuals);
+    let mt = points.iter().map(|p| p.0).sum::<f64>() / points.len() as f64;
+    let spread: f64 = points.iter().map(|p| (p.0 - mt).powi(2)).sum();
+    // With no scatter at all (an exact log) any slope is clear.
+    let clear = spread > 0.0 && slope.abs() > DRIFT_SIGMAS * scale / spread.sqrt();
+    if clear {
+        slope * 1e6
     } else {
         0.0
     }
 }
+
+/// Standard errors a drift must clear to be kept.
+pub const DRIFT_SIGMAS: f64 = 4.0;
