@@ -446,7 +446,7 @@ fn a_gyro_log_travels_beside_the_upload_and_leaves_with_it() {
     };
     // Refused at once: no row, nothing in the bucket.
     let r = form(b"not a log\n1,2\n");
-    assert_eq!(r.status, 400, "{}", r.text());
+    assert_eq!(r.status, 422, "{}", r.text());
     assert!(
         r.text().contains("no gyro log telemetry-parser knows"),
         "{}",

@@ -1,6 +1,6 @@
 //! `amc serve` given a gyro log beside the clip (the `gyro` part of a
 //! `multipart/form-data` upload): used as the CLI's `--gyro FILE`, and refused
-//! with a 400 naming why when it cannot be used. A real server on a loopback
+//! naming why when it cannot be used (422, or 400 for a broken form). A real server on a loopback
 //! port, driven over HTTP like a client (docs/service.md, docs/gyro.md).
 
 use amc_e2e::cluster::wait_finished;
@@ -83,16 +83,23 @@ fn a_gyro_log_sent_with_the_clip_is_synchronized_and_fused() {
     assert_eq!(r.status, 200, "{}", r.text());
     assert!(r.body.len() > 1000);
 
-    // Logs that cannot be used: 400 before any work, saying why.
+    // Logs that cannot be used: refused before any work, saying why (422 for
+    // a file that is no gyro log or a log with gyro=off, as for an
+    // undecodable video; 400 for a broken form).
     let garbage: &[u8] = b"not a log\n1,2\n";
-    for (query, gyro, says) in [
-        ("/stabilize", garbage, "no gyro log telemetry-parser knows"),
-        ("/jobs", &[][..], "is empty"),
-        ("/jobs?gyro=off", &log[..], "gyro=off"),
-        ("/stabilize?gyro=off", &log[..], "gyro=off"),
+    for (query, gyro, status, says) in [
+        (
+            "/stabilize",
+            garbage,
+            422,
+            "no gyro log telemetry-parser knows",
+        ),
+        ("/jobs", &[][..], 400, "is empty"),
+        ("/jobs?gyro=off", &log[..], 422, "gyro=off"),
+        ("/stabilize?gyro=off", &log[..], 422, "gyro=off"),
     ] {
         let r = form.send(&server, query, &[("flight.gcsv", gyro)]);
-        assert_eq!(r.status, 400, "{query} {says}: {}", r.text());
+        assert_eq!(r.status, status, "{query} {says}: {}", r.text());
         assert_eq!(r.header("content-type"), Some("application/problem+json"));
         let detail = r.json()["detail"].as_str().unwrap_or("").to_string();
         assert!(detail.contains(says), "{query}: {detail}");

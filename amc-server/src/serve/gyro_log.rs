@@ -1,7 +1,7 @@
 //! A gyro log a client sends as the `gyro` form field: read with the CLI's
 //! own reader ([`amc_engine::gyro::read_gyro_log`]: any format
 //! telemetry-parser knows, or a plain CSV), once when the upload is taken
-//! (so a log that cannot be used is refused at once, 400, before a job is
+//! (so a log that cannot be used is refused at once, 422, before a job is
 //! queued) and again by whoever runs the job (this replica, or an
 //! `amc worker` that downloaded it beside the clip).
 
@@ -24,7 +24,8 @@ pub async fn check(path: &Path) -> Result<(), ApiError> {
 }
 
 /// How a log that cannot be used is answered: what the client sent is at
-/// fault (400), except a scratch file this service cannot read back (500).
+/// fault (422, as an undecodable video: the request itself is well-formed),
+/// except a scratch file this service cannot read back (500).
 /// The scratch path means nothing to a client: the message names the field.
 fn refusal(e: GyroLogError, path: &Path) -> ApiError {
     let msg = e
@@ -33,7 +34,7 @@ fn refusal(e: GyroLogError, path: &Path) -> ApiError {
     match e {
         GyroLogError::Read { .. } => ApiError::Internal(msg),
         GyroLogError::Unknown { .. } | GyroLogError::NoGyro { .. } | GyroLogError::Sync { .. } => {
-            ApiError::BadOption(format!("invalid gyro log: {msg}"))
+            ApiError::UnusableGyro(format!("invalid gyro log: {msg}"))
         }
     }
 }
@@ -48,7 +49,7 @@ mod tests {
         let path = dir.path().join("gyro-log.gcsv");
         std::fs::write(&path, "not a log\n1,2\n").unwrap();
         let e = read(&path).unwrap_err();
-        assert!(matches!(e, ApiError::BadOption(_)), "{e:?}");
+        assert!(matches!(e, ApiError::UnusableGyro(_)), "{e:?}");
         let msg = e.to_string();
         assert!(msg.contains("the `gyro` form field's file"), "{msg}");
         assert!(msg.contains("telemetry-parser"), "{msg}");

@@ -67,7 +67,7 @@ fn upload_body() -> Value {
 }
 
 fn upload_errors(responses: &mut Map<String, Value>) {
-    responses.insert("400".into(), problem("A bad option (the message names it and the allowed range), an empty body, a broken upload, a `gyro` log that cannot be read or is empty, or a `gyro` log with gyro=off"));
+    responses.insert("400".into(), problem("A bad option (the message names it and the allowed range), an empty body, a broken upload, or an empty `gyro` part"));
     responses.insert(
         "413".into(),
         problem("The upload is over --max-upload-mb, or the `gyro` log over 64 MiB"),
@@ -75,7 +75,7 @@ fn upload_errors(responses: &mut Map<String, Value>) {
     responses.insert("415".into(), problem("Not a video ffmpeg can decode"));
     responses.insert(
         "422".into(),
-        problem("Over the size or duration limits, or not stabilizable"),
+        problem("Over the size or duration limits, or not stabilizable; or a `gyro` log that is no gyro log, holds no gyroscope samples, or is sent with gyro=off"),
     );
     responses.insert("503".into(), json!({
         "description": "Saturated: too many clips in flight or the disk budget used up, or (with --queue/--store) the job table's database or the bucket is unreachable; retry after the Retry-After header's seconds",

@@ -32,6 +32,11 @@ pub enum ApiError {
     /// A `gyro` form field over its own limit (`upload::MAX_GYRO_BYTES`).
     #[error("the gyro log is larger than the limit of {limit_mib} MiB")]
     GyroTooLarge { limit_mib: u64 },
+    /// A `gyro` form field whose file is no gyro log, holds no gyroscope
+    /// samples, or comes with `gyro=off`: well-formed, but nothing the run
+    /// could use (as an undecodable video is).
+    #[error("{0}")]
+    UnusableGyro(String),
     /// Not a video ffmpeg can decode (or a content type that is not video).
     #[error("{0}")]
     Unsupported(String),
@@ -109,7 +114,9 @@ impl ApiError {
                 StatusCode::PAYLOAD_TOO_LARGE
             }
             ApiError::Unsupported(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            ApiError::Unprocessable(_) => StatusCode::UNPROCESSABLE_ENTITY,
+            ApiError::Unprocessable(_) | ApiError::UnusableGyro(_) => {
+                StatusCode::UNPROCESSABLE_ENTITY
+            }
             ApiError::Unauthorized(_) => StatusCode::UNAUTHORIZED,
             ApiError::Forbidden(_) => StatusCode::FORBIDDEN,
             ApiError::TooManyRequests { .. } => StatusCode::TOO_MANY_REQUESTS,
@@ -130,6 +137,7 @@ impl ApiError {
             ApiError::TooLarge { .. } | ApiError::GyroTooLarge { .. } => "too-large",
             ApiError::Unsupported(_) => "unsupported-media",
             ApiError::Unprocessable(_) => "unprocessable-video",
+            ApiError::UnusableGyro(_) => "unusable-gyro-log",
             ApiError::JobNotFound(_) => "job-not-found",
             ApiError::Unauthorized(_) => "unauthorized",
             ApiError::Forbidden(_) => "forbidden",

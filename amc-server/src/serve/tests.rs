@@ -71,20 +71,28 @@ fn form(uri: &str, parts: &[(&str, &str, &[u8])]) -> Request<Body> {
         .unwrap()
 }
 
-/// A `gyro` form field that cannot be used is a 400 naming why, before the
-/// clip is looked at, and leaves nothing in the scratch space.
+/// A `gyro` form field that cannot be used is refused naming why (400 for a
+/// broken form, 422 for a file that is no gyro log or a log with gyro=off),
+/// before the clip is
+/// looked at, and leaves nothing in the scratch space.
 #[tokio::test]
 async fn gyro_fields_that_cannot_be_used_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let app = app(state(dir.path()));
-    for (uri, gyro, says) in [
-        ("/stabilize?gyro=off", &b"t,gx,gy,gz\n"[..], "gyro=off"),
+    for (uri, gyro, status, says) in [
+        (
+            "/stabilize?gyro=off",
+            &b"t,gx,gy,gz\n"[..],
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "gyro=off",
+        ),
         (
             "/jobs",
             &b"not a log\n1,2\n"[..],
+            StatusCode::UNPROCESSABLE_ENTITY,
             "no gyro log telemetry-parser knows",
         ),
-        ("/jobs", &b""[..], "is empty"),
+        ("/jobs", &b""[..], StatusCode::BAD_REQUEST, "is empty"),
     ] {
         let req = form(
             uri,
@@ -94,7 +102,7 @@ async fn gyro_fields_that_cannot_be_used_are_refused() {
             ],
         );
         let (s, ctype, j) = call(&app, req).await;
-        assert_eq!(s, StatusCode::BAD_REQUEST, "{uri}: {j}");
+        assert_eq!(s, status, "{uri}: {j}");
         assert_eq!(ctype, "application/problem+json");
         let detail = j["detail"].as_str().unwrap();
         assert!(detail.contains(says), "{uri}: {detail}");

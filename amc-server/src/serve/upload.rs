@@ -273,7 +273,8 @@ async fn receive_multipart(
             }
             "gyro" => {
                 if gyro_off {
-                    return Err(ApiError::BadOption(
+                    // Well-formed, but nothing a run could do: 422, as a log that is no log.
+                    return Err(ApiError::UnusableGyro(
                         "gyro=off contradicts the `gyro` form field: send the log without \
                          gyro=off (or gyro=auto) to use it, or gyro=off without the log"
                             .into(),
