@@ -299,7 +299,16 @@ pub fn wasm_args(data: &[u8]) {
         };
         let frame = vec![r.byte(); n];
         let t = r.number();
-        let result = args::push_frame(&mut opened.stabilizer, fmt, w, h, &frame, t, None, &mut planar);
+        let result = args::push_frame(
+            &mut opened.stabilizer,
+            fmt,
+            w,
+            h,
+            &frame,
+            t,
+            None,
+            &mut planar,
+        );
         if n != len {
             assert!(
                 result.is_err(),
