@@ -268,8 +268,7 @@ impl OnlineFusion {
             let predicted = Tangent::from(std::array::from_fn::<f64, 3, _>(|i| self.axes[i].z));
             let innovation = (y - predicted).norm();
             if self.innovations.len() >= MIN_HISTORY {
-                let mut recent: Vec<f64> = self.innovations.iter().copied().collect();
-                let limit = HUBER * (1.4826 * median(&mut recent)).max(1e-12);
+                let limit = HUBER * (1.4826 * median_of(&self.innovations)).max(1e-12);
                 if innovation > limit {
                     weight *= limit / innovation;
                 }
@@ -329,8 +328,7 @@ impl OnlineFusion {
         if self.rates.len() < MIN_HISTORY {
             return self.track.sync().residual_rad_s;
         }
-        let mut r: Vec<f64> = self.rates.iter().copied().collect();
-        median(&mut r)
+        median_of(&self.rates)
     }
 
     /// The gyro chain's variance per axis over `dt`: its white noise integrated.
@@ -347,10 +345,7 @@ impl OnlineFusion {
         } else {
             self.spread
                 .iter()
-                .map(|a| {
-                    let mut v: Vec<f64> = a.iter().copied().collect();
-                    (1.4826 * median(&mut v)).powi(2)
-                })
+                .map(|a| (1.4826 * median_of(a)).powi(2))
                 .sum::<f64>()
                 / 3.0
         };
@@ -406,6 +401,11 @@ impl Gauss2 {
         }
         out
     }
+}
+
+/// The median of a window of recent values.
+fn median_of(q: &VecDeque<f64>) -> f64 {
+    median(&mut q.iter().copied().collect::<Vec<f64>>())
 }
 
 fn push_bounded(q: &mut VecDeque<f64>, v: f64, cap: usize) {
