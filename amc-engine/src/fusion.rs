@@ -3,12 +3,15 @@
 //! ([`amc_gyrolog::fuse_log`], as the page does) into each frame's pose and
 //! readout path, which the main pass renders without tracking again. A clip
 //! that fits in [`CACHE_BYTES`] is kept from the first pass for the main
-//! one, so it is decoded once.
+//! one, so it is decoded once. `zoom = static` frames the fused poses
+//! ([`static_zoom`]) instead of tracking the clip once more: a run with a
+//! gyro tracks once where one from the picture alone tracks twice.
 
 use super::control::RunControl;
 use super::gyro::{GyroLog, GyroReport};
 use super::stages::Reader;
 use super::RunError;
+use amc_core::plan::static_zoom_posed;
 use amc_core::{CameraModel, Frame, GivenPose, Stabilizer, StabilizerParams, Telemetry};
 use amc_gyrolog::{fuse_log, video_only_warning, FuseLogError, FusedLog};
 use amc_video::{self as video, FrameSource, InputOptions, VideoError, VideoInfo};
@@ -21,6 +24,10 @@ pub const CACHE_BYTES: usize = 1 << 30;
 pub(crate) struct Fused {
     /// One per frame of the clip, in order.
     pub poses: Vec<GivenPose>,
+    /// Each pose's frame time, seconds.
+    pub times: Vec<f64>,
+    /// The frames' size.
+    pub size: (usize, usize),
     pub report: GyroReport,
     /// The clip's frames, when they fit in [`CACHE_BYTES`].
     pub cached: Option<CachedClip>,
@@ -54,7 +61,6 @@ pub(crate) fn fuse_pass(
     opts: &InputOptions,
     lens: &CameraModel,
     params: &StabilizerParams,
-    static_zoom: Option<f64>,
     log: &GyroLog,
     pool: &rayon::ThreadPool,
     control: Option<&RunControl>,
@@ -66,15 +72,12 @@ pub(crate) fn fuse_pass(
     let mut cache: Option<Vec<(Frame, f64)>> = Some(Vec::new());
     let mut cached_bytes = 0usize;
     let mut stab = Stabilizer::new(lens, info.width, info.height, params.clone())?;
-    if let Some(z) = static_zoom {
-        stab.set_static_zoom(z);
-    }
-    stab.set_rendering(false);
+    stab.set_tracking_only(true);
     let mut frame = Frame::new(info.width, info.height, opts.pixel_format);
     let mut seen: Vec<Telemetry> = Vec::new();
     while let Some(t) = src.next_frame(&mut frame)? {
         check()?;
-        if let Some(tel) = pool.install(|| stab.push(frame.as_ref(), t))? {
+        if let Some(tel) = stab.push(frame.as_ref(), t)? {
             seen.push(tel);
         }
         cached_bytes += frame.data.len();
@@ -94,18 +97,33 @@ pub(crate) fn fuse_pass(
         });
     }
     let readout_s = params.shutter.readout_ms * 1e-3;
-    let FusedLog { poses, report } = match fuse_log(log, &seen, readout_s) {
+    // On the pool: the sync's searches use its threads.
+    let FusedLog { poses, report } = match pool.install(|| fuse_log(log, &seen, readout_s)) {
         Ok(fused) => fused,
         Err(FuseLogError::Sync(e)) => return Ok(Err(video_only_warning(&e))),
         Err(FuseLogError::Fuse(e)) => return Err(e.into()),
     };
+    let size = (info.width, info.height);
     let cached = cache.map(|frames| CachedClip {
         info,
         frames: frames.into_iter(),
     });
     Ok(Ok(Fused {
         poses,
+        times: seen.iter().map(|tel| tel.t).collect(),
+        size,
         report,
         cached,
     }))
+}
+
+/// `zoom = static`'s zoom for the fused poses (`None`: `params` need none).
+pub(crate) fn static_zoom(
+    fused: &Fused,
+    lens: &CameraModel,
+    params: &StabilizerParams,
+) -> Result<Option<f64>, RunError> {
+    let (w, h) = fused.size;
+    let posed = fused.times.iter().copied().zip(fused.poses.iter().copied());
+    Ok(static_zoom_posed(lens, w, h, params, posed)?)
 }

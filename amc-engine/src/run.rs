@@ -164,7 +164,6 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         ..super::input_options(cfg.fps, cfg.timeout)
     };
     let pool = render_pool(cfg.threads)?;
-    let static_zoom = static_zoom(cfg, &opts, &pool)?;
     let mut warnings = Vec::new();
     let mut fused = match cfg.gyro {
         Some(log) => match fusion::fuse_pass(
@@ -172,7 +171,6 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
             &opts,
             &cfg.lens,
             &cfg.params,
-            static_zoom,
             log,
             &pool,
             cfg.control,
@@ -184,6 +182,11 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
             }
         },
         None => None,
+    };
+    // With fused poses, `zoom = static` frames them (no second tracking pass).
+    let static_zoom = match &fused {
+        Some(f) => fusion::static_zoom(f, &cfg.lens, &cfg.params)?,
+        None => static_zoom(cfg, &opts, &pool)?,
     };
     let src: Box<dyn FrameSource> = match fused.as_mut().and_then(|f| f.cached.take()) {
         Some(clip) => Box::new(clip),

@@ -1,5 +1,5 @@
 //! The gyro's first pass (`new GyroPass`): the whole clip tracked from the
-//! picture by a stabilizer that does not render, as the engine's fusion
+//! picture by a stabilizer that only tracks, as the engine's fusion
 //! pass does; then the clip's log synchronized and fused with it
 //! (amc-gyrolog's `fuse_log`, the engine's own) into each frame's pose for
 //! the main [`Stabilizer`](crate::Stabilizer) ([`Stabilizer::set_poses`](crate::Stabilizer::set_poses)).
@@ -44,18 +44,12 @@ impl GyroPass {
         })
         .and_then(args::Checked::open)
         .map_err(err)?;
-        stab.set_rendering(false);
+        stab.set_tracking_only(true);
         Ok(GyroPass {
             stab,
             input: FrameInput::new(width, height, format),
             seen: Vec::new(),
         })
-    }
-
-    /// `zoom: "static"`: the zoom its pass found, as the main stabilizer is given it.
-    #[wasm_bindgen(js_name = setStaticZoom)]
-    pub fn set_static_zoom(&mut self, zoom: f64) {
-        self.stab.set_static_zoom(zoom);
     }
 
     /// Frames tracked so far (outputs the lookahead let out).

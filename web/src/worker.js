@@ -156,18 +156,17 @@ function readoutNote({ readout_ms, note, estimate: e }) {
 
 /**
  * gyro auto with a track found: the gyro's first pass (every frame tracked
- * by a stabilizer that does not render, made as the main one is), then the
+ * by a stabilizer made as the main one is, tracking only), then the
  * log synchronized and fused with it, as the CLI does. Returns `{ report,
  * poses, note }` (`poses`: for `Stabilizer.setPoses`) or, when the log does
  * not fit the video, `{ warning: true, note }` (the run goes on from the
  * picture alone).
  */
-async function gyroPass(parts, paramsJson, lens, { width, height, path, video, copyOpts, total, zoom }) {
+async function gyroPass(parts, paramsJson, lens, { width, height, path, video, copyOpts, total }) {
   const log = ClipGyro.fromParts(parts.source, parts.videoClock, parts.readoutMs, parts.times, parts.rates);
   let pass;
   try {
     pass = new GyroPass(width, height, paramsJson, lens, path);
-    if (zoom !== null) pass.setStaticZoom(zoom);
     await firstPass(pass, video, copyOpts, total, 'gyro-pass');
     const found = pass.fuse(log);
     if (found.warning) return { warning: true, note: `warning: ${found.warning}` };
@@ -229,7 +228,7 @@ async function processClip({ file, params, lens, format, readout, gyro = 'auto' 
       post('zoom-pass', { done: total || 0, total, zoom: staticZoomUsed });
     }
     if (log) {
-      gyroResult = await gyroPass(log, plan.paramsJson(), lens, { width, height, path, video, copyOpts, total, zoom: staticZoomUsed });
+      gyroResult = await gyroPass(log, plan.paramsJson(), lens, { width, height, path, video, copyOpts, total });
       // Each frame rendered with its fused pose, not tracked again.
       if (gyroResult.poses) stab.setPoses(gyroResult.poses);
       post('gyro', { note: gyroResult.note, warning: !!gyroResult.warning, report: gyroResult.report || null });

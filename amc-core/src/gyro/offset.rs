@@ -110,18 +110,14 @@ pub fn coarse_offset(integral: &GyroIntegral, steps: &[VisionStep]) -> Vec<(f64,
     // widened by the share that may be left uncovered.
     let slack = (1.0 - MIN_COVER) * (v1 - v0);
     let (lo, hi) = (v1 - log1 - slack, v0 - log0 + slack);
-    let mut scores: Vec<(f64, f64)> = Vec::new();
-    let (mut a, mut b) = (
-        Vec::with_capacity(steps.len()),
-        Vec::with_capacity(steps.len()),
-    );
-    let mut k = 0;
-    loop {
+    let offsets = (0..)
+        .map(|k| lo + k as f64 * COARSE_STEP)
+        .take_while(|&o| o <= hi)
+        .count();
+    // Each offset's score on its own buffers: the same scores on any number
+    // of threads.
+    let score = |k: usize, (a, b): &mut (Vec<f64>, Vec<f64>)| {
         let o = lo + k as f64 * COARSE_STEP;
-        if o > hi {
-            break;
-        }
-        k += 1;
         a.clear();
         b.clear();
         for (s, v) in steps.iter().zip(&video) {
@@ -133,10 +129,29 @@ pub fn coarse_offset(integral: &GyroIntegral, steps: &[VisionStep]) -> Vec<(f64,
         let c = if (a.len() as f64) < MIN_COVER * steps.len() as f64 {
             f64::NEG_INFINITY
         } else {
-            correlation(&a, &b)
+            correlation(a, b)
         };
-        scores.push((o, c));
-    }
+        (o, c)
+    };
+    let buffers = || {
+        (
+            Vec::with_capacity(steps.len()),
+            Vec::with_capacity(steps.len()),
+        )
+    };
+    #[cfg(feature = "parallel")]
+    let scores: Vec<(f64, f64)> = {
+        use rayon::prelude::*;
+        (0..offsets)
+            .into_par_iter()
+            .map_init(buffers, |buf, k| score(k, buf))
+            .collect()
+    };
+    #[cfg(not(feature = "parallel"))]
+    let scores: Vec<(f64, f64)> = {
+        let mut buf = buffers();
+        (0..offsets).map(|k| score(k, &mut buf)).collect()
+    };
     // Local maxima, highest first, kept apart.
     let mut peaks: Vec<(f64, f64)> = (0..scores.len())
         .filter(|&i| {
@@ -188,12 +203,11 @@ pub fn refine_offset(
         let n = (half / step).round() as i64;
         let center = best;
         let mut best_cost = f64::INFINITY;
-        for i in -n..=n {
-            let o = center + i as f64 * step;
-            let c = cost(o);
+        let grid: Vec<f64> = (-n..=n).map(|i| center + i as f64 * step).collect();
+        for (o, c) in grid.iter().zip(costs(&grid, &cost)) {
             if c < best_cost {
                 best_cost = c;
-                best = o;
+                best = *o;
             }
         }
         if half < window {
@@ -206,6 +220,20 @@ pub fn refine_offset(
         }
     }
     best
+}
+
+/// `cost` at each offset, in order (on the caller's rayon pool with the
+/// `parallel` feature: each value is the same either way).
+fn costs(offsets: &[f64], cost: &(impl Fn(f64) -> f64 + Sync)) -> Vec<f64> {
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        offsets.par_iter().map(|&o| cost(o)).collect()
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        offsets.iter().map(|&o| cost(o)).collect()
+    }
 }
 
 /// The clocks' drift, parts per million: the offsets of the clip's parts

@@ -26,16 +26,17 @@
 
 use crate::camera::CameraModel;
 use crate::error::AmcError;
-use crate::framing::Zoom;
 use crate::image::{Frame, FrameRef};
 use crate::lens::LensFile;
 use crate::options::ReadoutSpec;
 use crate::readout::{ReadoutEstimate, ReadoutEstimator};
 use crate::selfcal;
 use crate::stabilizer::{Stabilizer, StabilizerParams};
-use crate::view::Mode;
+
+mod posed;
 
 pub use crate::readout::READOUT_FRAMES;
+pub use posed::{static_zoom_posed, wants_static_zoom};
 
 /// Frames read for `fov = auto` (about 3 s at 30 fps).
 pub const AUTO_FOV_FRAMES: usize = 90;
@@ -285,10 +286,7 @@ impl PassPlan {
         if readout == ReadoutSpec::Auto {
             passes.push(Pass::Readout);
         }
-        if static_zoom
-            && params.framing.zoom == Zoom::Static
-            && matches!(params.view.mode, Mode::Stabilize | Mode::Lock)
-        {
+        if static_zoom && wants_static_zoom(&params) {
             passes.push(Pass::StaticZoom);
         }
         let mut plan = PassPlan {

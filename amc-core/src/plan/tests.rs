@@ -1,6 +1,8 @@
 use super::*;
+use crate::framing::Zoom;
 use crate::image::PixelFormat;
 use crate::readout;
+use crate::view::Mode;
 
 const W: usize = 160;
 const H: usize = 120;
@@ -398,4 +400,84 @@ fn misuse_is_an_error_not_a_panic() {
         .unwrap()
         .finish()
         .is_err());
+}
+
+/// The zoom from given poses is the static-zoom pass's when the poses are
+/// the tracker's own (a global shutter: no readout path to carry), and none
+/// where the parameters need no such pass.
+#[test]
+fn the_posed_static_zoom_is_the_pass_s_zoom_for_the_tracker_s_poses() {
+    let frames = clip(40);
+    let cam = CameraModel::pinhole_hfov(W, H, 70.0).unwrap();
+    let p = static_params(Mode::Stabilize);
+    let mut stab = Stabilizer::new(&cam, W, H, p.clone()).unwrap();
+    stab.set_rendering(false);
+    let mut seen = Vec::new();
+    for (f, t) in &frames {
+        seen.extend(stab.push(f.as_ref(), *t).unwrap());
+    }
+    while let Some(tel) = stab.finish() {
+        seen.push(tel);
+    }
+    assert_eq!(seen.len(), frames.len());
+    let need = stab.max_zoom_need();
+    assert!(need > 1.0, "the shake needs some zoom ({need})");
+    let posed = seen.iter().map(|tel| {
+        let pose = crate::so3::exp(&nalgebra::Vector3::from(tel.r_est));
+        let given = crate::stabilizer::GivenPose {
+            pose,
+            path: Default::default(),
+            info: tel.track,
+        };
+        (tel.t, given)
+    });
+    let got = static_zoom_posed(&cam, W, H, &p, posed.clone()).unwrap();
+    let got = got.expect("stabilize mode with zoom = static needs the pass");
+    assert!((got - need).abs() < 1e-6, "{got} against {need}");
+    for params in [StabilizerParams::default(), static_params(Mode::Saccade)] {
+        assert_eq!(
+            static_zoom_posed(&cam, W, H, &params, posed.clone()).unwrap(),
+            None
+        );
+    }
+}
+
+/// Tracking only (a gyro run's first pass) reports the same poses, readout
+/// paths and tracking as a stabilizer that frames without rendering, with
+/// no view or zoom of its own.
+#[test]
+fn tracking_only_reports_the_tracker_s_motion() {
+    let frames = clip(40);
+    let cam = CameraModel::pinhole_hfov(W, H, 70.0).unwrap();
+    let mut p = static_params(Mode::Stabilize);
+    p.shutter.readout_ms = 8.0;
+    let run = |only: bool| {
+        let mut stab = Stabilizer::new(&cam, W, H, p.clone()).unwrap();
+        if only {
+            stab.set_tracking_only(true);
+        } else {
+            stab.set_rendering(false);
+        }
+        let mut seen = Vec::new();
+        for (f, t) in &frames {
+            seen.extend(stab.push(f.as_ref(), *t).unwrap());
+        }
+        while let Some(tel) = stab.finish() {
+            seen.push(tel);
+        }
+        seen
+    };
+    let (only, framed) = (run(true), run(false));
+    assert_eq!(only.len(), frames.len());
+    assert_eq!(only.len(), framed.len());
+    for (a, b) in only.iter().zip(&framed) {
+        assert_eq!((a.frame, a.t, a.r_est), (b.frame, b.t, b.r_est));
+        assert_eq!(a.readout_rotation, b.readout_rotation);
+        assert_eq!(a.track, b.track);
+        assert_eq!((a.r_view, a.zoom), (a.r_est, 1.0));
+    }
+    assert!(
+        framed.iter().any(|b| b.r_view != b.r_est),
+        "the framed pass has a view"
+    );
 }

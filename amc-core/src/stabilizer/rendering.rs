@@ -51,6 +51,9 @@ pub(super) struct Rendering {
     pub(super) need_rots: Vec<nalgebra::Matrix3<f64>>,
     /// Whether pixels are rendered (off: views and zoom needs only).
     pub(super) render: bool,
+    /// Tracking only: no view, framing or pixels, the tracker's telemetry
+    /// alone ([`Stabilizer::set_tracking_only`](super::Stabilizer::set_tracking_only)).
+    pub(super) tracking_only: bool,
     /// Which outputs this stabilizer renders: output `j` when `j % share.0 ==
     /// share.1` ([`Stabilizer::set_render_share`](super::Stabilizer::set_render_share)); `(1, 0)`: every one.
     pub(super) share: (u64, u64),
@@ -74,6 +77,18 @@ impl Rendering {
     ) -> Telemetry {
         let j = self.next_out;
         self.next_out += 1;
+        if self.tracking_only {
+            let pos = ring.iter().position(|b| b.index == j).unwrap_or(0);
+            let shown = Shown {
+                frames_averaged: 1,
+                valid_fraction: 0.0,
+                saccade: false,
+                zoom: 1.0,
+                uncovered: 0,
+            };
+            let r_est = ring[pos].r_est;
+            return self.telemetry(&ring[pos], params, j, &r_est, shown);
+        }
         let render = self.render && j % self.share.0 == self.share.1;
         let (first, pos) = self.window(ring, params, j);
         if params.render.deghost == DeghostLevel::Auto {

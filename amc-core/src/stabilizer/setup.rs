@@ -132,6 +132,7 @@ impl Stabilizer {
                 window_rots: Vec::new(),
                 need_rots: Vec::new(),
                 render: true,
+                tracking_only: false,
                 share: (1, 0),
                 locked_view: None,
                 camera_zoom,
@@ -205,6 +206,15 @@ impl Stabilizer {
         self.rendering.render = on;
     }
 
+    /// Tracking only: [`Stabilizer::push`] and [`Stabilizer::finish`] track
+    /// every frame and return its telemetry (the pose, the readout path, how
+    /// tracking went), with no view filter, framing or pixels (the view is
+    /// the camera's own, the zoom 1): the first pass of a run with a gyro,
+    /// which needs the picture's motion alone. Off by default.
+    pub fn set_tracking_only(&mut self, on: bool) {
+        self.rendering.tracking_only = on;
+    }
+
     /// Renders only outputs `j` with `j % count == index`: the others are
     /// tracked, filtered and framed as with [`Stabilizer::set_rendering`] off
     /// (their telemetry has `valid_fraction` 0 and `uncovered` 0, and the
@@ -257,6 +267,7 @@ impl Stabilizer {
         self.params.framing.zoom == Zoom::Static
             && matches!(self.params.view.mode, Mode::Stabilize | Mode::Lock)
             && self.rendering.render
+            && !self.rendering.tracking_only
             && self.rendering.framer.fixed().is_none()
     }
 
