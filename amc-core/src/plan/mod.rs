@@ -36,7 +36,7 @@ use crate::stabilizer::{Stabilizer, StabilizerParams};
 mod posed;
 
 pub use crate::readout::READOUT_FRAMES;
-pub use posed::{static_zoom_posed, wants_static_zoom};
+pub use posed::static_zoom_posed;
 
 /// Frames read for `fov = auto` (about 3 s at 30 fps).
 pub const AUTO_FOV_FRAMES: usize = 90;
@@ -286,7 +286,7 @@ impl PassPlan {
         if readout == ReadoutSpec::Auto {
             passes.push(Pass::Readout);
         }
-        if static_zoom && wants_static_zoom(&params) {
+        if static_zoom && params.wants_static_zoom() {
             passes.push(Pass::StaticZoom);
         }
         let mut plan = PassPlan {

@@ -5,16 +5,8 @@
 
 use crate::camera::CameraModel;
 use crate::error::AmcError;
-use crate::framing::Zoom;
 use crate::image::{Frame, PixelFormat};
 use crate::stabilizer::{GivenPose, Stabilizer, StabilizerParams};
-use crate::view::Mode;
-
-/// Whether `params` call for the static-zoom pass (`zoom = static` in
-/// stabilize or lock mode).
-pub fn wants_static_zoom(params: &StabilizerParams) -> bool {
-    params.framing.zoom == Zoom::Static && matches!(params.view.mode, Mode::Stabilize | Mode::Lock)
-}
 
 /// The highest zoom any output needs when frames `width x height` have the
 /// given `(t, pose)`s, in order: what the static-zoom pass finds, with these
@@ -26,7 +18,7 @@ pub fn static_zoom_posed(
     params: &StabilizerParams,
     poses: impl IntoIterator<Item = (f64, GivenPose)>,
 ) -> Result<Option<f64>, AmcError> {
-    if !wants_static_zoom(params) {
+    if !params.wants_static_zoom() {
         return Ok(None);
     }
     let mut stab = Stabilizer::new(camera, width, height, params.clone())?;

@@ -402,6 +402,18 @@ fn misuse_is_an_error_not_a_panic() {
         .is_err());
 }
 
+/// Every output's telemetry of `stab` fed `frames` to the end.
+fn telemetry_of(stab: &mut Stabilizer, frames: &[(Frame, f64)]) -> Vec<crate::Telemetry> {
+    let mut seen = Vec::new();
+    for (f, t) in frames {
+        seen.extend(stab.push(f.as_ref(), *t).unwrap());
+    }
+    while let Some(tel) = stab.finish() {
+        seen.push(tel);
+    }
+    seen
+}
+
 /// The zoom from given poses is the static-zoom pass's when the poses are
 /// the tracker's own (a global shutter: no readout path to carry), and none
 /// where the parameters need no such pass.
@@ -412,13 +424,7 @@ fn the_posed_static_zoom_is_the_pass_s_zoom_for_the_tracker_s_poses() {
     let p = static_params(Mode::Stabilize);
     let mut stab = Stabilizer::new(&cam, W, H, p.clone()).unwrap();
     stab.set_rendering(false);
-    let mut seen = Vec::new();
-    for (f, t) in &frames {
-        seen.extend(stab.push(f.as_ref(), *t).unwrap());
-    }
-    while let Some(tel) = stab.finish() {
-        seen.push(tel);
-    }
+    let seen = telemetry_of(&mut stab, &frames);
     assert_eq!(seen.len(), frames.len());
     let need = stab.max_zoom_need();
     assert!(need > 1.0, "the shake needs some zoom ({need})");
@@ -458,14 +464,7 @@ fn tracking_only_reports_the_tracker_s_motion() {
         } else {
             stab.set_rendering(false);
         }
-        let mut seen = Vec::new();
-        for (f, t) in &frames {
-            seen.extend(stab.push(f.as_ref(), *t).unwrap());
-        }
-        while let Some(tel) = stab.finish() {
-            seen.push(tel);
-        }
-        seen
+        telemetry_of(&mut stab, &frames)
     };
     let (only, framed) = (run(true), run(false));
     assert_eq!(only.len(), frames.len());

@@ -1,11 +1,11 @@
 //! The stabilizer's parameters: one per stage.
 
 use crate::error::AmcError;
-use crate::framing::FramingParams;
+use crate::framing::{FramingParams, Zoom};
 use crate::render::RenderParams;
 use crate::shutter::ShutterParams;
 use crate::tracker::TrackerParams;
-use crate::view::ViewParams;
+use crate::view::{Mode, ViewParams};
 use serde::{Deserialize, Serialize};
 
 /// All parameters of the stabilizer: one definition shared by the CLI, the REST
@@ -42,6 +42,13 @@ impl Default for StabilizerParams {
 }
 
 impl StabilizerParams {
+    /// Whether these parameters hold the zoom static over the clip, which
+    /// takes a first pass to find it (`zoom = static` in stabilize or lock
+    /// mode; saccade mode's zoom is fixed anyway).
+    pub fn wants_static_zoom(&self) -> bool {
+        self.framing.zoom == Zoom::Static && matches!(self.view.mode, Mode::Stabilize | Mode::Lock)
+    }
+
     /// Checks every stage's parameters.
     pub fn validate(&self) -> Result<(), AmcError> {
         if !(32..=8192).contains(&self.track_width) {

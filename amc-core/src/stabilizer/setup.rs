@@ -264,8 +264,7 @@ impl Stabilizer {
     /// Whether this stabilizer renders with `zoom = static` but was not told
     /// the zoom yet ([`Stabilizer::set_static_zoom`]).
     pub(super) fn needs_static_zoom(&self) -> bool {
-        self.params.framing.zoom == Zoom::Static
-            && matches!(self.params.view.mode, Mode::Stabilize | Mode::Lock)
+        self.params.wants_static_zoom()
             && self.rendering.render
             && !self.rendering.tracking_only
             && self.rendering.framer.fixed().is_none()
