@@ -191,6 +191,65 @@ fn fused_motion_halves_the_per_frame_error_and_bridges_a_glitch() {
     assert!(worst(&fused) <= 2.0 * worst(&vision));
 }
 
+/// `--readout-ms auto` with a log that records no readout: measured against
+/// the log from each frame's rotation within it (compressed, as a camera
+/// records it), within 10% of the truth, and said.
+#[test]
+fn readout_auto_is_measured_against_the_log() {
+    let dir = tempfile::tempdir().unwrap();
+    let clip = dir.path().join("clip");
+    synth(
+        &clip,
+        &[
+            "--width",
+            "320",
+            "--height",
+            "180",
+            "--seconds",
+            "4",
+            "--seed",
+            "21",
+            "--shake-dps",
+            "200",
+            "--rolling-shutter-ms",
+            "12",
+            "--gyro-rate-hz",
+            "500",
+            "--gyro-offset-s",
+            "-3.91",
+            "--gyro-mount-rotvec",
+            "0.4,0.1,-0.2",
+            "--gyro-noise",
+            "0.01",
+        ],
+    );
+    let video = dir.path().join("clip.mp4");
+    amc_e2e::fixtures::encode_frames(&clip, 60, &video);
+    let (m, stderr) = stabilize(
+        &[
+            s(&video),
+            "--lens".into(),
+            s(&clip.join("lens.json")),
+            "--gyro".into(),
+            s(&clip.join("gyro.gcsv")),
+            "--readout-ms".into(),
+            "auto".into(),
+        ],
+        dir.path(),
+    );
+    let readout = json_f64(&m, "/readout_ms");
+    eprintln!(
+        "readout {readout:.2} ms (true 12): {}",
+        m["gyro"]["readout"]
+    );
+    assert!(stderr.contains("measured against it"), "{stderr}");
+    assert_eq!(m["gyro"]["readout"]["confident"], true, "{}", m["gyro"]);
+    assert!(
+        (readout - 12.0).abs() < 1.2,
+        "readout {readout} ms, true 12"
+    );
+}
+
 #[test]
 fn cc9_offset_and_axis_mapping_come_out_of_the_sync() {
     let dir = tempfile::tempdir().unwrap();

@@ -154,41 +154,30 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         engine::gyro::GyroChoice::Auto => engine::gyro::clip_gyro(&input.frames),
         engine::gyro::GyroChoice::File(p) => Some(engine::gyro::read_gyro_log(p)?),
     };
-    // The readout the clip records (GoPro's SROT, ...) answers `auto`
-    // better than an estimate, and stands in for the unset default.
-    let recorded = gyro_log
-        .as_ref()
-        .and_then(|g| g.readout_ms.map(|ms| (ms, g.source.clone())));
-    let mut options = options;
+    // What the log does to the readout: a recorded one answers `auto`;
+    // `auto` with one that records none is measured against it in the run.
     let readout_asked = options.readout.clone();
-    if let (Some((ms, _)), amc_core::ReadoutSpec::Auto) = (&recorded, &readout_asked) {
-        options.readout = amc_core::ReadoutSpec::Ms(*ms);
-    }
+    let log_readout = engine::LogReadout::choose(&readout_asked, gyro_log.as_ref());
+    let mut options = options;
+    options.readout = log_readout.spec(&readout_asked);
     let in_opts = engine::input_options(fps, timeout);
     let mut resolved = match &clip.pick {
         Some(pick) => engine::resolve_known(&options, pick.lens(), &input.frames, &in_opts)?,
         None => engine::resolve(&options, &input.frames, &in_opts, None)?,
     };
-    // `auto`, or the default where the lens file states none.
-    let use_recorded = match readout_asked {
-        amc_core::ReadoutSpec::Auto => true,
-        amc_core::ReadoutSpec::FromLens => {
-            resolved.readout.note == amc_core::plan::ReadoutNote::Given
+    if let Some(line) = log_readout.apply(&readout_asked, &mut resolved.readout) {
+        resolved.params.shutter.readout_ms = resolved.readout.readout_ms;
+        if !args.quiet {
+            eprintln!("{line}");
         }
-        amc_core::ReadoutSpec::Ms(_) => false,
-    };
-    match &recorded {
-        Some((ms, source)) if use_recorded => {
-            resolved.params.shutter.readout_ms = *ms;
-            resolved.readout.readout_ms = *ms;
-            resolved.readout.note = amc_core::plan::ReadoutNote::Given;
-            if !args.quiet {
-                eprintln!("readout: {ms:.1} ms (recorded by the camera: {source})");
-            }
-        }
-        _ => {}
     }
-    say_resolved(&resolved, args.quiet);
+    // Measured against the log in the run (which says how it went).
+    let measure_readout = log_readout.measure(&readout_asked, &resolved.readout);
+    if measure_readout.is_some() {
+        say_lens(resolved.lens_note(), args.quiet);
+    } else {
+        say_resolved(&resolved, args.quiet);
+    }
     let also: Vec<(&'static str, &std::path::Path)> = args
         .metrics
         .iter()
@@ -217,6 +206,7 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         control: Some(control),
         progress: Some(&report),
         gyro: gyro_log.as_ref(),
+        measure_readout,
         threads: args.run.input.threads(),
     })?;
     bar.finish();

@@ -54,7 +54,29 @@ pub const GLOBAL_MAX_SHARE: f64 = 0.75;
 pub const GLOBAL_BELOW_MS: f64 = 0.5;
 /// Nominal readout the tracking pass runs with (it only switches the model
 /// on: the intra-frame rotation is measured, not derived from it).
-const NOMINAL_READOUT_MS: f64 = 10.0;
+pub const NOMINAL_READOUT_MS: f64 = 10.0;
+
+/// One frame's rotation during its readout, as the tracker measured it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeasuredReadout {
+    /// Video time of the frame's mid-readout, seconds.
+    pub t: f64,
+    /// Its rotation from the first row to the last (camera axes, radians).
+    pub phi: Tangent,
+}
+
+/// Each frame's rotation during its readout from a readout pass's telemetry
+/// ([`ReadoutEstimator::finish_with_telemetry`]), lost frames left out.
+pub fn measured(telemetry: &[Telemetry]) -> Vec<MeasuredReadout> {
+    telemetry
+        .iter()
+        .filter(|t| !t.track.lost)
+        .map(|t| MeasuredReadout {
+            t: t.t,
+            phi: Tangent::from(t.readout_rotation),
+        })
+        .collect()
+}
 
 /// The readout estimated from a clip.
 #[derive(Clone, Debug, PartialEq)]
@@ -123,11 +145,18 @@ impl ReadoutEstimator {
     }
 
     /// The estimate from the frames pushed.
-    pub fn finish(mut self) -> Result<ReadoutEstimate, AmcError> {
+    pub fn finish(self) -> Result<ReadoutEstimate, AmcError> {
+        self.finish_with_telemetry().0
+    }
+
+    /// [`ReadoutEstimator::finish`], and the telemetry it was fitted to
+    /// (each frame's rotation during its readout as measured: what a gyro
+    /// log measures the readout against, [`measured`]).
+    pub fn finish_with_telemetry(mut self) -> (Result<ReadoutEstimate, AmcError>, Vec<Telemetry>) {
         while let Some(tel) = self.stab.finish() {
             self.telemetry.push(tel);
         }
-        fit_readout(&self.telemetry)
+        (fit_readout(&self.telemetry), self.telemetry)
     }
 }
 

@@ -14,6 +14,7 @@ pub mod gcsv;
 pub mod gyro;
 mod lens;
 pub mod lens_db;
+mod log_readout;
 mod measure;
 mod passes;
 mod paths;
@@ -28,6 +29,7 @@ pub use lens::{
     folder_lens_file, input_options, resolve_lens, LensNote, ResolvedLens, AUTO_FOV_FRAMES,
     FALLBACK_FOV_DEG,
 };
+pub use log_readout::{LogReadout, MeasureReadout};
 pub use paths::check_distinct;
 pub use readout::{
     resolve, resolve_known, resolve_readout, ReadoutNote, Resolved, ResolvedReadout,

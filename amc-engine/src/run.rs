@@ -6,6 +6,7 @@
 use super::control::RunControl;
 use super::fusion;
 use super::gyro::{GyroLog, GyroReport};
+use super::log_readout::MeasureReadout;
 use super::measure::MetricsWorker;
 use super::passes::{self, On};
 use super::stages::{Reader, Writer};
@@ -55,6 +56,10 @@ pub struct RunConfig<'a> {
     /// A gyro log to synchronize with the clip and fuse with its tracking
     /// (a first pass tracks the whole clip; see `fusion`).
     pub gyro: Option<&'a GyroLog>,
+    /// A readout the log records none of: a run with a gyro measures it
+    /// against the log, in place of `params`' readout, as
+    /// [`LogReadout::measure`](super::LogReadout::measure) says.
+    pub measure_readout: Option<MeasureReadout>,
     /// Threads of the run: 1 decodes, stabilizes and encodes on the caller's
     /// thread; 2 or more decode and encode on threads of their own beside it
     /// (see `stages`) and render each frame's rows on a pool of this many
@@ -165,28 +170,40 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
     };
     let pool = render_pool(cfg.threads)?;
     let mut warnings = Vec::new();
+    let mut readout_ms = cfg.params.shutter.readout_ms;
     let mut fused = match cfg.gyro {
-        Some(log) => match fusion::fuse_pass(
-            cfg.input,
-            &opts,
-            &cfg.lens,
-            &cfg.params,
-            log,
-            &pool,
-            cfg.control,
-        )? {
-            Ok(fused) => Some(fused),
-            Err(warning) => {
-                warnings.push(warning);
-                None
+        Some(log) => {
+            let first = fusion::fuse_pass(
+                cfg.input,
+                &opts,
+                &cfg.lens,
+                &cfg.params,
+                cfg.measure_readout,
+                log,
+                &pool,
+                cfg.control,
+            )?;
+            if let Some((ms, warning)) = first.readout {
+                readout_ms = ms;
+                warnings.extend(warning);
             }
-        },
+            match first.fused {
+                Ok(fused) => Some(fused),
+                Err(warning) => {
+                    warnings.push(warning);
+                    None
+                }
+            }
+        }
         None => None,
     };
+    // The readout the first pass measured, when it did.
+    let mut params = cfg.params.clone();
+    params.shutter.readout_ms = readout_ms;
     // With fused poses, `zoom = static` frames them (no second tracking pass).
     let static_zoom = match &fused {
-        Some(f) => fusion::static_zoom(f, &cfg.lens, &cfg.params)?,
-        None => static_zoom(cfg, &opts, &pool)?,
+        Some(f) => fusion::static_zoom(f, &cfg.lens, &params)?,
+        None => static_zoom(cfg, &params, &opts, &pool)?,
     };
     let src: Box<dyn FrameSource> = match fused.as_mut().and_then(|f| f.cached.take()) {
         Some(clip) => Box::new(clip),
@@ -194,7 +211,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
     };
     let info = src.info().clone();
     let threaded = cfg.threads > 1;
-    let mut stab = Stabilizer::new(&cfg.lens, info.width, info.height, cfg.params.clone())?;
+    let mut stab = Stabilizer::new(&cfg.lens, info.width, info.height, params.clone())?;
     if let Some(z) = static_zoom {
         stab.set_static_zoom(z);
     }
@@ -326,7 +343,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         frames_per_second: frames as f64 / seconds.max(1e-9),
         metrics,
         motion: motion.summary(),
-        readout_ms: cfg.params.shutter.readout_ms,
+        readout_ms: params.shutter.readout_ms,
         deghost_levels: stab.deghost_levels().unwrap_or(0.0),
         gyro: fused.map(|f| f.report),
         warnings,
@@ -342,6 +359,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
 /// main pass reads them (`opts`).
 fn static_zoom(
     cfg: &RunConfig<'_>,
+    params: &StabilizerParams,
     opts: &InputOptions,
     pool: &rayon::ThreadPool,
 ) -> Result<Option<f64>, RunError> {
@@ -351,8 +369,8 @@ fn static_zoom(
             note: LensNote::Given,
             readout_ms: None,
         }),
-        readout: ReadoutSpec::Ms(cfg.params.shutter.readout_ms),
-        params: cfg.params.clone(),
+        readout: ReadoutSpec::Ms(params.shutter.readout_ms),
+        params: params.clone(),
         static_zoom: true,
         frame_size: None,
     })?;

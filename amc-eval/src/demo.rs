@@ -216,6 +216,7 @@ pub fn run(args: &DemoConfig, say: &dyn Fn(&str)) -> Result<String, DemoError> {
             control: None,
             progress: None,
             gyro: None,
+            measure_readout: None,
             threads: engine::default_threads(),
         })?;
         let est: Vec<_> = run

@@ -106,6 +106,7 @@ pub fn run(
             control: None,
             progress: Some(&report),
             gyro: None,
+            measure_readout: None,
             threads: args.threads,
         };
         let run = engine::run(&cfg)?;

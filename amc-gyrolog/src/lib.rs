@@ -6,7 +6,8 @@
 //! phone-app logs, all read by the `telemetry-parser` crate ([`read_gyro_stream`],
 //! [`read_gyro_bytes`]); then synchronized with a run's own motion
 //! ([`sync_log`], reported as [`GyroReport`]) and fused with its tracking
-//! into each frame's pose ([`fuse_log`]). No file system, no threads: it
+//! into each frame's pose ([`fuse_log`]); where the camera records no
+//! readout, it is measured against the log ([`measure_readout`]). No file system, no threads: it
 //! builds for `wasm32-unknown-unknown`.
 
 #![deny(missing_docs)]
@@ -17,10 +18,12 @@ mod log;
 mod mp4_guard;
 mod parse;
 mod picture;
+mod readout;
 mod report;
 
 pub use error::{GyroLogError, TelemetryError};
 pub use fuse::{fuse_log, video_only_warning, FuseLogError, FusedLog};
 pub use log::GyroLog;
 pub use parse::{read_gyro_bytes, read_gyro_stream};
-pub use report::{sync_log, GyroReport};
+pub use readout::measure_readout;
+pub use report::{sync_log, GyroReport, ReadoutReport};

@@ -2,7 +2,7 @@
 
 use crate::error::GyroLogError;
 use crate::log::GyroLog;
-use amc_core::gyro::{self, GyroSync, VisionStep};
+use amc_core::gyro::{self, GyroReadout, GyroSync, VisionStep};
 use serde::Serialize;
 
 /// The sync as `--metrics` reports it (`"gyro": {...}`).
@@ -38,6 +38,34 @@ pub struct GyroReport {
     /// Frames where tracking was lost, or disagreed with a sound log, that
     /// the gyro bridged.
     pub frames_bridged: usize,
+    /// The readout measured against the log (`readout_ms=auto` where the
+    /// camera records none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub readout: Option<ReadoutReport>,
+}
+
+/// The rolling-shutter readout as the log measured it.
+#[derive(Clone, Debug, Serialize)]
+pub struct ReadoutReport {
+    /// Milliseconds (0: a global shutter).
+    pub readout_ms: f64,
+    /// Whether the clip pins it down (else the run keeps its own readout).
+    pub confident: bool,
+    /// Share of the rotation within frames the fit explains, 0..=1.
+    pub explained: f64,
+    /// Frames fitted.
+    pub frames: usize,
+}
+
+impl From<&GyroReadout> for ReadoutReport {
+    fn from(r: &GyroReadout) -> Self {
+        Self {
+            readout_ms: r.readout_ms,
+            confident: r.confident,
+            explained: r.explained,
+            frames: r.frames,
+        }
+    }
 }
 
 impl GyroReport {
@@ -66,7 +94,14 @@ impl GyroReport {
             self.fused_frames,
             self.glitch_intervals_bridged,
             self.frames_bridged,
-        )
+        ) + &self.readout.as_ref().map_or(String::new(), |r| {
+            format!(
+                "; readout {:.1} ms measured against it ({:.0}% of the rotation within frames explained{})",
+                r.readout_ms,
+                100.0 * r.explained,
+                if r.confident { "" } else { ", not pinned down: not used" }
+            )
+        })
     }
 }
 
@@ -103,6 +138,7 @@ pub fn sync_log(
         fused_frames: 0,
         glitch_intervals_bridged: 0,
         frames_bridged: 0,
+        readout: None,
     };
     Ok((s, report))
 }

@@ -19,7 +19,9 @@
 //!   picture (`smooth.rs`: the smoother that does it), glitches bridged by
 //!   vision and lost frames by the gyro (`glitch.rs`: the log's own noise and
 //!   breaks); `online.rs`: the same, causal, one frame at a time (a live
-//!   feed, one pass over a long clip); `path.rs`: a frame's readout path.
+//!   feed, one pass over a long clip); `path.rs`: a frame's readout path;
+//! - `readout.rs`: the rolling-shutter readout, the interval over which the
+//!   log turns as each frame's rows did.
 //!
 //! Conventions: video time = log time + `offset_s`; `mount` takes IMU vectors
 //! into the camera frame (x right, y down, z forward); the bias is in the
@@ -32,6 +34,7 @@ mod mount;
 mod offset;
 mod online;
 mod path;
+mod readout;
 mod samples;
 mod smooth;
 mod track;
@@ -42,6 +45,7 @@ pub use integrate::GyroIntegral;
 pub use mount::{fit_mount, MountFit};
 pub use offset::{coarse_offset, refine_offset, speed_correlation};
 pub use online::{OnlineFusion, OnlineParams};
+pub use readout::{readout_from_gyro, GyroReadout, MIN_READOUT_FRAMES};
 pub use samples::{GyroSamples, GyroSync, VisionPose, VisionStep};
 pub use smooth::{random_walk_smoother, smooth_robust};
 pub use track::GyroTrack;

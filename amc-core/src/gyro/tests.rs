@@ -1,7 +1,8 @@
 //! Recovery of a known offset, mounting, bias and drift from a simulated log.
 
 use super::*;
-use crate::so3::{exp, Rot};
+use crate::readout::MeasuredReadout;
+use crate::so3::{exp, Rot, Tangent};
 use nalgebra::Vector3;
 
 /// A smooth shake: body angular velocity (camera axes, rad/s) at `t`, about
@@ -396,4 +397,109 @@ fn a_log_covering_part_of_the_clip_is_synchronized() {
     let got = sync(&log(&s, 8.0, 200.0), &steps).unwrap();
     assert!((got.offset_s - s.offset).abs() < 0.0005, "{}", got.offset_s);
     assert!(angle_deg(&got.mount, &s.mount) < 0.3);
+}
+
+/// The rotation of the camera of [`omega`] from `a` to `b` (camera axes of `a`).
+fn turn(a: f64, b: f64, dps: f64) -> Tangent {
+    let sub = 64;
+    let dt = (b - a) / sub as f64;
+    let mut r = Rot::identity();
+    for k in 0..sub {
+        r *= exp(&(omega(a + (k as f64 + 0.5) * dt, dps) * dt));
+    }
+    crate::so3::log(&r)
+}
+
+/// A synchronized track of [`spec`]'s log and the frame times of a 60
+/// frames/s clip, `seconds` long.
+fn synced(seconds: f64, dps: f64) -> (GyroTrack, Vec<f64>) {
+    let s = spec();
+    let gyro = log(&s, seconds, dps);
+    let got = sync(&gyro, &video(60.0, seconds, dps)).unwrap();
+    let times = (0..(60.0 * seconds) as usize)
+        .map(|j| j as f64 / 60.0)
+        .collect();
+    (GyroTrack::new(&gyro, &got), times)
+}
+
+/// Deterministic noise in `[-1, 1]`.
+fn jitter(i: usize, k: usize) -> f64 {
+    (((i * 7919 + k * 104_729) % 1000) as f64 / 500.0) - 1.0
+}
+
+#[test]
+fn the_readout_is_measured_against_the_log() {
+    let dps = 250.0;
+    let (track, times) = synced(6.0, dps);
+    for readout_ms in [8.0, 20.0] {
+        let h = 0.5e-3 * readout_ms;
+        let frames: Vec<MeasuredReadout> = times
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| {
+                let mut phi = turn(t - h, t + h, dps);
+                // The tracker's own error: 10% of the rotation, and a few
+                // frames that are nothing like it (a moving object).
+                phi += Vector3::new(jitter(i, 0), jitter(i, 1), jitter(i, 2)) * 0.1 * phi.norm();
+                if i % 40 == 7 {
+                    phi = Vector3::new(0.02, -0.03, 0.01);
+                }
+                MeasuredReadout { t, phi }
+            })
+            .collect();
+        let got = readout_from_gyro(&track, &frames, 1.0 / 60.0).unwrap();
+        assert!(got.confident, "{got:?}");
+        assert!(
+            (got.readout_ms - readout_ms).abs() < 0.03 * readout_ms,
+            "{} ms for {readout_ms} ms",
+            got.readout_ms
+        );
+        assert!(got.explained > 0.9, "{got:?}");
+    }
+}
+
+#[test]
+fn a_global_shutter_reads_as_one_and_a_still_camera_tells_nothing() {
+    let dps = 250.0;
+    let (track, times) = synced(6.0, dps);
+    // Only the tracker's noise within frames, while the camera turns.
+    let frames: Vec<MeasuredReadout> = times
+        .iter()
+        .enumerate()
+        .map(|(i, &t)| MeasuredReadout {
+            t,
+            phi: Vector3::new(jitter(i, 0), jitter(i, 1), jitter(i, 2)) * 1e-4,
+        })
+        .collect();
+    let got = readout_from_gyro(&track, &frames, 1.0 / 60.0).unwrap();
+    assert_eq!(got.readout_ms, 0.0, "{got:?}");
+    assert!(got.confident, "{got:?}");
+    // A camera that barely moves pins nothing down (its log, synced by
+    // hand: the picture could not sync it).
+    let still = 0.05;
+    let s = spec();
+    let exact = GyroSync {
+        offset_s: s.offset,
+        t_first: 0.0,
+        drift_ppm: 0.0,
+        mount: s.mount,
+        bias: s.bias,
+        glitches: 0,
+        residual_rad_s: 0.0,
+        correlation: 1.0,
+    };
+    let track = GyroTrack::new(&log(&s, 6.0, still), &exact);
+    let frames: Vec<MeasuredReadout> = times
+        .iter()
+        .map(|&t| MeasuredReadout {
+            t,
+            phi: turn(t - 0.005, t + 0.005, still),
+        })
+        .collect();
+    match readout_from_gyro(&track, &frames, 1.0 / 60.0) {
+        Some(got) => assert!(!got.confident, "{got:?}"),
+        None => {}
+    }
+    // Too few frames: none.
+    assert_eq!(readout_from_gyro(&track, &frames[..5], 1.0 / 60.0), None);
 }

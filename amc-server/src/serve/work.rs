@@ -9,8 +9,8 @@ use super::options::JobOptions;
 use super::problem::{count, ApiError};
 use amc_core::{AmcError, LensSpec};
 use amc_engine::{
-    self as engine, LensNote, ResolvedLens, RunConfig, RunControl, RunError, RunSummary,
-    FALLBACK_FOV_DEG,
+    self as engine, LensNote, LogReadout, ResolvedLens, RunConfig, RunControl, RunError,
+    RunSummary, FALLBACK_FOV_DEG,
 };
 use amc_video::{self as video, Inspection, VideoError};
 use std::path::{Path, PathBuf};
@@ -146,16 +146,30 @@ pub fn stabilize(
                 .map_err(|e| run_error(e, &spec.input))?
         }
     };
-    let readout = engine::resolve_readout(
-        &spec.options.stabilizer.readout,
-        &lens,
-        &spec.input,
-        &params,
-        &opts,
-    )
-    .map_err(|e| run_error(e, &spec.input))?;
+    let gyro = match &spec.gyro_log {
+        // The client's log: read again here, where the run is (a worker
+        // has only the file); intake refused one that cannot be read.
+        Some(path) => Some(super::gyro_log::read(path)?),
+        // `gyro=auto`: the clip's own track, when it has one it can read.
+        None => spec
+            .options
+            .gyro
+            .then(|| engine::gyro::clip_gyro(&spec.input))
+            .flatten(),
+    };
+    // A readout the log records answers `auto`; `auto` with one that
+    // records none is measured against it in the run.
+    let asked = &spec.options.stabilizer.readout;
+    let log_readout = LogReadout::choose(asked, gyro.as_ref());
+    let mut readout =
+        engine::resolve_readout(&log_readout.spec(asked), &lens, &spec.input, &params, &opts)
+            .map_err(|e| run_error(e, &spec.input))?;
+    let recorded = log_readout.apply(asked, &mut readout);
     let mut warnings = Vec::new();
     let input = spec.input.display();
+    if let Some(line) = recorded {
+        tracing::info!(%input, "{line}");
+    }
     match &lens.note {
         LensNote::FellBack => {
             let w = lens_fallback_warning();
@@ -179,17 +193,6 @@ pub fn stabilize(
     }
     params.shutter.readout_ms = readout.readout_ms;
     let lens = lens.camera;
-    let gyro = match &spec.gyro_log {
-        // The client's log: read again here, where the run is (a worker
-        // has only the file); intake refused one that cannot be read.
-        Some(path) => Some(super::gyro_log::read(path)?),
-        // `gyro=auto`: the clip's own track, when it has one it can read.
-        None => spec
-            .options
-            .gyro
-            .then(|| engine::gyro::clip_gyro(&spec.input))
-            .flatten(),
-    };
     engine::run(&RunConfig {
         input: &spec.input,
         output: Some(&spec.output),
@@ -206,6 +209,7 @@ pub fn stabilize(
         control: Some(control),
         progress: None,
         gyro: gyro.as_ref(),
+        measure_readout: log_readout.measure(asked, &readout),
         threads: limits.threads,
     })
     .map_err(|e| run_error(e, &spec.input))
