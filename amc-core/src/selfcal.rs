@@ -79,8 +79,9 @@ pub fn estimate_hfov(
         pyramids.push(p);
     }
     let times: Vec<f64> = frames.iter().map(|(_, t)| *t).collect();
-    let mut curve = Vec::new();
-    let mut score = |hfov: f64| -> Result<f64, AmcError> {
+    // One field of view's score: each its own tracker, so that scores run
+    // at once (the grid and the last three) give the same values.
+    let score_of = |hfov: f64| -> Result<f64, AmcError> {
         let cam = CameraModel::pinhole_hfov(w, h, hfov)?;
         let track_cam = TrackingFrontend::new(&cam, track_width)?.camera().clone();
         let mut tr = Tracker::new(&track_cam, tracker.clone())?;
@@ -92,9 +93,13 @@ pub fn estimate_hfov(
                 n += 1;
             }
         }
-        let s = if n > 0 { sum / n as f64 } else { f64::INFINITY };
-        curve.push((hfov, s));
-        Ok(s)
+        Ok(if n > 0 { sum / n as f64 } else { f64::INFINITY })
+    };
+    let mut curve = Vec::new();
+    let mut scores = |hfovs: &[f64]| -> Result<Vec<f64>, AmcError> {
+        let got = scores_of(hfovs, &score_of)?;
+        curve.extend(hfovs.iter().copied().zip(got.iter().copied()));
+        Ok(got)
     };
 
     // Coarse grid, uniform in log focal length (where the error is smoother).
@@ -103,11 +108,11 @@ pub fn estimate_hfov(
     let to_hfov = |f: f64| 2.0 * (1.0 / f).atan().to_degrees();
     let (lf_lo, lf_hi) = (to_f(hi).ln(), to_f(lo).ln());
     const GRID: usize = 15;
-    let mut grid = Vec::with_capacity(GRID);
-    for i in 0..GRID {
-        let lf = lf_lo + (lf_hi - lf_lo) * i as f64 / (GRID - 1) as f64;
-        grid.push((lf, score(to_hfov(lf.exp()))?));
-    }
+    let lfs: Vec<f64> = (0..GRID)
+        .map(|i| lf_lo + (lf_hi - lf_lo) * i as f64 / (GRID - 1) as f64)
+        .collect();
+    let hfovs: Vec<f64> = lfs.iter().map(|lf| to_hfov(lf.exp())).collect();
+    let grid: Vec<(f64, f64)> = lfs.iter().copied().zip(scores(&hfovs)?).collect();
     let best = grid
         .iter()
         .enumerate()
@@ -118,11 +123,19 @@ pub fn estimate_hfov(
         grid[(best + 1).min(GRID - 1)].0,
     );
     // Golden-section refinement in log focal length.
-    let lf_best = golden_section(|lf: f64| score(to_hfov(lf.exp())), a, b, 12)?;
+    let lf_best = golden_section(
+        |lf: f64| Ok::<_, AmcError>(scores(&[to_hfov(lf.exp())])?[0]),
+        a,
+        b,
+        12,
+    )?;
     let hfov_deg = to_hfov(lf_best.exp());
-    let best_score = score(hfov_deg)?;
-    let wider = score(to_hfov(lf_best.exp() / 1.2))?;
-    let narrower = score(to_hfov(lf_best.exp() * 1.2))?;
+    let last = scores(&[
+        hfov_deg,
+        to_hfov(lf_best.exp() / 1.2),
+        to_hfov(lf_best.exp() * 1.2),
+    ])?;
+    let (best_score, wider, narrower) = (last[0], last[1], last[2]);
     let confident = best_score.is_finite() && wider.min(narrower) >= CONFIDENCE_RATIO * best_score;
     curve.sort_by(|x, y| x.0.total_cmp(&y.0));
     Ok(FocalEstimate {
@@ -131,4 +144,21 @@ pub fn estimate_hfov(
         curve,
         confident,
     })
+}
+
+/// `score` at each field of view, in order (at once on rayon's threads with
+/// the `parallel` feature: each value is the same either way).
+fn scores_of(
+    hfovs: &[f64],
+    score: &(impl Fn(f64) -> Result<f64, AmcError> + Sync),
+) -> Result<Vec<f64>, AmcError> {
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        hfovs.par_iter().map(|&h| score(h)).collect()
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        hfovs.iter().map(|&h| score(h)).collect()
+    }
 }
