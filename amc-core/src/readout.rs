@@ -256,21 +256,8 @@ pub fn fit_readout(telemetry: &[Telemetry]) -> Result<ReadoutEstimate, AmcError>
             (best_x, best) = (x, e);
         }
     }
-    let h = x_max / steps as f64;
-    let x = golden_section(
-        |x| Ok::<_, std::convert::Infallible>(sse(x)),
-        (best_x - h).max(0.0),
-        (best_x + h).min(x_max),
-        40,
-    )
-    .unwrap_or(best_x);
-    let best = sse(x).min(best);
+    let (x, best) = refine_minimum(sse, best_x, x_max / steps as f64, 0.0, x_max);
     let total: f64 = samples.iter().map(|s| s.phi.norm_squared()).sum();
-    let explained = if total > 0.0 {
-        (1.0 - best / total).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
     let motion = (samples
         .iter()
         .map(|s| s.predicted(0.125).norm_squared())
@@ -278,24 +265,80 @@ pub fn fit_readout(telemetry: &[Telemetry]) -> Result<ReadoutEstimate, AmcError>
         / samples.len() as f64)
         .sqrt()
         .to_degrees();
-    let readout_ms = 2.0 * x * dt * 1000.0;
-    let global = readout_ms < GLOBAL_BELOW_MS;
-    // A global shutter measures (almost) no rotation within its frames; a
-    // readout the fit cannot explain (parallax, a moving scene, a slow sway
-    // the tracker barely sees within a frame) is not evidence of one.
-    let rms_phi = (total / samples.len() as f64).sqrt().to_degrees();
-    let still = rms_phi <= GLOBAL_MAX_SHARE * motion;
-    let confident = motion >= MIN_MOTION_DEG
-        && if global {
-            still
+    Ok(ReadoutEstimate::judged(
+        2.0 * x * dt * 1000.0,
+        Fit {
+            sse: best,
+            total,
+            samples: samples.len(),
+        },
+        motion,
+        telemetry.len(),
+    ))
+}
+
+/// A readout fit's residual: `sse` of the measured rotations within frames
+/// (`total`: their own squared sum) over `samples` frames.
+pub(crate) struct Fit {
+    pub sse: f64,
+    pub total: f64,
+    pub samples: usize,
+}
+
+impl ReadoutEstimate {
+    /// A fitted readout judged as the module's docs say: global below
+    /// [`GLOBAL_BELOW_MS`], trusted with [`MIN_MOTION_DEG`] of motion
+    /// (`motion_deg`: RMS over a quarter frame period) and, for a rolling
+    /// shutter, [`MIN_EXPLAINED`] of the rotation within frames explained.
+    pub(crate) fn judged(readout_ms: f64, fit: Fit, motion_deg: f64, frames: usize) -> Self {
+        let explained = if fit.total > 0.0 {
+            (1.0 - fit.sse / fit.total).clamp(0.0, 1.0)
         } else {
-            explained >= MIN_EXPLAINED
+            0.0
         };
-    Ok(ReadoutEstimate {
-        readout_ms: if global { 0.0 } else { readout_ms },
-        confident,
-        explained,
-        motion_deg: motion,
-        frames: telemetry.len(),
-    })
+        let global = readout_ms < GLOBAL_BELOW_MS;
+        // A global shutter measures (almost) no rotation within its frames; a
+        // readout the fit cannot explain (parallax, a moving scene, a slow sway
+        // the tracker barely sees within a frame) is not evidence of one.
+        let rms_phi = (fit.total / fit.samples.max(1) as f64).sqrt().to_degrees();
+        let still = rms_phi <= GLOBAL_MAX_SHARE * motion_deg;
+        let confident = motion_deg >= MIN_MOTION_DEG
+            && if global {
+                still
+            } else {
+                explained >= MIN_EXPLAINED
+            };
+        Self {
+            readout_ms: if global { 0.0 } else { readout_ms },
+            confident,
+            explained,
+            motion_deg,
+            frames,
+        }
+    }
+}
+
+/// The minimum of `sse` near `x`, a grid point `step` from its neighbours
+/// (within `lo..=hi`): the golden section there, or `x` where that finds
+/// nothing lower. The point and its value.
+pub(crate) fn refine_minimum(
+    sse: impl Fn(f64) -> f64,
+    x: f64,
+    step: f64,
+    lo: f64,
+    hi: f64,
+) -> (f64, f64) {
+    let golden = golden_section(
+        |x| Ok::<_, std::convert::Infallible>(sse(x)),
+        (x - step).max(lo),
+        (x + step).min(hi),
+        40,
+    )
+    .unwrap_or(x);
+    let (at_golden, at_grid) = (sse(golden), sse(x));
+    if at_golden <= at_grid {
+        (golden, at_golden)
+    } else {
+        (x, at_grid)
+    }
 }

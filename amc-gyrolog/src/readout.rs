@@ -9,8 +9,8 @@
 use crate::error::GyroLogError;
 use crate::log::GyroLog;
 use crate::report::sync_log;
-use amc_core::gyro::{readout_from_gyro, GyroReadout, GyroTrack};
-use amc_core::readout::measured;
+use amc_core::gyro::{readout_from_gyro, GyroTrack};
+use amc_core::readout::{measured, ReadoutEstimate};
 use amc_core::{so3, Telemetry};
 use nalgebra::Vector3;
 
@@ -20,7 +20,7 @@ use nalgebra::Vector3;
 pub fn measure_readout(
     log: &GyroLog,
     pass: &[Telemetry],
-) -> Result<Option<GyroReadout>, GyroLogError> {
+) -> Result<Option<ReadoutEstimate>, GyroLogError> {
     let (t, rots): (Vec<f64>, Vec<_>) = pass
         .iter()
         .map(|s| (s.t, so3::exp(&Vector3::from(s.r_est))))

@@ -2,7 +2,8 @@
 
 use crate::error::GyroLogError;
 use crate::log::GyroLog;
-use amc_core::gyro::{self, GyroReadout, GyroSync, VisionStep};
+use amc_core::gyro::{self, GyroSync, VisionStep};
+use amc_core::readout::ReadoutEstimate;
 use serde::Serialize;
 
 /// The sync as `--metrics` reports it (`"gyro": {...}`).
@@ -57,8 +58,8 @@ pub struct ReadoutReport {
     pub frames: usize,
 }
 
-impl From<&GyroReadout> for ReadoutReport {
-    fn from(r: &GyroReadout) -> Self {
+impl From<&ReadoutEstimate> for ReadoutReport {
+    fn from(r: &ReadoutEstimate) -> Self {
         Self {
             readout_ms: r.readout_ms,
             confident: r.confident,

@@ -45,7 +45,7 @@ pub use integrate::GyroIntegral;
 pub use mount::{fit_mount, MountFit};
 pub use offset::{coarse_offset, refine_offset, speed_correlation};
 pub use online::{OnlineFusion, OnlineParams};
-pub use readout::{readout_from_gyro, GyroReadout, MIN_READOUT_FRAMES};
+pub use readout::{readout_from_gyro, MIN_READOUT_FRAMES};
 pub use samples::{GyroSamples, GyroSync, VisionPose, VisionStep};
 pub use smooth::{random_walk_smoother, smooth_robust};
 pub use track::GyroTrack;

@@ -14,13 +14,10 @@
 //! shake at 60 frames/s barely samples; the gyro has it at its own rate.
 //! Frames whose measurement disagrees with the gyro by far more than the
 //! rest (a glitch, a lost frame, a moving object) are left out of a second
-//! fit. Trusted as [`crate::readout`]'s estimate is.
+//! fit. Judged as [`crate::readout`]'s estimate is (the same [`ReadoutEstimate`]).
 
 use super::track::GyroTrack;
-use crate::minimize::golden_section;
-use crate::readout::{
-    MeasuredReadout, GLOBAL_BELOW_MS, GLOBAL_MAX_SHARE, MIN_EXPLAINED, MIN_MOTION_DEG,
-};
+use crate::readout::{refine_minimum, Fit, MeasuredReadout, ReadoutEstimate};
 use crate::so3::Tangent;
 
 /// Readouts tried on the grid before the golden section (over two frame
@@ -35,21 +32,6 @@ pub const MIN_READOUT_FRAMES: usize = 20;
 /// Most frames a fit uses (evenly spread over a longer clip).
 pub const MAX_READOUT_FRAMES: usize = 600;
 
-/// The readout measured against a synchronized log.
-#[derive(Clone, Debug, PartialEq)]
-pub struct GyroReadout {
-    /// Milliseconds (0 below [`GLOBAL_BELOW_MS`]).
-    pub readout_ms: f64,
-    /// Whether the clip pins it down; when not, the caller keeps its own.
-    pub confident: bool,
-    /// Share of the measured rotation within frames the fit explains, 0..=1.
-    pub explained: f64,
-    /// RMS rotation over a quarter frame period by the gyro, degrees.
-    pub motion_deg: f64,
-    /// Frames in the final fit.
-    pub frames: usize,
-}
-
 /// The readout of `frames` (in time order, lost ones left out: as
 /// [`crate::readout::measured`] gives them)
 /// against `track`, searched over `0..=2 frame_period_s`; `None` with fewer
@@ -59,7 +41,7 @@ pub fn readout_from_gyro(
     track: &GyroTrack,
     frames: &[MeasuredReadout],
     frame_period_s: f64,
-) -> Option<GyroReadout> {
+) -> Option<ReadoutEstimate> {
     if !(frame_period_s > 0.0 && frame_period_s.is_finite()) {
         return None;
     }
@@ -102,25 +84,8 @@ pub fn readout_from_gyro(
             })
             .sum()
     };
-    let h_grid = step * i as f64;
-    let h = golden_section(
-        |h| Ok::<_, std::convert::Infallible>(sse(h)),
-        (h_grid - step).max(0.0),
-        (h_grid + step).min(half),
-        40,
-    )
-    .unwrap_or(h_grid);
-    let (h, best) = if sse(h) <= sse(h_grid) {
-        (h, sse(h))
-    } else {
-        (h_grid, sse(h_grid))
-    };
+    let (h, best) = refine_minimum(sse, step * i as f64, step, 0.0, half);
     let total: f64 = kept.iter().map(|c| c.frame.phi.norm_squared()).sum();
-    let explained = if total > 0.0 {
-        (1.0 - best / total).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
     // The gyro's rotation over a quarter frame period (turns[GRID_STEPS / 8]
     // spans an eighth of one on each side).
     let quarter = GRID_STEPS / 8;
@@ -131,24 +96,18 @@ pub fn readout_from_gyro(
         / kept.len() as f64)
         .sqrt()
         .to_degrees();
-    let readout_ms = 2.0 * h * 1000.0;
-    let global = readout_ms < GLOBAL_BELOW_MS;
-    let rms_phi = (total / kept.len() as f64).sqrt().to_degrees();
-    let confident = motion_deg >= MIN_MOTION_DEG
-        && if global {
-            rms_phi <= GLOBAL_MAX_SHARE * motion_deg
-        } else {
-            explained >= MIN_EXPLAINED
-        };
-    Some(GyroReadout {
-        readout_ms: if global { 0.0 } else { readout_ms },
-        confident,
-        explained,
+    let fit = Fit {
+        sse: best,
+        total,
+        samples: kept.len(),
+    };
+    Some(ReadoutEstimate::judged(
+        2.0 * h * 1000.0,
+        fit,
         motion_deg,
-        frames: kept.len(),
-    })
+        kept.len(),
+    ))
 }
-
 /// A frame and the gyro's rotation over each interval of the grid.
 struct Covered {
     frame: MeasuredReadout,
