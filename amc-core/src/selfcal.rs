@@ -19,7 +19,7 @@ use crate::camera::CameraModel;
 use crate::error::AmcError;
 use crate::frontend::TrackingFrontend;
 use crate::image::FrameRef;
-use crate::minimize::golden_section;
+use crate::minimize::golden_section_paired;
 use crate::pyramid::Pyramid;
 use crate::tracker::{Tracker, TrackerParams};
 
@@ -96,7 +96,7 @@ pub fn estimate_hfov(
         Ok(if n > 0 { sum / n as f64 } else { f64::INFINITY })
     };
     let mut curve = Vec::new();
-    let mut scores = |hfovs: &[f64]| -> Result<Vec<f64>, AmcError> {
+    let scores = |hfovs: &[f64], curve: &mut Vec<(f64, f64)>| -> Result<Vec<f64>, AmcError> {
         let got = scores_of(hfovs, &score_of)?;
         curve.extend(hfovs.iter().copied().zip(got.iter().copied()));
         Ok(got)
@@ -112,7 +112,11 @@ pub fn estimate_hfov(
         .map(|i| lf_lo + (lf_hi - lf_lo) * i as f64 / (GRID - 1) as f64)
         .collect();
     let hfovs: Vec<f64> = lfs.iter().map(|lf| to_hfov(lf.exp())).collect();
-    let grid: Vec<(f64, f64)> = lfs.iter().copied().zip(scores(&hfovs)?).collect();
+    let grid: Vec<(f64, f64)> = lfs
+        .iter()
+        .copied()
+        .zip(scores(&hfovs, &mut curve)?)
+        .collect();
     let best = grid
         .iter()
         .enumerate()
@@ -123,18 +127,22 @@ pub fn estimate_hfov(
         grid[(best + 1).min(GRID - 1)].0,
     );
     // Golden-section refinement in log focal length.
-    let lf_best = golden_section(
-        |lf: f64| Ok::<_, AmcError>(scores(&[to_hfov(lf.exp())])?[0]),
+    let lf_best = golden_section_paired(
+        |lf: f64| score_of(to_hfov(lf.exp())),
         a,
         b,
         12,
+        |lf, s| curve.push((to_hfov(lf.exp()), s)),
     )?;
     let hfov_deg = to_hfov(lf_best.exp());
-    let last = scores(&[
-        hfov_deg,
-        to_hfov(lf_best.exp() / 1.2),
-        to_hfov(lf_best.exp() * 1.2),
-    ])?;
+    let last = scores(
+        &[
+            hfov_deg,
+            to_hfov(lf_best.exp() / 1.2),
+            to_hfov(lf_best.exp() * 1.2),
+        ],
+        &mut curve,
+    )?;
     let (best_score, wider, narrower) = (last[0], last[1], last[2]);
     let confident = best_score.is_finite() && wider.min(narrower) >= CONFIDENCE_RATIO * best_score;
     curve.sort_by(|x, y| x.0.total_cmp(&y.0));
