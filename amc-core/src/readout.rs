@@ -194,6 +194,14 @@ impl Sample {
     }
 }
 
+/// The frame period of a pass's telemetry: the median gap between frames
+/// (`None` with fewer than two).
+pub fn frame_period(telemetry: &[Telemetry]) -> Option<f64> {
+    let mut gaps: Vec<f64> = telemetry.windows(2).map(|w| w[1].t - w[0].t).collect();
+    gaps.sort_by(f64::total_cmp);
+    gaps.get(gaps.len() / 2).copied()
+}
+
 /// Fits the readout to a pass's telemetry (see the module's docs).
 pub fn fit_readout(telemetry: &[Telemetry]) -> Result<ReadoutEstimate, AmcError> {
     if telemetry.len() < MIN_FRAMES {
@@ -202,9 +210,7 @@ pub fn fit_readout(telemetry: &[Telemetry]) -> Result<ReadoutEstimate, AmcError>
             got: telemetry.len(),
         });
     }
-    let mut gaps: Vec<f64> = telemetry.windows(2).map(|w| w[1].t - w[0].t).collect();
-    gaps.sort_by(f64::total_cmp);
-    let dt = gaps[gaps.len() / 2];
+    let dt = frame_period(telemetry).unwrap_or(f64::NAN);
     if !(dt > 0.0 && dt.is_finite()) {
         return Err(AmcError::invalid("frame period", dt, "positive seconds"));
     }

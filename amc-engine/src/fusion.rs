@@ -94,7 +94,9 @@ pub(crate) fn fuse_pass(
     // again where they would not fit in memory).
     let mut head: Option<Vec<(Frame, f64)>> = Some(Vec::new());
     let mut params = params.clone();
-    let mut measured = None;
+    // The readout measured and its warning; the log's fit, for the report.
+    let mut readout: Option<(f64, Option<String>)> = None;
+    let mut from_log = None;
     if let Some(how) = measure {
         let mut estimator = ReadoutEstimator::new(lens, info.width, info.height, &params)?;
         while !estimator.is_full() {
@@ -116,7 +118,7 @@ pub(crate) fn fuse_pass(
         }
         let (picture, pass) = estimator.finish_with_telemetry();
         let picture = picture.ok().filter(|p| p.confident);
-        let from_log = pool.install(|| measure_readout(log, &pass)).ok().flatten();
+        from_log = pool.install(|| measure_readout(log, &pass)).ok().flatten();
         let pinned = from_log.as_ref().filter(|r| r.confident);
         params.shutter.readout_ms = match (pinned, how, &picture) {
             (Some(r), _, _) => r.readout_ms,
@@ -128,7 +130,7 @@ pub(crate) fn fuse_pass(
         } else {
             fallback_warning(how, &picture)
         };
-        measured = Some((params.shutter.readout_ms, warning, from_log));
+        readout = Some((params.shutter.readout_ms, warning));
     }
     let mut cache: Option<Vec<(Frame, f64)>> = Some(Vec::new());
     let mut cached_bytes = 0usize;
@@ -166,10 +168,6 @@ pub(crate) fn fuse_pass(
         });
     }
     let readout_s = params.shutter.readout_ms * 1e-3;
-    let (readout, from_log) = match measured {
-        Some((ms, warning, from_log)) => (Some((ms, warning)), from_log),
-        None => (None, None),
-    };
     // On the pool: the sync's searches use its threads.
     let FusedLog { poses, mut report } = match pool.install(|| fuse_log(log, &seen, readout_s)) {
         Ok(fused) => fused,

@@ -6,7 +6,7 @@
 use crate::error::GyroLogError;
 use crate::log::GyroLog;
 use crate::report::{sync_log, GyroReport};
-use amc_core::gyro::{fuse, FuseParams, FusedFrom, GyroTrack, VisionPose};
+use amc_core::gyro::{fuse, FuseParams, FusedFrom, GyroSync, GyroTrack, VisionPose};
 use amc_core::{so3, AmcError, GivenPose, Telemetry};
 use nalgebra::Vector3;
 use thiserror::Error;
@@ -45,16 +45,8 @@ pub fn fuse_log(
     seen: &[Telemetry],
     readout_s: f64,
 ) -> Result<FusedLog, FuseLogError> {
-    let vision: Vec<VisionPose> = seen
-        .iter()
-        .map(|s| VisionPose {
-            t: s.t,
-            pose: so3::exp(&Vector3::from(s.r_est)),
-            lost: s.track.lost,
-        })
-        .collect();
-    let (t, rots): (Vec<f64>, Vec<_>) = vision.iter().map(|v| (v.t, v.pose)).unzip();
-    let (sync, mut report) = sync_log(log, &t, &rots)?;
+    let vision = vision_of(seen);
+    let (sync, mut report) = sync_vision(log, &vision)?;
     let track = GyroTrack::new(&log.samples, &sync);
     let fusion = fuse(&track, &vision, readout_s, &FuseParams::default())?;
     report.fused_frames = fusion
@@ -75,4 +67,32 @@ pub fn fuse_log(
         })
         .collect();
     Ok(FusedLog { poses, report })
+}
+
+/// A pass's telemetry as the picture's poses.
+fn vision_of(seen: &[Telemetry]) -> Vec<VisionPose> {
+    seen.iter()
+        .map(|s| VisionPose {
+            t: s.t,
+            pose: so3::exp(&Vector3::from(s.r_est)),
+            lost: s.track.lost,
+        })
+        .collect()
+}
+
+/// [`sync_log`] with the picture's poses.
+fn sync_vision(
+    log: &GyroLog,
+    vision: &[VisionPose],
+) -> Result<(GyroSync, GyroReport), GyroLogError> {
+    let (t, rots): (Vec<f64>, Vec<_>) = vision.iter().map(|v| (v.t, v.pose)).unzip();
+    sync_log(log, &t, &rots)
+}
+
+/// Synchronizes `log` with a pass's telemetry (`seen`).
+pub(crate) fn sync_seen(
+    log: &GyroLog,
+    seen: &[Telemetry],
+) -> Result<(GyroSync, GyroReport), GyroLogError> {
+    sync_vision(log, &vision_of(seen))
 }

@@ -7,12 +7,11 @@
 //! first pass, so that it tracks with the readout.
 
 use crate::error::GyroLogError;
+use crate::fuse::sync_seen;
 use crate::log::GyroLog;
-use crate::report::sync_log;
 use amc_core::gyro::{readout_from_gyro, GyroTrack};
-use amc_core::readout::{measured, ReadoutEstimate};
-use amc_core::{so3, Telemetry};
-use nalgebra::Vector3;
+use amc_core::readout::{frame_period, measured, ReadoutEstimate};
+use amc_core::Telemetry;
 
 /// The readout of a readout pass's frames (`pass`: its telemetry) against
 /// `log`; `Ok(None)` with too few frames the log covers. Errors: the log
@@ -21,15 +20,9 @@ pub fn measure_readout(
     log: &GyroLog,
     pass: &[Telemetry],
 ) -> Result<Option<ReadoutEstimate>, GyroLogError> {
-    let (t, rots): (Vec<f64>, Vec<_>) = pass
-        .iter()
-        .map(|s| (s.t, so3::exp(&Vector3::from(s.r_est))))
-        .unzip();
-    let (sync, _) = sync_log(log, &t, &rots)?;
+    let (sync, _) = sync_seen(log, pass)?;
     let track = GyroTrack::new(&log.samples, &sync);
-    let mut gaps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    gaps.sort_by(f64::total_cmp);
-    let Some(&period) = gaps.get(gaps.len() / 2) else {
+    let Some(period) = frame_period(pass) else {
         return Ok(None);
     };
     Ok(readout_from_gyro(&track, &measured(pass), period))
