@@ -350,7 +350,8 @@ pub fn spec() -> Value {
                 "valid": {"type": "number"}, "saccade": {"type": "boolean"},
                 "latency_ms": {"type": "number", "description": "From the source frame's arrival to this message's frame being ready to send (stabilized and encoded), ms"},
                 "width": {"type": "integer"}, "height": {"type": "integer"},
-                "codec": {"type": "string", "enum": ["jpeg", "h264"], "description": "What the binary message before it holds"}
+                "codec": {"type": "string", "enum": ["jpeg", "h264"], "description": "What the binary message before it holds"},
+                "unit": {"type": "integer", "description": "H.264 only: the access unit's number in the encoder's stream; a gap in it (not in frame, which the encoder may leave out when behind) is pictures this viewer skipped"}
             }}
         }}
     });

@@ -93,8 +93,8 @@ struct Job {
 /// The running encoder of the feed. Frames go to it through a writer thread
 /// (ffmpeg reads a frame only once it has encoded the one before, and the
 /// feed's encode thread must not wait for that); a frame arriving while two
-/// wait is left out of the H.264 stream (while ffmpeg starts, up to
-/// [`STARTUP_FRAMES`]).
+/// wait is left out of the H.264 stream (while ffmpeg starts, and until the
+/// frames held then are written, up to [`STARTUP_FRAMES`]).
 pub(super) struct H264Stage {
     to_writer: SyncSender<Job>,
     /// Frames handed to the writer and not yet taken by it.
@@ -106,6 +106,9 @@ pub(super) struct H264Stage {
     size: (usize, usize),
     clock: Option<Instant>,
     last_t: f64,
+    /// Set once the frames held while ffmpeg started are written: until
+    /// then a frame waits behind them instead of being left out.
+    caught_up: bool,
 }
 
 impl H264Stage {
@@ -123,6 +126,7 @@ impl H264Stage {
         let queue = Arc::clone(&pending);
         let running = Arc::new(AtomicBool::new(false));
         let ran = Arc::clone(&running);
+        let mut units_out = 0u64;
         let opts = H264Options {
             bitrate_kbps,
             fps,
@@ -142,6 +146,8 @@ impl H264Stage {
                     };
                     meta.latency_ms = arrived.elapsed().as_secs_f64() * 1e3;
                     meta.codec = "h264";
+                    meta.unit = Some(units_out);
+                    units_out += 1;
                     let _ = units.send(Arc::new(H264Unit {
                         frame: meta.frame,
                         key: unit.key,
@@ -187,6 +193,7 @@ impl H264Stage {
             size: (frame.width, frame.height),
             clock: None,
             last_t: f64::NEG_INFINITY,
+            caught_up: false,
         })
     }
 
@@ -204,11 +211,13 @@ impl H264Stage {
         meta: &LiveTelemetry,
         arrived: Instant,
     ) -> Result<(), &'static str> {
-        if self.running.load(Ordering::SeqCst)
-            && self.waiting.load(Ordering::SeqCst) >= WAITING_FRAMES
-        {
-            // Two frames already wait: this one is left out.
-            return Ok(());
+        if self.running.load(Ordering::SeqCst) {
+            if self.waiting.load(Ordering::SeqCst) < WAITING_FRAMES {
+                self.caught_up = true;
+            } else if self.caught_up {
+                // Two frames already wait: this one is left out.
+                return Ok(());
+            }
         }
         let start = *self.clock.get_or_insert(arrived);
         let t = arrived

@@ -581,6 +581,7 @@ impl LiveHub {
                 width: out.width,
                 height: out.height,
                 codec: "jpeg",
+                unit: None,
             };
             // The JPEG thread hands its buffers back; at most three exist.
             let mut copy = returned

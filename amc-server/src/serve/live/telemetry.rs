@@ -19,4 +19,9 @@ pub(super) struct LiveTelemetry {
     pub height: usize,
     /// What the binary message before it holds: `jpeg` or `h264`.
     pub codec: &'static str,
+    /// H.264 only: the access unit's number in the encoder's stream. A gap
+    /// in it (not in `frame`: the encoder may leave a frame out when it
+    /// falls behind) is pictures this viewer skipped.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unit: Option<u64>,
 }
