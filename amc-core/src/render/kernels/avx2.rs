@@ -9,7 +9,8 @@
 //! take four gathers a pixel, one per tap row (`sample_cubic_gray8`), and
 //! interleaved frames sixteen, one per tap (`sample_cubic_rgb8`).
 
-use super::common::{KernelGeometry, RowCoords, EDGE_TOLERANCE};
+use super::avx2_window::Window8;
+use super::common::{falls, KernelGeometry, RowCoords, EDGE_TOLERANCE};
 use crate::render::robust::{Deghost, FULL_WEIGHT};
 use std::arch::x86_64::*;
 
@@ -144,7 +145,7 @@ unsafe fn sample_gray8(
     if g.cubic {
         return Some(sample_cubic_gray8(data, g, coord, u, &t));
     }
-    let t = PlaneTaps8::of(g, t);
+    let t = PlaneTaps8::of(g, t, falls(coord, u));
     Some((t.sample(data), t.mask))
 }
 
@@ -155,9 +156,10 @@ unsafe fn sample_gray8(
 /// exact integers throughout, rounded and clamped as the reference does. A
 /// chunk with a lane whose taps would cross the plane's edge (`x0` or `y0` on
 /// the first or last tap) is left to the scalar reference, which repeats the
-/// edge pixel: those lie in a band one pixel wide around the plane.
+/// edge pixel: those lie in a band one pixel wide around the plane. Not
+/// inlined: the bilinear path it branches off from is, into every row loop.
 #[target_feature(enable = "avx2")]
-#[inline]
+#[inline(never)]
 unsafe fn sample_cubic_gray8(
     data: &[u8],
     g: &KernelGeometry,
@@ -381,13 +383,15 @@ unsafe fn cubic_weights8(a: __m256i) -> [__m256i; 4] {
     [w0, w1, w2, w3]
 }
 
-/// [`Taps8`] as a plane's kernel uses them: where each lane's taps start in
-/// the plane (top and bottom row) and its weights; the same for every plane
-/// of one geometry.
-struct PlaneTaps8 {
+/// [`Taps8`] as a plane's kernel uses them: where each lane's taps lie in
+/// the plane (in a [`Window8`] of its rows where they fit, else gathered)
+/// and its weights; the same for every plane of one geometry.
+pub(super) struct PlaneTaps8 {
     mask: __m256i,
-    top: __m256i,
-    bottom: __m256i,
+    x0: __m256i,
+    y0: __m256i,
+    window: Option<Window8>,
+    stride: i32,
     /// `bx` in the low 16 bits of each lane, `ax` in the high ones.
     wx: __m256i,
     ay: __m256i,
@@ -395,39 +399,35 @@ struct PlaneTaps8 {
 }
 
 impl PlaneTaps8 {
+    /// `falls`: whether the row's `y` falls along it ([`falls`]).
     #[target_feature(enable = "avx2")]
     #[inline]
-    unsafe fn of(g: &KernelGeometry, t: Taps8) -> Self {
-        let top = _mm256_add_epi32(_mm256_mullo_epi32(t.y0, _mm256_set1_epi32(g.stride)), t.x0);
+    pub(super) unsafe fn of(g: &KernelGeometry, t: Taps8, falls: bool) -> Self {
         Self {
             mask: t.mask,
-            top,
-            bottom: _mm256_add_epi32(top, _mm256_set1_epi32(g.stride)),
+            window: Window8::of(g, t.mask, t.x0, t.y0, falls),
+            x0: t.x0,
+            y0: t.y0,
+            stride: g.stride,
             wx: _mm256_or_si256(t.bx, _mm256_slli_epi32::<16>(t.ax)),
             ay: t.ay,
             by: t.by,
         }
     }
 
-    /// The samples of `data` (0 in lanes outside the mask): each lane's two
-    /// dwords gathered, their bytes (left, right) spread to 16-bit lanes for
-    /// `madd`.
+    /// The samples of `data` (0 in lanes outside the mask): each lane's
+    /// (left, right) pairs of its two rows as 16-bit words, from the window
+    /// or gathered, weighted with `madd`, then the rows in 32-bit lanes.
     #[target_feature(enable = "avx2")]
     #[inline]
     unsafe fn sample(&self, data: &[u8]) -> __m256i {
-        let base = data.as_ptr() as *const i32;
-        let z = _mm256_setzero_si256();
-        let p0 = _mm256_mask_i32gather_epi32::<1>(z, base, self.top, self.mask);
-        let p1 = _mm256_mask_i32gather_epi32::<1>(z, base, self.bottom, self.mask);
-        let (byte, hi_byte) = (_mm256_set1_epi32(0xFF), _mm256_set1_epi32(0xFF_0000));
-        let pair = |p: __m256i| {
-            _mm256_or_si256(
-                _mm256_and_si256(p, byte),
-                _mm256_and_si256(_mm256_slli_epi32::<8>(p), hi_byte),
-            )
-        };
-        let top = _mm256_madd_epi16(pair(p0), self.wx);
-        let bot = _mm256_madd_epi16(pair(p1), self.wx);
+        let (p0, p1) = match &self.window {
+            Some(w) => w.fetch(data, self.stride as usize),
+            None => None,
+        }
+        .unwrap_or_else(|| self.gather_pairs(data));
+        let top = _mm256_madd_epi16(p0, self.wx);
+        let bot = _mm256_madd_epi16(p1, self.wx);
         let v = _mm256_add_epi32(
             _mm256_add_epi32(
                 _mm256_mullo_epi32(top, self.by),
@@ -436,6 +436,28 @@ impl PlaneTaps8 {
             _mm256_set1_epi32(128),
         );
         _mm256_and_si256(_mm256_srli_epi32::<8>(v), self.mask)
+    }
+
+    /// Each lane's (left, right) pairs of its top and bottom row as 16-bit
+    /// words, gathered: one dword a lane and row, from the left tap on.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) unsafe fn gather_pairs(&self, data: &[u8]) -> (__m256i, __m256i) {
+        let stride = _mm256_set1_epi32(self.stride);
+        let top = _mm256_add_epi32(_mm256_mullo_epi32(self.y0, stride), self.x0);
+        let bottom = _mm256_add_epi32(top, stride);
+        let base = data.as_ptr() as *const i32;
+        let z = _mm256_setzero_si256();
+        let p0 = _mm256_mask_i32gather_epi32::<1>(z, base, top, self.mask);
+        let p1 = _mm256_mask_i32gather_epi32::<1>(z, base, bottom, self.mask);
+        let (byte, hi_byte) = (_mm256_set1_epi32(0xFF), _mm256_set1_epi32(0xFF_0000));
+        let pair = |p: __m256i| {
+            _mm256_or_si256(
+                _mm256_and_si256(p, byte),
+                _mm256_and_si256(_mm256_slli_epi32::<8>(p), hi_byte),
+            )
+        };
+        (pair(p0), pair(p1))
     }
 }
 
@@ -572,7 +594,7 @@ pub(super) unsafe fn merge_row_gray(
 /// formula does (no FMA, same operation order: bit-exact).
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn row_coords8(coord: &RowCoords<'_>, u: usize) -> (__m256, __m256) {
+pub(super) unsafe fn row_coords8(coord: &RowCoords<'_>, u: usize) -> (__m256, __m256) {
     match *coord {
         RowCoords::Table(xs, ys) => (
             _mm256_loadu_ps(xs.as_ptr().add(u)),
@@ -671,7 +693,7 @@ pub(super) unsafe fn accumulate_row_gray_pair(
             let Some(t) = taps8(&g, row_coords8(coord, u)) else {
                 continue;
             };
-            let t = PlaneTaps8::of(&g, t);
+            let t = PlaneTaps8::of(&g, t, falls(coord, u));
             sum_a = _mm256_add_epi32(sum_a, t.sample(a));
             sum_b = _mm256_add_epi32(sum_b, t.sample(b));
             sum_n = _mm256_add_epi32(sum_n, _mm256_and_si256(t.mask, one));
@@ -750,10 +772,10 @@ pub(super) unsafe fn finish_row_gray(
 /// frame (`mask`, all bits of a lane), the top-left tap `(x0, y0)` of each, and
 /// the 8-bit weights `ax = round(256 fx)`, `bx = 256 - ax` (and `ay`, `by`) the
 /// scalar reference uses.
-struct Taps8 {
-    mask: __m256i,
-    x0: __m256i,
-    y0: __m256i,
+pub(super) struct Taps8 {
+    pub(super) mask: __m256i,
+    pub(super) x0: __m256i,
+    pub(super) y0: __m256i,
     ax: __m256i,
     ay: __m256i,
     bx: __m256i,
@@ -764,7 +786,7 @@ struct Taps8 {
 /// when no lane is inside (NaN compares false: NaN points are outside).
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn taps8(g: &KernelGeometry, (sx, sy): (__m256, __m256)) -> Option<Taps8> {
+pub(super) unsafe fn taps8(g: &KernelGeometry, (sx, sy): (__m256, __m256)) -> Option<Taps8> {
     let lo = _mm256_set1_ps(-EDGE_TOLERANCE);
     let valid = _mm256_and_ps(
         _mm256_and_ps(

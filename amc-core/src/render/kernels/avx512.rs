@@ -16,7 +16,7 @@
 //! rows (`sample_cubic16`). The ghost-free average of planes
 //! (`merge_row_gray`) samples the same way.
 
-use super::common::{HomographyRow, KernelGeometry, RowCoords, EDGE_TOLERANCE};
+use super::common::{falls, KernelGeometry, RowCoords, EDGE_TOLERANCE};
 use crate::render::robust::{Deghost, FULL_WEIGHT};
 use std::arch::x86_64::*;
 
@@ -583,20 +583,6 @@ unsafe fn interpolate(t: &Taps16, top: __m512i, bot: __m512i) -> __m512i {
     _mm512_srli_epi32::<8>(v)
 }
 
-/// Whether source `y` falls along the row from output pixel `u` on (a roll
-/// one way): then the window starts a row above lane 0's. For a homography
-/// `y(u) = (y0 + dy u) / (z0 + dz u)`, whose slope has the sign of
-/// `dy z0 - dz y0` along the whole row; for a table, from its first and
-/// eighth entries. Only where the window starts depends on it, never a
-/// result: the taps are checked against the window either way.
-#[inline(always)]
-fn falls(coord: &RowCoords<'_>, u: usize) -> bool {
-    match *coord {
-        RowCoords::Homography(HomographyRow { y0, z0, dy, dz, .. }) => dy * z0 < dz * y0,
-        RowCoords::Table(_, ys) => ys[u + 7] < ys[u],
-    }
-}
-
 /// The taps' pairs picked out of 64-byte windows of the rows they lie on, or
 /// `None` when they do not fit (then [`gather_pairs`] fetches them): every
 /// lane's left tap within [`WINDOW_SPAN`] columns of the window's start, and
@@ -807,7 +793,7 @@ unsafe fn taps16(
 
 #[cfg(test)]
 mod tests {
-    use super::super::common::Geometry;
+    use super::super::common::{Geometry, HomographyRow};
     use super::*;
 
     /// The window path and the gathers fetch the same pairs wherever the window

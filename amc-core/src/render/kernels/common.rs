@@ -284,3 +284,18 @@ impl KernelGeometry {
         }
     }
 }
+
+/// Whether source `y` falls along the row from output pixel `u` on (a roll
+/// one way): then the window starts a row above lane 0's. For a homography
+/// `y(u) = (y0 + dy u) / (z0 + dz u)`, whose slope has the sign of
+/// `dy z0 - dz y0` along the whole row; for a table, from its first and
+/// eighth entries (a chunk of the AVX2 kernel, or the first half of
+/// the AVX-512 kernel's). Only where the window starts depends on it, never a
+/// result: the taps are checked against the window either way.
+#[inline(always)]
+pub(super) fn falls(coord: &RowCoords<'_>, u: usize) -> bool {
+    match *coord {
+        RowCoords::Homography(HomographyRow { y0, z0, dy, dz, .. }) => dy * z0 < dz * y0,
+        RowCoords::Table(_, ys) => ys[u + 7] < ys[u],
+    }
+}

@@ -21,6 +21,8 @@
 #[cfg(target_arch = "x86_64")]
 mod avx2;
 #[cfg(target_arch = "x86_64")]
+mod avx2_window;
+#[cfg(target_arch = "x86_64")]
 mod avx512;
 mod common;
 mod scalar;
