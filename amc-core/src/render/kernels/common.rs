@@ -292,6 +292,7 @@ impl KernelGeometry {
 /// eighth entries (a chunk of the AVX2 kernel, or the first half of
 /// the AVX-512 kernel's). Only where the window starts depends on it, never a
 /// result: the taps are checked against the window either way.
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 pub(super) fn falls(coord: &RowCoords<'_>, u: usize) -> bool {
     match *coord {
