@@ -116,7 +116,7 @@ impl Window8 {
 #[cfg(test)]
 mod tests {
     use super::super::avx2::{row_coords8, taps8, PlaneTaps8};
-    use super::super::common::{falls, Geometry, HomographyRow, RowCoords};
+    use super::super::common::{affine_row, falls, Geometry, RowCoords};
     use super::*;
 
     /// The windows and the gathers fetch the same pairs wherever a window
@@ -151,23 +151,13 @@ mod tests {
                 (window.map(words), words(gathered))
             }
         };
-        let row = |x0: f32, y0: f32, dx: f32, dy: f32| {
-            RowCoords::Homography(HomographyRow {
-                x0,
-                y0,
-                z0: 1.0,
-                dx,
-                dy,
-                dz: 0.0,
-            })
-        };
         // A slight roll and zoom (either way), a zoom-in: the taps straddle
         // two rows, then one.
         for (coord, u) in [
-            (row(10.3, 40.6, 1.13, 0.07), 16),
-            (row(3.7, 20.2, 0.93, -0.04), 32),
-            (row(3.7, 20.5, 0.6, 0.12), 8),
-            (row(-0.4, 0.0, 1.0, 0.0), 0),
+            (affine_row(10.3, 40.6, 1.13, 0.07), 16),
+            (affine_row(3.7, 20.2, 0.93, -0.04), 32),
+            (affine_row(3.7, 20.5, 0.6, 0.12), 8),
+            (affine_row(-0.4, 0.0, 1.0, 0.0), 0),
         ] {
             let (window, gathered) = pairs(coord, u);
             assert_eq!(window, Some(gathered), "{coord:?} at {u}");
@@ -176,10 +166,10 @@ mod tests {
         // backwards past the slack (a mirrored zoom-out), too close to the plane's end for the window's rows: the
         // gathers take over.
         for (coord, u) in [
-            (row(10.3, 40.6, 0.9, 0.5), 16),
-            (row(1.0, 10.0, 5.0, 0.0), 0),
-            (row(150.0, 10.0, -2.0, 0.0), 0),
-            (row(180.0, (h - 2) as f32, 1.0, 0.0), 0),
+            (affine_row(10.3, 40.6, 0.9, 0.5), 16),
+            (affine_row(1.0, 10.0, 5.0, 0.0), 0),
+            (affine_row(150.0, 10.0, -2.0, 0.0), 0),
+            (affine_row(180.0, (h - 2) as f32, 1.0, 0.0), 0),
         ] {
             assert_eq!(pairs(coord, u).0, None, "{coord:?} at {u}");
         }

@@ -793,7 +793,7 @@ unsafe fn taps16(
 
 #[cfg(test)]
 mod tests {
-    use super::super::common::{Geometry, HomographyRow};
+    use super::super::common::{affine_row, Geometry};
     use super::*;
 
     /// The window path and the gathers fetch the same pairs wherever the window
@@ -832,21 +832,11 @@ mod tests {
                 )
             }
         };
-        let row = |x0: f32, y0: f32, dx: f32, dy: f32| {
-            RowCoords::Homography(HomographyRow {
-                x0,
-                y0,
-                z0: 1.0,
-                dx,
-                dy,
-                dz: 0.0,
-            })
-        };
         // A slight roll and zoom: the taps straddle two rows, then one.
         for (coord, u) in [
-            (row(10.3, 40.6, 1.13, 0.07), 16),
-            (row(3.7, 20.2, 0.93, -0.04), 32),
-            (row(-0.4, 0.0, 1.0, 0.0), 0),
+            (affine_row(10.3, 40.6, 1.13, 0.07), 16),
+            (affine_row(3.7, 20.2, 0.93, -0.04), 32),
+            (affine_row(-0.4, 0.0, 1.0, 0.0), 0),
         ] {
             let (window, gathered) = pairs(coord, u);
             assert_eq!(window, Some(gathered), "{coord:?} at {u}");
@@ -854,9 +844,9 @@ mod tests {
         // Too steep (taps on four rows), too wide (a 5x zoom-out), too close to
         // the plane's end for a 64-byte window: the gathers take over.
         for (coord, u) in [
-            (row(10.3, 40.6, 0.9, 0.5), 16),
-            (row(1.0, 10.0, 5.0, 0.0), 0),
-            (row(180.0, (h - 2) as f32, 1.0, 0.0), 0),
+            (affine_row(10.3, 40.6, 0.9, 0.5), 16),
+            (affine_row(1.0, 10.0, 5.0, 0.0), 0),
+            (affine_row(180.0, (h - 2) as f32, 1.0, 0.0), 0),
         ] {
             assert_eq!(pairs(coord, u).0, None, "{coord:?} at {u}");
         }

@@ -300,3 +300,17 @@ pub(super) fn falls(coord: &RowCoords<'_>, u: usize) -> bool {
         RowCoords::Table(_, ys) => ys[u + 7] < ys[u],
     }
 }
+
+/// A test row whose source point moves by `(dx, dy)` a pixel from `(x0, y0)`
+/// (no perspective): the windows' fixtures.
+#[cfg(test)]
+pub(super) fn affine_row(x0: f32, y0: f32, dx: f32, dy: f32) -> RowCoords<'static> {
+    RowCoords::Homography(HomographyRow {
+        x0,
+        y0,
+        z0: 1.0,
+        dx,
+        dy,
+        dz: 0.0,
+    })
+}
