@@ -108,9 +108,8 @@ fn h264_viewers_start_at_a_keyframe_and_ffmpeg_decodes_every_frame() {
         "the first viewer's frames: {frames:?}"
     );
     // It got every access unit the encoder made, from its first.
-    let units = |g: &[Got]| -> Vec<u64> {
-        g.iter().map(|g| g.meta["unit"].as_u64().unwrap()).collect()
-    };
+    let units =
+        |g: &[Got]| -> Vec<u64> { g.iter().map(|g| g.meta["unit"].as_u64().unwrap()).collect() };
     assert!(
         units(&first).iter().copied().eq(0..first.len() as u64),
         "the first viewer's units: {:?}",

@@ -360,7 +360,11 @@ mod tests {
             for (full, c) in [(false, 3), (true, 3), (false, 4), (true, 4)] {
                 let mut packed = Vec::new();
                 yuv420p_to_rgb_into(w, h, &planes, full, c, &mut packed);
-                assert_eq!(packed, reference(w, h, &planes, full, c), "{w}x{h} {full} {c}");
+                assert_eq!(
+                    packed,
+                    reference(w, h, &planes, full, c),
+                    "{w}x{h} {full} {c}"
+                );
             }
         }
     }

@@ -55,7 +55,10 @@ impl Window8 {
         let x_lo = (_mm256_cvtsi256_si32(x0) - WINDOW_SLACK).max(0);
         let x_hi = (_mm256_extract_epi32::<4>(x0) - WINDOW_SLACK).max(0);
         let y_win = (_mm256_cvtsi256_si32(y0) - falls as i32).max(0);
-        let off = _mm256_sub_epi32(x0, _mm256_set_m128i(_mm_set1_epi32(x_hi), _mm_set1_epi32(x_lo)));
+        let off = _mm256_sub_epi32(
+            x0,
+            _mm256_set_m128i(_mm_set1_epi32(x_hi), _mm_set1_epi32(x_lo)),
+        );
         let down = _mm256_sub_epi32(y0, _mm256_set1_epi32(y_win));
         let (zero, one) = (_mm256_setzero_si256(), _mm256_set1_epi32(1));
         let outside = _mm256_or_si256(
@@ -63,7 +66,10 @@ impl Window8 {
                 _mm256_cmpgt_epi32(off, _mm256_set1_epi32(WINDOW_SPAN)),
                 _mm256_cmpgt_epi32(zero, off),
             ),
-            _mm256_or_si256(_mm256_cmpgt_epi32(down, one), _mm256_cmpgt_epi32(zero, down)),
+            _mm256_or_si256(
+                _mm256_cmpgt_epi32(down, one),
+                _mm256_cmpgt_epi32(zero, down),
+            ),
         );
         if _mm256_testz_si256(outside, mask) == 0 {
             return None;
@@ -145,8 +151,8 @@ mod tests {
                     [x, y]
                 };
                 let falls = falls(&coord, u);
-                let window = Window8::of(&g, t.mask, t.x0, t.y0, falls)
-                    .and_then(|win| win.fetch(&plane, w));
+                let window =
+                    Window8::of(&g, t.mask, t.x0, t.y0, falls).and_then(|win| win.fetch(&plane, w));
                 let gathered = PlaneTaps8::of(&g, t, falls).gather_pairs(&plane);
                 (window.map(words), words(gathered))
             }
