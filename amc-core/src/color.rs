@@ -121,75 +121,73 @@ pub fn yuv420p_to_rgb_into(
     let k = YccToRgb::new(full_range);
     out.clear();
     out.resize(width * height * channels, 255);
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2.
-        unsafe { packed_rows_avx2(width, height, planes, k, channels, out) };
-        return;
-    }
-    packed_rows_of(width, height, planes, k, channels, out);
+    k.packed_rows(width, height, planes, channels, out);
 }
 
-/// [`packed_rows_of`] compiled with AVX2: the same bytes, in wider lanes.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn packed_rows_avx2(
-    width: usize,
-    height: usize,
-    planes: &[u8],
-    k: YccToRgb,
-    channels: usize,
-    out: &mut [u8],
-) {
-    packed_rows_of(width, height, planes, k, channels, out);
-}
-
-#[inline(always)]
-fn packed_rows_of(
-    width: usize,
-    height: usize,
-    planes: &[u8],
-    k: YccToRgb,
-    channels: usize,
-    out: &mut [u8],
-) {
-    if channels == 4 {
-        packed_rows::<4>(width, height, planes, k, out);
-    } else {
-        packed_rows::<3>(width, height, planes, k, out);
-    }
-}
-
-/// [`yuv420p_to_rgb_into`]'s rows for `C` bytes a pixel: two pixels per
-/// chroma sample, their terms found once, then an odd width's last pixel.
-/// `C` a constant, so each pair's stores are fixed offsets and the loop
-/// vectorizes (a loop over pixels of `channels` bytes did not): 1280x720 on
-/// a Zen 3 core, 10.6 ms a frame before, 4.5 ms now, 0.5 ms with AVX2
-/// (perf samples of `amc stabilize`'s `--fov auto` pass).
-#[inline(always)]
-fn packed_rows<const C: usize>(
-    width: usize,
-    height: usize,
-    planes: &[u8],
-    k: YccToRgb,
-    out: &mut [u8],
-) {
-    let (cw, _) = chroma_size(width, height);
-    let (luma, cb, cr) = yuv_planes(width, height, planes);
-    for (y, row) in out.chunks_exact_mut(width * C).take(height).enumerate() {
-        let yrow = &luma[y * width..(y + 1) * width];
-        let crow = (y >> 1) * cw;
-        let (cb, cr) = (&cb[crow..crow + cw], &cr[crow..crow + cw]);
-        let pairs = row.chunks_exact_mut(2 * C).zip(yrow.chunks_exact(2));
-        for ((px, l), (&u, &v)) in pairs.zip(cb.iter().zip(cr)) {
-            let t = k.chroma(u, v);
-            (px[0], px[1], px[2]) = k.rgb(l[0], t);
-            (px[C], px[C + 1], px[C + 2]) = k.rgb(l[1], t);
+impl YccToRgb {
+    multiversion! {
+        /// [`yuv420p_to_rgb_into`]'s rows into `out` (`channels` 3 or 4),
+        /// compiled for AVX2 where the CPU has it: the same bytes, in wider
+        /// lanes.
+        fn packed_rows(
+            [] self,
+            width: usize,
+            height: usize,
+            planes: &[u8],
+            channels: usize,
+            out: &mut [u8],
+        ) => packed_rows_body {
+            packed_rows_avx2: "avx2" if "avx2",
         }
-        if width % 2 == 1 {
-            let x = width - 1;
-            let px = &mut row[x * C..x * C + 3];
-            (px[0], px[1], px[2]) = k.rgb(yrow[x], k.chroma(cb[x / 2], cr[x / 2]));
+    }
+
+    #[inline(always)]
+    fn packed_rows_body(
+        self,
+        width: usize,
+        height: usize,
+        planes: &[u8],
+        channels: usize,
+        out: &mut [u8],
+    ) {
+        if channels == 4 {
+            self.packed_rows_of::<4>(width, height, planes, out);
+        } else {
+            self.packed_rows_of::<3>(width, height, planes, out);
+        }
+    }
+
+    /// [`YccToRgb::packed_rows`] for `C` bytes a pixel: two pixels per
+    /// chroma sample, their terms found once, then an odd width's last pixel.
+    /// `C` a constant, so each pair's stores are fixed offsets and the loop
+    /// vectorizes (a loop over pixels of `channels` bytes did not): 1280x720
+    /// on a Zen 3 core, 10.6 ms a frame before, 4.5 ms now, 0.5 ms with AVX2
+    /// (perf samples of `amc stabilize`'s `--fov auto` pass).
+    #[inline(always)]
+    fn packed_rows_of<const C: usize>(
+        self,
+        width: usize,
+        height: usize,
+        planes: &[u8],
+        out: &mut [u8],
+    ) {
+        let (cw, _) = chroma_size(width, height);
+        let (luma, cb, cr) = yuv_planes(width, height, planes);
+        for (y, row) in out.chunks_exact_mut(width * C).take(height).enumerate() {
+            let yrow = &luma[y * width..(y + 1) * width];
+            let crow = (y >> 1) * cw;
+            let (cb, cr) = (&cb[crow..crow + cw], &cr[crow..crow + cw]);
+            let pairs = row.chunks_exact_mut(2 * C).zip(yrow.chunks_exact(2));
+            for ((px, l), (&u, &v)) in pairs.zip(cb.iter().zip(cr)) {
+                let t = self.chroma(u, v);
+                (px[0], px[1], px[2]) = self.rgb(l[0], t);
+                (px[C], px[C + 1], px[C + 2]) = self.rgb(l[1], t);
+            }
+            if width % 2 == 1 {
+                let x = width - 1;
+                let px = &mut row[x * C..x * C + 3];
+                (px[0], px[1], px[2]) = self.rgb(yrow[x], self.chroma(cb[x / 2], cr[x / 2]));
+            }
         }
     }
 }

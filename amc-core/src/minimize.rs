@@ -36,18 +36,19 @@ pub fn golden_section_paired<E: Send>(
     iters: usize,
     mut record: impl FnMut(f64, f64),
 ) -> Result<f64, E> {
-    // `y` NaN: `x` alone.
-    let mut both = |x: f64, y: f64| -> Result<(f64, f64), E> {
+    // `f` at `x`, and at `y` beside it where there is one.
+    let mut both = |x: f64, y: Option<f64>| -> Result<(f64, Option<f64>), E> {
         let (fx, fy) = pair(&f, x, y);
-        let (fx, fy) = (fx?, fy?);
+        let (fx, fy) = (fx?, fy.transpose()?);
         record(x, fx);
-        if !y.is_nan() {
+        if let (Some(y), Some(fy)) = (y, fy) {
             record(y, fy);
         }
         Ok((fx, fy))
     };
     let (c, d) = Golden::inner(a, b);
-    let (fc, fd) = both(c, d)?;
+    let (fc, fd) = both(c, Some(d))?;
+    let fd = fd.unwrap_or(f64::NAN);
     let mut s = Golden::new(a, b, fc, fd);
     let mut seen = vec![(c, fc), (d, fd)];
     let mut guessed: Option<(f64, f64)> = None;
@@ -57,11 +58,11 @@ pub fn golden_section_paired<E: Send>(
             Some((x, v)) if x.to_bits() == p.to_bits() => v,
             _ if left >= 2 && cfg!(feature = "parallel") => {
                 let guess = s.guess_after(p, &seen);
-                let (v, w) = both(p, guess)?;
-                guessed = Some((guess, w));
+                let (v, w) = both(p, Some(guess))?;
+                guessed = w.map(|w| (guess, w));
                 v
             }
-            _ => both(p, f64::NAN)?.0,
+            _ => both(p, None)?.0,
         };
         seen.push((p, v));
         s.step(v);
@@ -69,23 +70,21 @@ pub fn golden_section_paired<E: Send>(
     Ok(s.middle())
 }
 
-/// `f` at `x` and `y` (at once with the `parallel` feature); `y` NaN: only `x`.
+/// `f` at `x`, and at `y` where there is one (at once with the `parallel`
+/// feature).
 fn pair<E: Send>(
     f: &(impl Fn(f64) -> Result<f64, E> + Sync),
     x: f64,
-    y: f64,
-) -> (Result<f64, E>, Result<f64, E>) {
-    if y.is_nan() {
-        return (f(x), Ok(f64::NAN));
-    }
+    y: Option<f64>,
+) -> (Result<f64, E>, Option<Result<f64, E>>) {
+    let Some(y) = y else {
+        return (f(x), None);
+    };
     #[cfg(feature = "parallel")]
-    {
-        rayon::join(|| f(x), || f(y))
-    }
+    let (fx, fy) = rayon::join(|| f(x), || f(y));
     #[cfg(not(feature = "parallel"))]
-    {
-        (f(x), f(y))
-    }
+    let (fx, fy) = (f(x), f(y));
+    (fx, Some(fy))
 }
 
 /// A golden-section bracket `[a, b]` with its two inner points' values.

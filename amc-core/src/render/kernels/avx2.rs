@@ -421,11 +421,11 @@ impl PlaneTaps8 {
     #[target_feature(enable = "avx2")]
     #[inline]
     unsafe fn sample(&self, data: &[u8]) -> __m256i {
-        let (p0, p1) = match &self.window {
-            Some(w) => w.fetch(data, self.stride as usize),
-            None => None,
-        }
-        .unwrap_or_else(|| self.gather_pairs(data));
+        let (p0, p1) = self
+            .window
+            .as_ref()
+            .and_then(|w| w.fetch(data, self.stride as usize))
+            .unwrap_or_else(|| self.gather_pairs(data));
         let top = _mm256_madd_epi16(p0, self.wx);
         let bot = _mm256_madd_epi16(p1, self.wx);
         let v = _mm256_add_epi32(
