@@ -35,6 +35,68 @@ fn eval_plot_and_markdown_table() {
     }
 }
 
+/// `amc eval`'s saccade row is what `amc stabilize --mode saccade` writes at its defaults
+/// (the paper's fixed crop, not the stabilize row's per-frame zoom, which made the held view
+/// re-centre twice a second on handheld footage), and `--zoom` given to eval still applies.
+#[test]
+fn eval_frames_each_mode_as_stabilize_does() {
+    let tmp = tempfile::tempdir().unwrap();
+    let clip = tmp.path().join("clip");
+    synth(
+        &clip,
+        &["--seconds", "2", "--shake-dps", "100", "--seed", "7"],
+    );
+    let saccade_row = |extra: &[&str]| {
+        let mut args = vec!["--json", "-q"];
+        args.extend(extra);
+        let r = eval_synth_clip(&clip, &args);
+        let v: serde_json::Value = serde_json::from_str(&r.stdout).expect("eval prints JSON");
+        let modes = v["modes"].as_array().expect("modes");
+        let m = modes
+            .iter()
+            .find(|m| m["mode"] == "saccade")
+            .expect("saccade row");
+        m["metrics"].clone()
+    };
+    let metrics = tmp.path().join("m.json");
+    amc_ok(&[
+        "stabilize".to_string(),
+        s(&clip),
+        "--lens".into(),
+        s(&clip.join("lens.json")),
+        "--fps".into(),
+        "60".into(),
+        "--mode".into(),
+        "saccade".into(),
+        "-o".into(),
+        s(&tmp.path().join("o.y4m")),
+        "--metrics".into(),
+        s(&metrics),
+        "-q".into(),
+    ]);
+    let stabilize = read_json(&metrics);
+    let (row, auto_row) = (saccade_row(&[]), saccade_row(&["--zoom", "auto"]));
+    for key in ["rms_change", "sharpness"] {
+        let (a, b) = (
+            json_f64(&row, &format!("/{key}")),
+            json_f64(&stabilize, &format!("/metrics/{key}")),
+        );
+        eprintln!(
+            "[eval saccade] {key}: eval {a}, stabilize --mode saccade {b}, eval --zoom auto {}",
+            json_f64(&auto_row, &format!("/{key}"))
+        );
+        assert!(
+            (a - b).abs() <= 1e-9 * b.abs().max(1.0),
+            "{key}: eval {a} vs stabilize {b}"
+        );
+    }
+    assert_ne!(
+        json_f64(&row, "/sharpness"),
+        json_f64(&auto_row, "/sharpness"),
+        "--zoom auto given to eval changed nothing in its saccade row"
+    );
+}
+
 #[test]
 fn demo_writes_both_clips() {
     let tmp = tempfile::tempdir().unwrap();

@@ -344,11 +344,18 @@ impl StabilizerOptions {
     /// of `zoom = auto` made it re-centre twice a second on handheld footage.
     fn mode_framing(&mut self) {
         if !self.zoom_given {
-            self.params.framing.zoom = if self.params.view.mode == Mode::Saccade {
-                Zoom::None
-            } else {
-                Zoom::Auto
-            };
+            self.params.framing.zoom = Self::default_zoom(self.params.view.mode);
+        }
+    }
+
+    /// The framing of `mode` where no zoom is given (see `mode_framing`): every
+    /// caller that switches a mode (eval's rows, the demo, the live feed) frames
+    /// it as `amc stabilize --mode` does.
+    pub fn default_zoom(mode: Mode) -> Zoom {
+        if mode == Mode::Saccade {
+            Zoom::None
+        } else {
+            Zoom::Auto
         }
     }
 

@@ -6,7 +6,7 @@ use crate::gt::{self, GtError};
 use crate::synth::{self, SynthConfig, SynthError};
 use amc_core::so3::{self, Tangent};
 use amc_core::view::Mode;
-use amc_core::{Frame, PixelFormat, StabilizerParams};
+use amc_core::{Frame, PixelFormat};
 use amc_engine::{self as engine, RunConfig, RunError};
 use amc_video::{self as video, InputOptions, OutputSpec};
 use rand::{rngs::SmallRng, Rng, SeedableRng};
@@ -192,8 +192,7 @@ pub fn run(args: &DemoConfig, say: &dyn Fn(&str)) -> Result<String, DemoError> {
     let gt_rot = gt::read_orientations(&frames.join("gt.csv"))?;
     let mut lines = Vec::new();
     for (mode, name) in [(Mode::Stabilize, "stabilized"), (Mode::Saccade, "saccade")] {
-        let mut params = StabilizerParams::default();
-        params.view.mode = mode;
+        let params = amc_core::StabilizerOptions::with_mode(mode).params;
         let output = out.join(format!("{name}.{ext}"));
         let telemetry = out.join(format!("{name}-telemetry.csv"));
         say(&format!(

@@ -89,6 +89,9 @@ pub fn run(
         let label = mode.to_string();
         let mut params = base.clone();
         params.view.mode = mode;
+        if !args.options.zoom_given {
+            params.framing.zoom = amc_core::StabilizerOptions::default_zoom(mode);
+        }
         let report = |p: Progress| progress(mode, p);
         let cfg = RunConfig {
             input: &args.input,

@@ -86,9 +86,10 @@ pub struct ServeArgs {
     pub live_deghost: String,
     /// Framing of the live output: auto (the least zoom that shows no border,
     /// within --live-max-crop) or none (crop --live-margin). `static` needs the
-    /// whole clip and is refused.
-    #[arg(long, default_value = "auto", value_name = "auto|none", value_parser = parse_zoom)]
-    pub live_zoom: amc_core::Zoom,
+    /// whole clip and is refused. Default: auto; none with --live-mode saccade
+    /// (a fixed crop for a fixed view, as `amc stabilize --mode saccade`).
+    #[arg(long, value_name = "auto|none", value_parser = parse_zoom)]
+    pub live_zoom: Option<amc_core::Zoom>,
     /// Crop budget of --live-zoom auto: the largest share of the width cropped (0..=0.5).
     #[arg(long, default_value_t = 0.15)]
     pub live_max_crop: f64,

@@ -141,6 +141,25 @@ fn live_roll_reaches_the_live_feeds_view() {
 }
 
 #[test]
+fn live_saccade_mode_keeps_a_fixed_crop_unless_a_zoom_is_given() {
+    let zoom = |argv: &[&str]| {
+        let Command::Serve(a) = parse(argv).unwrap().command else {
+            panic!("not serve")
+        };
+        a.config().unwrap().live().unwrap().params.framing.zoom
+    };
+    assert_eq!(zoom(&["serve"]), amc_core::Zoom::Auto);
+    assert_eq!(
+        zoom(&["serve", "--live-mode", "saccade"]),
+        amc_core::Zoom::None
+    );
+    assert_eq!(
+        zoom(&["serve", "--live-mode", "saccade", "--live-zoom", "auto"]),
+        amc_core::Zoom::Auto
+    );
+}
+
+#[test]
 fn live_readout_is_a_number_and_auto_is_refused() {
     let live = |argv: &[&str]| {
         let Command::Serve(a) = parse(argv).unwrap().command else {

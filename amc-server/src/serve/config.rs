@@ -58,8 +58,9 @@ pub struct ServeConfig {
     pub live_n_avg: usize,
     /// `--live-deghost`: auto, off or levels.
     pub live_deghost: String,
-    /// Framing of the live output: auto or none (static needs the whole clip: refused).
-    pub live_zoom: amc_core::Zoom,
+    /// Framing of the live output: auto or none (static needs the whole clip: refused);
+    /// unset, the framing `live_mode` has in `amc stabilize` (none in saccade mode).
+    pub live_zoom: Option<amc_core::Zoom>,
     /// Crop budget of `live_zoom` auto (0..=0.5).
     pub live_max_crop: f64,
     /// With `live_zoom` none: share cropped from each side of the live output (0..=0.45).
@@ -320,7 +321,10 @@ impl ServeConfig {
                     detail: e.to_string(),
                 })?;
         params.render.margin = self.live_margin;
-        if self.live_zoom == amc_core::Zoom::Static {
+        let zoom = self
+            .live_zoom
+            .unwrap_or_else(|| amc_core::StabilizerOptions::default_zoom(self.live_mode));
+        if zoom == amc_core::Zoom::Static {
             return Err(ServiceError::Invalid {
                 flag: "live-zoom",
                 detail:
@@ -329,7 +333,7 @@ impl ServeConfig {
             }
             .into());
         }
-        params.framing.zoom = self.live_zoom;
+        params.framing.zoom = zoom;
         params.framing.max_crop = self.live_max_crop;
         params.render.output_width = self.live_width;
         let lens = match &self.live_lens {
