@@ -26,7 +26,12 @@ fn eval_plot_and_markdown_table() {
         "no `| stabilize |` row in the table:\n{}",
         r.stdout
     );
-    for mode in ["| none |", "| saccade |"] {
+    // Saccade mode's fixed crop (zoom none) beside the none row in the same framing.
+    for mode in [
+        "| none |",
+        "| saccade (zoom none) |",
+        "| none (zoom none) |",
+    ] {
         assert!(
             r.stdout.contains(mode),
             "no `{mode}` row in the table:\n{}",
@@ -76,6 +81,9 @@ fn eval_frames_each_mode_as_stabilize_does() {
     ]);
     let stabilize = read_json(&metrics);
     let (row, auto_row) = (saccade_row(&[]), saccade_row(&["--zoom", "auto"]));
+    // Its ratios are to a `none` run in its own framing, a row of the table.
+    let table = eval_synth_clip(&clip, &["-q"]).stdout;
+    assert!(table.contains("| none (zoom none) |"), "{table}");
     for key in ["rms_change", "sharpness"] {
         let (a, b) = (
             json_f64(&row, &format!("/{key}")),

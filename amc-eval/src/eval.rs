@@ -14,6 +14,9 @@ use std::time::Duration;
 #[derive(Serialize)]
 pub struct ModeResult {
     pub mode: String,
+    /// The run's framing (`auto`, `static` or `none`): each row's ratios are to
+    /// the `none` row of the same framing.
+    pub zoom: String,
     #[serde(flatten)]
     pub run: RunSummary,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -85,13 +88,30 @@ pub fn run(
         None => None,
     };
     let mut modes = Vec::new();
-    for mode in [Mode::None, Mode::Stabilize, Mode::Saccade] {
+    // Each mode framed as `amc stabilize` frames it; where saccade mode's fixed
+    // crop differs from the `none` row's framing, a second `none` row in its
+    // framing, so that its ratios compare like with like (a crop magnifies the
+    // motion in pixels).
+    let zoom_of = |mode| {
+        if args.options.zoom_given {
+            base.framing.zoom
+        } else {
+            StabilizerOptions::default_zoom(mode)
+        }
+    };
+    let mut rows = vec![
+        (Mode::None, zoom_of(Mode::None)),
+        (Mode::Stabilize, zoom_of(Mode::Stabilize)),
+        (Mode::Saccade, zoom_of(Mode::Saccade)),
+    ];
+    if zoom_of(Mode::Saccade) != zoom_of(Mode::None) {
+        rows.push((Mode::None, zoom_of(Mode::Saccade)));
+    }
+    for (mode, zoom) in rows {
         let label = mode.to_string();
         let mut params = base.clone();
         params.view.mode = mode;
-        if !args.options.zoom_given {
-            params.framing.zoom = amc_core::StabilizerOptions::default_zoom(mode);
-        }
+        params.framing.zoom = zoom;
         let report = |p: Progress| progress(mode, p);
         let cfg = RunConfig {
             input: &args.input,
@@ -126,6 +146,7 @@ pub fn run(
             });
         modes.push(ModeResult {
             mode: label,
+            zoom: zoom.to_string(),
             run,
             ground_truth,
         });
@@ -137,7 +158,7 @@ pub fn run(
                 let speed = |v: [f64; 3]| Tangent::from(v).norm().to_degrees();
                 let pf = &m.run.per_frame;
                 ModeSeries {
-                    mode: m.mode.clone(),
+                    mode: row_label(m, &modes[0].zoom),
                     t: pf.iter().map(|r| r.telemetry.t).collect(),
                     est_speed_dps: pf.iter().map(|r| speed(r.telemetry.rate_est)).collect(),
                     view_speed_dps: pf.iter().map(|r| speed(r.telemetry.rate_view)).collect(),
@@ -157,24 +178,41 @@ pub fn run(
     })
 }
 
+/// A row's name: its mode, and its framing where it differs from the first row's.
+fn row_label(m: &ModeResult, first_zoom: &str) -> String {
+    if m.zoom == first_zoom {
+        m.mode.clone()
+    } else {
+        format!("{} (zoom {})", m.mode, m.zoom)
+    }
+}
+
 /// The paper's table, in Markdown.
 pub fn markdown(r: &EvalReport) -> String {
     let mut s = format!(
         "Clip: `{}`; lens hfov {:.1} deg\n\n| mode | RMS normal flow (px) | RMS frame change | sharpness | valid px (mean / min) | est. speed (deg/s) | view speed (deg/s) | saccades | frames/s |\n|---|---|---|---|---|---|---|---|---|\n",
         r.input, r.hfov_deg
     );
-    let none = r.modes.first().and_then(|m| m.run.metrics.clone());
+    let first_zoom = r.modes.first().map(|m| m.zoom.clone());
     for m in &r.modes {
         let Some(c) = m.run.metrics.as_ref() else {
             continue;
         };
+        let none = r
+            .modes
+            .iter()
+            .find(|n| n.mode == "none" && n.zoom == m.zoom)
+            .and_then(|n| n.run.metrics.clone());
+        let label = first_zoom
+            .as_ref()
+            .map_or(m.mode.clone(), |z| row_label(m, z));
         let ratio = |v: f64, base: Option<f64>| match base {
             Some(b) if b > 0.0 && m.mode != "none" => format!(" ({:.2}x)", v / b),
             _ => String::new(),
         };
         s += &format!(
             "| {} | {:.3}{} | {:.4}{} | {:.4}{} | {:.1}% / {:.1}% | {:.1} | {:.1} | {} | {:.0} |\n",
-            m.mode,
+            label,
             c.rms_normal_flow,
             ratio(c.rms_normal_flow, none.as_ref().map(|n| n.rms_normal_flow)),
             c.rms_change,

@@ -120,14 +120,21 @@ fn the_job_table_and_bucket_go_together_and_are_checked() {
     }
 }
 
+/// The live feed's stabilizer parameters from `amc ARGV` (a `serve` command line).
+fn live_params(argv: &[&str]) -> Result<amc_core::StabilizerParams, String> {
+    let Command::Serve(a) = parse(argv).unwrap().command else {
+        panic!("not serve")
+    };
+    a.config()
+        .map_err(|e| e.to_string())?
+        .live()
+        .map(|live| live.params)
+        .map_err(|e| e.to_string())
+}
+
 #[test]
 fn live_roll_reaches_the_live_feeds_view() {
-    let roll = |argv: &[&str]| {
-        let Command::Serve(a) = parse(argv).unwrap().command else {
-            panic!("not serve")
-        };
-        a.config().unwrap().live().unwrap().params.view.roll
-    };
+    let roll = |argv: &[&str]| live_params(argv).unwrap().view.roll;
     assert_eq!(roll(&["serve"]), amc_core::Roll::Smooth);
     assert_eq!(
         roll(&["serve", "--live-roll", "lock"]),
@@ -142,12 +149,7 @@ fn live_roll_reaches_the_live_feeds_view() {
 
 #[test]
 fn live_saccade_mode_keeps_a_fixed_crop_unless_a_zoom_is_given() {
-    let zoom = |argv: &[&str]| {
-        let Command::Serve(a) = parse(argv).unwrap().command else {
-            panic!("not serve")
-        };
-        a.config().unwrap().live().unwrap().params.framing.zoom
-    };
+    let zoom = |argv: &[&str]| live_params(argv).unwrap().framing.zoom;
     assert_eq!(zoom(&["serve"]), amc_core::Zoom::Auto);
     assert_eq!(
         zoom(&["serve", "--live-mode", "saccade"]),
@@ -161,20 +163,11 @@ fn live_saccade_mode_keeps_a_fixed_crop_unless_a_zoom_is_given() {
 
 #[test]
 fn live_readout_is_a_number_and_auto_is_refused() {
-    let live = |argv: &[&str]| {
-        let Command::Serve(a) = parse(argv).unwrap().command else {
-            panic!("not serve")
-        };
-        a.config().unwrap().live()
-    };
-    let readout = |argv: &[&str]| live(argv).unwrap().params.shutter.readout_ms;
+    let readout = |argv: &[&str]| live_params(argv).unwrap().shutter.readout_ms;
     assert_eq!(readout(&["serve"]), 0.0);
     assert_eq!(readout(&["serve", "--live-readout-ms", "16.5"]), 16.5);
     for (value, needle) in [("auto", "whole clip"), ("200", "0..=100"), ("x", "0..=100")] {
-        let e = live(&["serve", "--live-readout-ms", value])
-            .err()
-            .unwrap()
-            .to_string();
+        let e = live_params(&["serve", "--live-readout-ms", value]).unwrap_err();
         assert!(
             e.contains("--live-readout-ms") && e.contains(needle),
             "{value}: {e}"
