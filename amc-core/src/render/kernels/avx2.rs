@@ -589,6 +589,80 @@ pub(super) unsafe fn merge_row_gray(
     }
 }
 
+/// [`merge_row_gray`] of two planes of one geometry at once (the U and V
+/// planes of 4:2:0 frames), each plane weighted by its own agreement with its
+/// last frame, as two calls would; each chunk's taps are found once for both
+/// (bilinear only: bicubic pairs go plane by plane, see `Kernel::pairs_bicubic`).
+///
+/// # Safety
+/// As [`merge_row_gray`], for both planes' data.
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe fn merge_row_gray_pair(
+    (datas_a, datas_b): (&[&[u8]], &[&[u8]]),
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    deghost: Deghost,
+    n8: usize,
+    (sum_a, sum_b): (&mut [u32], &mut [u32]),
+    (weight_a, weight_b): (&mut [u32], &mut [u32]),
+    count: &mut [u32],
+) {
+    debug_assert!(n8 & 7 == 0 && !coords.is_empty() && !g.cubic);
+    debug_assert!(datas_a.len() == coords.len() && datas_b.len() == coords.len());
+    let last = coords.len() - 1;
+    let one = _mm256_set1_epi32(1);
+    let full = _mm256_set1_epi32(FULL_WEIGHT as i32);
+    let z = _mm256_setzero_si256();
+    let sample_pair = |a: &[u8], b: &[u8], coord: &RowCoords<'_>, u: usize| {
+        let t = taps8(&g, row_coords8(coord, u))?;
+        let t = PlaneTaps8::of(&g, t, falls(coord, u));
+        Some((t.sample(a), t.sample(b), t.mask))
+    };
+    let mut u = 0;
+    while u < n8 {
+        let (ra, rb, m0) =
+            sample_pair(datas_a[last], datas_b[last], &coords[last], u).unwrap_or((z, z, z));
+        let w0 = _mm256_and_si256(m0, full);
+        let (mut acc_a, mut acc_b) = (_mm256_mullo_epi32(w0, ra), _mm256_mullo_epi32(w0, rb));
+        let (mut acc_wa, mut acc_wb) = (w0, w0);
+        let mut acc_n = _mm256_and_si256(m0, one);
+        let frames = datas_a[..last].iter().zip(&datas_b[..last]).zip(coords);
+        for ((a, b), coord) in frames {
+            let Some((va, vb, mask)) = sample_pair(a, b, coord, u) else {
+                continue;
+            };
+            let wa = weights8(
+                deghost,
+                _mm256_abs_epi32(_mm256_sub_epi32(va, ra)),
+                m0,
+                mask,
+            );
+            acc_a = _mm256_add_epi32(acc_a, _mm256_mullo_epi32(wa, va));
+            acc_wa = _mm256_add_epi32(acc_wa, wa);
+            let wb = weights8(
+                deghost,
+                _mm256_abs_epi32(_mm256_sub_epi32(vb, rb)),
+                m0,
+                mask,
+            );
+            acc_b = _mm256_add_epi32(acc_b, _mm256_mullo_epi32(wb, vb));
+            acc_wb = _mm256_add_epi32(acc_wb, wb);
+            acc_n = _mm256_add_epi32(acc_n, _mm256_and_si256(mask, one));
+        }
+        for (dst, v) in [
+            (&mut *sum_a, acc_a),
+            (&mut *sum_b, acc_b),
+            (&mut *weight_a, acc_wa),
+            (&mut *weight_b, acc_wb),
+            (&mut *count, acc_n),
+        ] {
+            _mm256_storeu_si256(dst.as_mut_ptr().add(u) as *mut __m256i, v);
+        }
+        u += 8;
+    }
+}
+
 /// Source coordinates of output pixels `u..u + 8` of one frame's row: loaded
 /// from its table, or evaluated from its homography exactly as the scalar
 /// formula does (no FMA, same operation order: bit-exact).

@@ -123,22 +123,12 @@ pub(super) unsafe fn accumulate_row_gray_pair(
             _mm512_setzero_si512(),
         );
         for ((a, b), coord) in datas_a.iter().zip(datas_b).zip(coords) {
-            let Some(t) = taps16(&g, row_coords16(coord, u, lanes), lanes) else {
+            let Some((va, vb, mask)) = sample_pair16((a, b), &g, coord, u, lanes) else {
                 continue;
-            };
-            let (va, vb) = if g.cubic {
-                sample_cubic16_pair((a, b), &g, coord, u, &t)
-            } else {
-                let ((top_a, bot_a), (top_b, bot_b)) =
-                    match window(&g, &t, falls(coord, u), a.len().min(b.len())) {
-                        Some(w) => (window_fetch(a, &g, &w), window_fetch(b, &g, &w)),
-                        None => (gather_pairs(a, &g, &t), gather_pairs(b, &g, &t)),
-                    };
-                (interpolate(&t, top_a, bot_a), interpolate(&t, top_b, bot_b))
             };
             sum_a = _mm512_add_epi32(sum_a, va);
             sum_b = _mm512_add_epi32(sum_b, vb);
-            sum_n = _mm512_mask_add_epi32(sum_n, t.mask, sum_n, one);
+            sum_n = _mm512_mask_add_epi32(sum_n, mask, sum_n, one);
         }
         _mm512_mask_storeu_epi32(acc_a.as_mut_ptr().add(u) as *mut i32, lanes, sum_a);
         _mm512_mask_storeu_epi32(acc_b.as_mut_ptr().add(u) as *mut i32, lanes, sum_b);
@@ -195,6 +185,103 @@ pub(super) unsafe fn merge_row_gray(
         _mm512_mask_storeu_epi32(count.as_mut_ptr().add(u) as *mut i32, lanes, acc_n);
         u += 16;
     }
+}
+
+/// [`merge_row_gray`] of two planes of one geometry at once (the U and V
+/// planes of 4:2:0 frames), each plane weighted by its own agreement with its
+/// last frame, as two calls would: `sum_a`/`weight_a` and `sum_b`/`weight_b`,
+/// one `count`; each chunk's taps are found once for both planes.
+///
+/// # Safety
+/// As [`merge_row_gray`], for both planes' data.
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe fn merge_row_gray_pair(
+    (datas_a, datas_b): (&[&[u8]], &[&[u8]]),
+    g: KernelGeometry,
+    coords: &[RowCoords<'_>],
+    deghost: Deghost,
+    n8: usize,
+    (sum_a, sum_b): (&mut [u32], &mut [u32]),
+    (weight_a, weight_b): (&mut [u32], &mut [u32]),
+    count: &mut [u32],
+) {
+    debug_assert!(n8 & 7 == 0 && !coords.is_empty());
+    debug_assert!(datas_a.len() == coords.len() && datas_b.len() == coords.len());
+    let last = coords.len() - 1;
+    let (one, full) = (_mm512_set1_epi32(1), _mm512_set1_epi32(FULL_WEIGHT as i32));
+    let z = _mm512_setzero_si512();
+    let mut u = 0;
+    while u < n8 {
+        let lanes = step_lanes(n8, u);
+        let (ra, rb, m0) =
+            sample_pair16((datas_a[last], datas_b[last]), &g, &coords[last], u, lanes)
+                .unwrap_or((z, z, 0));
+        let w0 = _mm512_maskz_mov_epi32(m0, full);
+        let (mut acc_a, mut acc_b) = (_mm512_mullo_epi32(w0, ra), _mm512_mullo_epi32(w0, rb));
+        let (mut acc_wa, mut acc_wb) = (w0, w0);
+        let mut acc_n = _mm512_maskz_mov_epi32(m0, one);
+        let frames = datas_a[..last].iter().zip(&datas_b[..last]).zip(coords);
+        for ((a, b), coord) in frames {
+            let Some((va, vb, mask)) = sample_pair16((a, b), &g, coord, u, lanes) else {
+                continue;
+            };
+            let wa = weights16(
+                deghost,
+                _mm512_abs_epi32(_mm512_sub_epi32(va, ra)),
+                m0,
+                mask,
+            );
+            acc_a = _mm512_add_epi32(acc_a, _mm512_mullo_epi32(wa, va));
+            acc_wa = _mm512_add_epi32(acc_wa, wa);
+            let wb = weights16(
+                deghost,
+                _mm512_abs_epi32(_mm512_sub_epi32(vb, rb)),
+                m0,
+                mask,
+            );
+            acc_b = _mm512_add_epi32(acc_b, _mm512_mullo_epi32(wb, vb));
+            acc_wb = _mm512_add_epi32(acc_wb, wb);
+            acc_n = _mm512_mask_add_epi32(acc_n, mask, acc_n, one);
+        }
+        for (dst, v) in [
+            (&mut *sum_a, acc_a),
+            (&mut *sum_b, acc_b),
+            (&mut *weight_a, acc_wa),
+            (&mut *weight_b, acc_wb),
+            (&mut *count, acc_n),
+        ] {
+            _mm512_mask_storeu_epi32(dst.as_mut_ptr().add(u) as *mut i32, lanes, v);
+        }
+        u += 16;
+    }
+}
+
+/// The samples of output pixels `u..u + 16` in two planes of one geometry,
+/// their taps found once (windows or gathers, bilinear or bicubic, as
+/// [`sample_gray16`] takes them per plane), and the lanes inside the planes;
+/// `None` where no lane is.
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+#[inline]
+unsafe fn sample_pair16(
+    (a, b): (&[u8], &[u8]),
+    g: &KernelGeometry,
+    coord: &RowCoords<'_>,
+    u: usize,
+    lanes: __mmask16,
+) -> Option<(__m512i, __m512i, __mmask16)> {
+    let t = taps16(g, row_coords16(coord, u, lanes), lanes)?;
+    let (va, vb) = if g.cubic {
+        sample_cubic16_pair((a, b), g, coord, u, &t)
+    } else {
+        let ((top_a, bot_a), (top_b, bot_b)) =
+            match window(g, &t, falls(coord, u), a.len().min(b.len())) {
+                Some(w) => (window_fetch(a, g, &w), window_fetch(b, g, &w)),
+                None => (gather_pairs(a, g, &t), gather_pairs(b, g, &t)),
+            };
+        (interpolate(&t, top_a, bot_a), interpolate(&t, top_b, bot_b))
+    };
+    Some((va, vb, t.mask))
 }
 
 /// The ghost-free weights of sixteen samples differing by `d` from the

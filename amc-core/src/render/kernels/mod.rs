@@ -330,6 +330,47 @@ impl Kernel {
         })
     }
 
+    /// [`Kernel::merge_row_gray`] of two planes of one geometry (the U and V
+    /// planes of 4:2:0 frames), each weighted by its own agreement with its last
+    /// frame: `sums.0`/`weights.0` from `datas.0`, `sums.1`/`weights.1` from
+    /// `datas.1`, one `count`. AVX2 and AVX-512 find each chunk's taps once for
+    /// both planes (bicubic: AVX-512 only); the others run the plane kernel twice.
+    ///
+    /// # Safety
+    /// As [`Kernel::merge_row_gray`], for both planes' data.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub(crate) unsafe fn merge_row_gray_pair(
+        self,
+        datas: (&[&[u8]], &[&[u8]]),
+        geom: &Geometry,
+        coords: &[RowCoords<'_>],
+        deghost: Deghost,
+        n: usize,
+        sums: (&mut [u32], &mut [u32]),
+        weights: (&mut [u32], &mut [u32]),
+        count: &mut [u32],
+    ) {
+        debug_assert_eq!(geom.channels, 1);
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx512 => {
+                let g = common::KernelGeometry::of(geom);
+                avx512::merge_row_gray_pair(datas, g, coords, deghost, n, sums, weights, count)
+            }
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2 if !geom.cubic => {
+                let g = common::KernelGeometry::of(geom);
+                avx2::merge_row_gray_pair(datas, g, coords, deghost, n, sums, weights, count)
+            }
+            _ => {
+                let (a, b) = datas;
+                self.merge_row_gray(a, geom, coords, deghost, n, sums.0, weights.0, count);
+                self.merge_row_gray(b, geom, coords, deghost, n, sums.1, weights.1, count);
+            }
+        }
+    }
+
     /// Finishes the first `n` pixels of a single-channel output row from
     /// [`Kernel::accumulate_row_gray`]'s sums when this kernel has a finishing
     /// pass (AVX2, AVX-512, `simd128`): `out[u] = round(sum / (256 n))` exactly as the scalar

@@ -231,6 +231,56 @@ fn every_kernel_matches_scalar() {
                 let sums = run_merge_gray(kernel);
                 assert_eq!(sums, reference, "merge gray {levels} {kernel:?}");
             }
+            // Two planes at once (the second's frames in another order, as
+            // above): each as the plane kernel merges it, with its own weights.
+            let (mut other_s, mut other_w, mut other_c) = (vec![0; n], vec![0; n], vec![0; n]);
+            // SAFETY: as above.
+            unsafe {
+                Kernel::Scalar.merge_row_gray(
+                    &others,
+                    &gray,
+                    &coords,
+                    deghost,
+                    n,
+                    &mut other_s,
+                    &mut other_w,
+                    &mut other_c,
+                )
+            };
+            assert_ne!(
+                other_w, reference[1],
+                "{levels}: the planes' weights differ"
+            );
+            for kernel in Kernel::available() {
+                let mut sums = vec![vec![0u32; n]; 5];
+                let [sa, sb, wa, wb, c] = &mut sums[..] else {
+                    unreachable!()
+                };
+                // SAFETY: as above, for both sets of planes.
+                unsafe {
+                    kernel.merge_row_gray_pair(
+                        (&datas, &others),
+                        &gray,
+                        &coords,
+                        deghost,
+                        n,
+                        (sa, sb),
+                        (wa, wb),
+                        c,
+                    )
+                };
+                let first = [sums[0].clone(), sums[2].clone(), sums[4].clone()];
+                assert_eq!(
+                    first.to_vec(),
+                    reference,
+                    "merge pair, first {levels} {kernel:?}"
+                );
+                assert_eq!(
+                    (&sums[1], &sums[3]),
+                    (&other_s, &other_w),
+                    "merge pair, second {levels} {kernel:?}"
+                );
+            }
         }
     }
 }

@@ -58,7 +58,7 @@ impl Warper {
                     |w, scratch, v, out_row, cov_row| {
                         scratch.fit(n_frames, ow, pass.tables, merged.is_some());
                         if let Some(deghost) = merged {
-                            w.merge_row(&pass, v, scratch, false, deghost);
+                            w.merge_row(&pass, None, v, scratch, false, deghost);
                             finish_merged_rgb_row(
                                 w.kernel, scratch, out_row, cov_row, channels, full,
                             )

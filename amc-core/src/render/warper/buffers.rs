@@ -29,8 +29,9 @@ pub(super) struct RowScratch {
     /// Frames covering each pixel of the row.
     pub(super) count: Vec<u32>,
     /// Ghost-free averaging: the weights' sum per pixel (`sums` then holds
-    /// the weighted sums).
+    /// the weighted sums); `weight_b` the second plane's of a pair (`sums[1]`).
     pub(super) weight: Vec<u32>,
+    pub(super) weight_b: Vec<u32>,
 }
 
 impl RowScratch {
@@ -49,6 +50,7 @@ impl RowScratch {
         }
         if merged {
             self.weight.resize(width, 0);
+            self.weight_b.resize(width, 0);
         }
     }
 }

@@ -159,20 +159,27 @@ pub(super) fn finish_merged_rgb_row(
 /// pixels `fill`): the first `n8` pixels by the vector kernel's finisher (its
 /// `round(sum / (256 n))` is `weighted_average`'s with the weights' sum for
 /// `n`, the same `f32` operations), the rest here; returns the pixels every
-/// frame covers.
+/// frame covers. `plane` 1 is the second plane of a pair (`sums[1]`, `weight_b`).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn finish_merged_gray_row(
     kernel: Kernel,
     n8: usize,
     scratch: &RowScratch,
+    plane: usize,
     out_row: &mut [u8],
     cov_row: &mut [u8],
     full: u8,
     fill: u8,
 ) -> usize {
     let ow = cov_row.len();
+    let weight = if plane == 0 {
+        &scratch.weight
+    } else {
+        &scratch.weight_b
+    };
     let (sum, w, n) = (
-        &scratch.sums[0][..ow],
-        &scratch.weight[..ow],
+        &scratch.sums[plane][..ow],
+        &weight[..ow],
         &scratch.count[..ow],
     );
     // SAFETY: `n8 > 0` only with a vectorized kernel (a multiple of 8), and

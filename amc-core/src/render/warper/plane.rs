@@ -52,9 +52,9 @@ impl Warper {
                     w.for_each_row(out, ow, coverage, |w, scratch, v, out_row, cov_row| {
                         scratch.fit(n_frames, ow, pass.tables, merged.is_some());
                         if let Some(deghost) = merged {
-                            w.merge_row(&pass, v, scratch, true, deghost);
+                            w.merge_row(&pass, None, v, scratch, true, deghost);
                             finish_merged_gray_row(
-                                w.kernel, pass.n8, scratch, out_row, cov_row, full, fill,
+                                w.kernel, pass.n8, scratch, 0, out_row, cov_row, full, fill,
                             )
                         } else {
                             w.accumulate_row(&pass, None, v, scratch, true);
@@ -77,8 +77,9 @@ impl Warper {
     /// frame `i`'s pair, the averages go to `out_a` and `out_b`, the covering
     /// frames (the same for both) to `coverage`. The vector kernels sample both
     /// planes along a row at once, finding each pixel's taps once (see
-    /// [`Kernel::accumulate_row_gray_pair`](crate::render::kernels::Kernel::accumulate_row_gray_pair)); ghost-free averaging and
-    /// unpadded planes take the planes one after the other. Returns how many
+    /// [`Kernel::accumulate_row_gray_pair`](crate::render::kernels::Kernel::accumulate_row_gray_pair),
+    /// and `merge_row_gray_pair` for ghost-free averaging, each plane weighted by
+    /// its own agreement); unpadded planes take the planes one after the other. Returns how many
     /// pixels every frame covers. Supersampled: as [`Warper::average_into`].
     #[allow(clippy::too_many_arguments)]
     pub fn average_plane_pair_into<'a, F: Fn(usize) -> (&'a [u8], &'a [u8])>(
@@ -103,8 +104,8 @@ impl Warper {
             }
         }
         let padded = |d: &[&[u8]]| d.iter().all(|p| p.len() >= width * height + FRAME_PADDING);
-        let fused = self.deghost.filter(|_| n_frames > 1).is_none()
-            && self.kernel.is_vectorized()
+        let merged = self.deghost.filter(|_| n_frames > 1);
+        let fused = self.kernel.is_vectorized()
             && padded(&datas[0][..n_frames])
             && padded(&datas[1][..n_frames]);
         if !fused {
@@ -137,9 +138,19 @@ impl Warper {
                     2 * ow,
                     coverage,
                     |w, scratch, v, out_row, cov_row| {
-                        scratch.fit(n_frames, ow, pass_a.tables, false);
-                        w.accumulate_row(&pass_a, Some(&pass_b), v, scratch, true);
+                        scratch.fit(n_frames, ow, pass_a.tables, merged.is_some());
                         let (row_a, row_b) = out_row.split_at_mut(ow);
+                        if let Some(deghost) = merged {
+                            w.merge_row(&pass_a, Some(&pass_b), v, scratch, true, deghost);
+                            let n8 = pass_a.n8;
+                            let k = w.kernel;
+                            let complete = finish_merged_gray_row(
+                                k, n8, scratch, 0, row_a, cov_row, full, fill,
+                            );
+                            finish_merged_gray_row(k, n8, scratch, 1, row_b, cov_row, full, fill);
+                            return complete;
+                        }
+                        w.accumulate_row(&pass_a, Some(&pass_b), v, scratch, true);
                         let complete = finish_gray_row(
                             w.kernel, &pass_a, scratch, 0, row_a, cov_row, full, fill,
                         );

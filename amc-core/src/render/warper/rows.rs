@@ -174,10 +174,13 @@ impl Warper {
     /// frame, by the vector kernel for the first `n8` pixels and the scalar
     /// reference for the rest: weighted sums in `scratch.sums` (three channels,
     /// or one when `gray`), the weights' sum in `scratch.weight` and the
-    /// covering frames in `scratch.count`, for every pixel.
+    /// covering frames in `scratch.count`, for every pixel. With `pair` (a second
+    /// plane of the same geometry, `gray` only) its sums go to `scratch.sums[1]`
+    /// and its weights to `scratch.weight_b`, its taps found with the first's.
     pub(super) fn merge_row(
         &self,
         pass: &Pass<'_, '_>,
+        pair: Option<&Pass<'_, '_>>,
         v: usize,
         scratch: &mut RowScratch,
         gray: bool,
@@ -193,12 +196,29 @@ impl Warper {
         let coords = Self::row_coords(pass, v, &scratch.xs, &scratch.ys);
         let (datas, coords, geom) = (&pass.datas[..n], &coords[..n], &pass.geom);
         let [r, g, b] = &mut scratch.sums;
-        let (weight, count) = (&mut scratch.weight, &mut scratch.count);
+        let (weight, weight_b, count) = (
+            &mut scratch.weight,
+            &mut scratch.weight_b,
+            &mut scratch.count,
+        );
         // SAFETY: as in `accumulate_row`: the kernel comes from `Kernel::detect`
         // (vectorized only when `n8 > 0`, a multiple of 8), `pass` checked the
-        // padding, every row buffer holds `ow >= n8` values, and `n >= 2`.
+        // padding (and `pair`, of the same `n8`), every row buffer holds
+        // `ow >= n8` values, and `n >= 2`.
         unsafe {
-            if gray {
+            if let Some(pair) = pair.filter(|_| pass.n8 > 0) {
+                debug_assert!(gray && pair.n8 == pass.n8 && pair.datas.len() >= n);
+                self.kernel.merge_row_gray_pair(
+                    (datas, &pair.datas[..n]),
+                    geom,
+                    coords,
+                    deghost,
+                    pass.n8,
+                    (&mut *r, &mut *g),
+                    (&mut *weight, &mut *weight_b),
+                    count,
+                );
+            } else if gray {
                 if pass.n8 > 0 {
                     self.kernel
                         .merge_row_gray(datas, geom, coords, deghost, pass.n8, r, weight, count);
@@ -223,7 +243,11 @@ impl Warper {
                 *t = RowCoords::Table(xs, ys);
             }
             let span = (pass.n8, ow);
-            if gray {
+            if let Some(pair) = pair {
+                let (table, pair_datas) = (&table[..n], &pair.datas[..n]);
+                merge_row_gray_scalar(datas, geom, table, deghost, span, r, weight, count);
+                merge_row_gray_scalar(pair_datas, geom, table, deghost, span, g, weight_b, count);
+            } else if gray {
                 merge_row_gray_scalar(datas, geom, &table[..n], deghost, span, r, weight, count);
             } else {
                 merge_row_scalar(
