@@ -16,8 +16,9 @@
 //! rows (`sample_cubic16`). The ghost-free average of planes
 //! (`merge_row_gray`) samples the same way.
 
+pub(super) use super::avx512_merge::{merge_row_gray, merge_row_gray_pair};
 use super::common::{falls, KernelGeometry, RowCoords, EDGE_TOLERANCE};
-use crate::render::robust::{Deghost, FULL_WEIGHT};
+
 use std::arch::x86_64::*;
 
 /// Largest offset of a lane's left tap inside the 64-byte window: its right
@@ -36,7 +37,7 @@ const PAIR_BYTES: __mmask64 = 0x5555_5555_5555_5555;
 /// The lanes of the step at pixel `u` of `n8` (a multiple of 8): all sixteen,
 /// or the lower eight in a last step of eight.
 #[inline(always)]
-fn step_lanes(n8: usize, u: usize) -> __mmask16 {
+pub(super) fn step_lanes(n8: usize, u: usize) -> __mmask16 {
     if n8 - u >= 16 {
         0xFFFF
     } else {
@@ -137,133 +138,13 @@ pub(super) unsafe fn accumulate_row_gray_pair(
     }
 }
 
-/// The ghost-free twin of [`accumulate_row_gray`] (the contract of
-/// `scalar::merge_row_gray`): for `u in 0..n8`, the last frame's samples are
-/// taken first and every frame's then weighted by its agreement with them,
-/// in registers; `sum`, `weight` and `count` are stored once per chunk. The
-/// samples are [`accumulate_row_gray`]'s (windows or gathers, bilinear or
-/// bicubic), the weights the AVX2 kernel's (`weights8`), sixteen lanes wide.
-///
-/// # Safety
-/// As [`accumulate_row_gray`], and `datas` must not be empty.
-#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
-#[allow(clippy::too_many_arguments)]
-pub(super) unsafe fn merge_row_gray(
-    datas: &[&[u8]],
-    g: KernelGeometry,
-    coords: &[RowCoords<'_>],
-    deghost: Deghost,
-    n8: usize,
-    sum: &mut [u32],
-    weight: &mut [u32],
-    count: &mut [u32],
-) {
-    debug_assert!(n8 & 7 == 0 && datas.len() == coords.len() && !datas.is_empty());
-    debug_assert!(sum.len() >= n8 && weight.len() >= n8 && count.len() >= n8);
-    let last = datas.len() - 1;
-    let (one, full) = (_mm512_set1_epi32(1), _mm512_set1_epi32(FULL_WEIGHT as i32));
-    let mut u = 0;
-    while u < n8 {
-        let lanes = step_lanes(n8, u);
-        let (v0, m0) = sample_gray16(datas[last], &g, &coords[last], u, lanes)
-            .unwrap_or((_mm512_setzero_si512(), 0));
-        let w0 = _mm512_maskz_mov_epi32(m0, full);
-        let mut acc = _mm512_mullo_epi32(w0, v0);
-        let (mut acc_w, mut acc_n) = (w0, _mm512_maskz_mov_epi32(m0, one));
-        for (data, coord) in datas[..last].iter().zip(coords) {
-            let Some((v, mask)) = sample_gray16(data, &g, coord, u, lanes) else {
-                continue;
-            };
-            let d = _mm512_abs_epi32(_mm512_sub_epi32(v, v0));
-            let w = weights16(deghost, d, m0, mask);
-            acc = _mm512_add_epi32(acc, _mm512_mullo_epi32(w, v));
-            acc_w = _mm512_add_epi32(acc_w, w);
-            acc_n = _mm512_mask_add_epi32(acc_n, mask, acc_n, one);
-        }
-        _mm512_mask_storeu_epi32(sum.as_mut_ptr().add(u) as *mut i32, lanes, acc);
-        _mm512_mask_storeu_epi32(weight.as_mut_ptr().add(u) as *mut i32, lanes, acc_w);
-        _mm512_mask_storeu_epi32(count.as_mut_ptr().add(u) as *mut i32, lanes, acc_n);
-        u += 16;
-    }
-}
-
-/// [`merge_row_gray`] of two planes of one geometry at once (the U and V
-/// planes of 4:2:0 frames), each plane weighted by its own agreement with its
-/// last frame, as two calls would: `sum_a`/`weight_a` and `sum_b`/`weight_b`,
-/// one `count`; each chunk's taps are found once for both planes.
-///
-/// # Safety
-/// As [`merge_row_gray`], for both planes' data.
-#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
-#[allow(clippy::too_many_arguments)]
-pub(super) unsafe fn merge_row_gray_pair(
-    (datas_a, datas_b): (&[&[u8]], &[&[u8]]),
-    g: KernelGeometry,
-    coords: &[RowCoords<'_>],
-    deghost: Deghost,
-    n8: usize,
-    (sum_a, sum_b): (&mut [u32], &mut [u32]),
-    (weight_a, weight_b): (&mut [u32], &mut [u32]),
-    count: &mut [u32],
-) {
-    debug_assert!(n8 & 7 == 0 && !coords.is_empty());
-    debug_assert!(datas_a.len() == coords.len() && datas_b.len() == coords.len());
-    let last = coords.len() - 1;
-    let (one, full) = (_mm512_set1_epi32(1), _mm512_set1_epi32(FULL_WEIGHT as i32));
-    let z = _mm512_setzero_si512();
-    let mut u = 0;
-    while u < n8 {
-        let lanes = step_lanes(n8, u);
-        let (ra, rb, m0) =
-            sample_pair16((datas_a[last], datas_b[last]), &g, &coords[last], u, lanes)
-                .unwrap_or((z, z, 0));
-        let w0 = _mm512_maskz_mov_epi32(m0, full);
-        let (mut acc_a, mut acc_b) = (_mm512_mullo_epi32(w0, ra), _mm512_mullo_epi32(w0, rb));
-        let (mut acc_wa, mut acc_wb) = (w0, w0);
-        let mut acc_n = _mm512_maskz_mov_epi32(m0, one);
-        let frames = datas_a[..last].iter().zip(&datas_b[..last]).zip(coords);
-        for ((a, b), coord) in frames {
-            let Some((va, vb, mask)) = sample_pair16((a, b), &g, coord, u, lanes) else {
-                continue;
-            };
-            let wa = weights16(
-                deghost,
-                _mm512_abs_epi32(_mm512_sub_epi32(va, ra)),
-                m0,
-                mask,
-            );
-            acc_a = _mm512_add_epi32(acc_a, _mm512_mullo_epi32(wa, va));
-            acc_wa = _mm512_add_epi32(acc_wa, wa);
-            let wb = weights16(
-                deghost,
-                _mm512_abs_epi32(_mm512_sub_epi32(vb, rb)),
-                m0,
-                mask,
-            );
-            acc_b = _mm512_add_epi32(acc_b, _mm512_mullo_epi32(wb, vb));
-            acc_wb = _mm512_add_epi32(acc_wb, wb);
-            acc_n = _mm512_mask_add_epi32(acc_n, mask, acc_n, one);
-        }
-        for (dst, v) in [
-            (&mut *sum_a, acc_a),
-            (&mut *sum_b, acc_b),
-            (&mut *weight_a, acc_wa),
-            (&mut *weight_b, acc_wb),
-            (&mut *count, acc_n),
-        ] {
-            _mm512_mask_storeu_epi32(dst.as_mut_ptr().add(u) as *mut i32, lanes, v);
-        }
-        u += 16;
-    }
-}
-
 /// The samples of output pixels `u..u + 16` in two planes of one geometry,
 /// their taps found once (windows or gathers, bilinear or bicubic, as
 /// [`sample_gray16`] takes them per plane), and the lanes inside the planes;
 /// `None` where no lane is.
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
 #[inline]
-unsafe fn sample_pair16(
+pub(super) unsafe fn sample_pair16(
     (a, b): (&[u8], &[u8]),
     g: &KernelGeometry,
     coord: &RowCoords<'_>,
@@ -282,31 +163,6 @@ unsafe fn sample_pair16(
         (interpolate(&t, top_a, bot_a), interpolate(&t, top_b, bot_b))
     };
     Some((va, vb, t.mask))
-}
-
-/// The ghost-free weights of sixteen samples differing by `d` from the
-/// reference's: `Deghost::weight` lane by lane (`d <= 65280`, so the scalar
-/// clamp to `2^16` never acts), full where the reference does not cover the
-/// pixel (`reference` clear), 0 where the frame does not (`mask` clear).
-#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
-#[inline]
-unsafe fn weights16(
-    deghost: Deghost,
-    d: __m512i,
-    reference: __mmask16,
-    mask: __mmask16,
-) -> __m512i {
-    let (zero_at, slope) = deghost.constants();
-    let full = _mm512_set1_epi32(FULL_WEIGHT as i32);
-    let ramp = _mm512_max_epi32(
-        _mm512_sub_epi32(_mm512_set1_epi32(zero_at), d),
-        _mm512_setzero_si512(),
-    );
-    let w = _mm512_min_epi32(
-        _mm512_srli_epi32::<16>(_mm512_mullo_epi32(ramp, _mm512_set1_epi32(slope))),
-        full,
-    );
-    _mm512_maskz_mov_epi32(mask, _mm512_mask_blend_epi32(reference, full, w))
 }
 
 /// Finishes the first `n8` pixels (a multiple of 8) of a single-channel output
@@ -379,7 +235,7 @@ pub(super) unsafe fn finish_row_gray(
 /// no lane is inside.
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
 #[inline]
-unsafe fn sample_gray16(
+pub(super) unsafe fn sample_gray16(
     data: &[u8],
     g: &KernelGeometry,
     coord: &RowCoords<'_>,

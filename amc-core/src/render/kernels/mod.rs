@@ -12,7 +12,10 @@
 //! [`Kernel`] is the one dispatcher: [`Kernel::detect`] picks the kernel, its
 //! methods run it. Bicubic sampling (a geometry's `cubic`) has a vector form in
 //! every kernel, for planes and for interleaved frames (AVX-512 runs the
-//! AVX2 form of the interleaved ones, as it does for bilinear sampling).
+//! AVX2 form of the interleaved ones, as it does for bilinear sampling). The
+//! ghost-free forms of the x86-64 kernels are in `avx2_merge.rs` and
+//! `avx512_merge.rs`, beside the plain ones whose samplers they use; both merge
+//! U and V as a pair (`merge_row_gray_pair`), finding each chunk's taps once.
 //!
 //! Layers: this dispatcher uses the kernels, and they all use `common.rs` (the
 //! constants, row coordinates, frame geometry and reference sampler they share);
@@ -21,9 +24,13 @@
 #[cfg(target_arch = "x86_64")]
 mod avx2;
 #[cfg(target_arch = "x86_64")]
+mod avx2_merge;
+#[cfg(target_arch = "x86_64")]
 mod avx2_window;
 #[cfg(target_arch = "x86_64")]
 mod avx512;
+#[cfg(target_arch = "x86_64")]
+mod avx512_merge;
 mod common;
 mod scalar;
 #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
