@@ -387,8 +387,7 @@ unsafe fn cubic_weights8(a: __m256i) -> [__m256i; 4] {
 /// the plane (in a [`Window8`] of its rows where they fit, else gathered)
 /// and its weights; the same for every plane of one geometry.
 pub(super) struct PlaneTaps8 {
-    /// Lanes whose taps lie inside the plane.
-    pub(super) mask: __m256i,
+    mask: __m256i,
     x0: __m256i,
     y0: __m256i,
     window: Option<Window8>,
@@ -421,7 +420,7 @@ impl PlaneTaps8 {
     /// or gathered, weighted with `madd`, then the rows in 32-bit lanes.
     #[target_feature(enable = "avx2")]
     #[inline]
-    pub(super) unsafe fn sample(&self, data: &[u8]) -> __m256i {
+    unsafe fn sample(&self, data: &[u8]) -> __m256i {
         let (p0, p1) = self
             .window
             .as_ref()
@@ -563,19 +562,34 @@ pub(super) unsafe fn accumulate_row_gray_pair(
         let z = _mm256_setzero_si256();
         let (mut sum_a, mut sum_b, mut sum_n) = (z, z, z);
         for ((a, b), coord) in datas_a.iter().zip(datas_b).zip(coords) {
-            let Some(t) = taps8(&g, row_coords8(coord, u)) else {
+            let Some((va, vb, mask)) = sample_pair8((a, b), &g, coord, u) else {
                 continue;
             };
-            let t = PlaneTaps8::of(&g, t, falls(coord, u));
-            sum_a = _mm256_add_epi32(sum_a, t.sample(a));
-            sum_b = _mm256_add_epi32(sum_b, t.sample(b));
-            sum_n = _mm256_add_epi32(sum_n, _mm256_and_si256(t.mask, one));
+            sum_a = _mm256_add_epi32(sum_a, va);
+            sum_b = _mm256_add_epi32(sum_b, vb);
+            sum_n = _mm256_add_epi32(sum_n, _mm256_and_si256(mask, one));
         }
         _mm256_storeu_si256(acc_a.as_mut_ptr().add(u) as *mut __m256i, sum_a);
         _mm256_storeu_si256(acc_b.as_mut_ptr().add(u) as *mut __m256i, sum_b);
         _mm256_storeu_si256(count.as_mut_ptr().add(u) as *mut __m256i, sum_n);
         u += 8;
     }
+}
+
+/// The bilinear samples of output pixels `u..u + 8` in two planes of one
+/// geometry, their taps found once, and the lanes inside the planes; `None`
+/// where no lane is.
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) unsafe fn sample_pair8(
+    (a, b): (&[u8], &[u8]),
+    g: &KernelGeometry,
+    coord: &RowCoords<'_>,
+    u: usize,
+) -> Option<(__m256i, __m256i, __m256i)> {
+    let t = taps8(g, row_coords8(coord, u))?;
+    let t = PlaneTaps8::of(g, t, falls(coord, u));
+    Some((t.sample(a), t.sample(b), t.mask))
 }
 
 /// Finishes the first `n8` pixels (a multiple of 8) of a single-channel output

@@ -3,8 +3,8 @@
 //! the newest frame, in registers. References: `scalar::merge_row` and
 //! `scalar::merge_row_gray`.
 
-use super::avx2::{row_coords8, sample_gray8, sample_rgb8, taps8, PlaneTaps8};
-use super::common::{falls, KernelGeometry, RowCoords};
+use super::avx2::{sample_gray8, sample_pair8, sample_rgb8};
+use super::common::{KernelGeometry, RowCoords};
 use crate::render::robust::{Deghost, FULL_WEIGHT};
 use std::arch::x86_64::*;
 
@@ -26,6 +26,27 @@ unsafe fn weights8(deghost: Deghost, d: __m256i, reference: __m256i, mask: __m25
         full,
     );
     _mm256_and_si256(_mm256_blendv_epi8(full, w, reference), mask)
+}
+
+/// One plane's sample `v` added to its weighted sum and the weight to the
+/// weights' sum, weighted by its agreement with the reference's `v0` (masks:
+/// the reference's lanes, the sample's).
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn add_weighted8(
+    deghost: Deghost,
+    (v, v0): (__m256i, __m256i),
+    (reference, mask): (__m256i, __m256i),
+    (acc, acc_w): (&mut __m256i, &mut __m256i),
+) {
+    let w = weights8(
+        deghost,
+        _mm256_abs_epi32(_mm256_sub_epi32(v, v0)),
+        reference,
+        mask,
+    );
+    *acc = _mm256_add_epi32(*acc, _mm256_mullo_epi32(w, v));
+    *acc_w = _mm256_add_epi32(*acc_w, w);
 }
 
 /// The ghost-free twin of `avx2::accumulate_row` (see `scalar::merge_row`, the
@@ -123,10 +144,7 @@ pub(super) unsafe fn merge_row_gray(
             let Some((v, mask)) = sample_gray8(data, &g, coord, u) else {
                 continue;
             };
-            let d = _mm256_abs_epi32(_mm256_sub_epi32(v, v0));
-            let w = weights8(deghost, d, m0, mask);
-            acc = _mm256_add_epi32(acc, _mm256_mullo_epi32(w, v));
-            acc_w = _mm256_add_epi32(acc_w, w);
+            add_weighted8(deghost, (v, v0), (m0, mask), (&mut acc, &mut acc_w));
             acc_n = _mm256_add_epi32(acc_n, _mm256_and_si256(mask, one));
         }
         _mm256_storeu_si256(sum.as_mut_ptr().add(u) as *mut __m256i, acc);
@@ -161,40 +179,21 @@ pub(super) unsafe fn merge_row_gray_pair(
     let one = _mm256_set1_epi32(1);
     let full = _mm256_set1_epi32(FULL_WEIGHT as i32);
     let z = _mm256_setzero_si256();
-    let sample_pair = |a: &[u8], b: &[u8], coord: &RowCoords<'_>, u: usize| {
-        let t = taps8(&g, row_coords8(coord, u))?;
-        let t = PlaneTaps8::of(&g, t, falls(coord, u));
-        Some((t.sample(a), t.sample(b), t.mask))
-    };
     let mut u = 0;
     while u < n8 {
         let (ra, rb, m0) =
-            sample_pair(datas_a[last], datas_b[last], &coords[last], u).unwrap_or((z, z, z));
+            sample_pair8((datas_a[last], datas_b[last]), &g, &coords[last], u).unwrap_or((z, z, z));
         let w0 = _mm256_and_si256(m0, full);
         let (mut acc_a, mut acc_b) = (_mm256_mullo_epi32(w0, ra), _mm256_mullo_epi32(w0, rb));
         let (mut acc_wa, mut acc_wb) = (w0, w0);
         let mut acc_n = _mm256_and_si256(m0, one);
         let frames = datas_a[..last].iter().zip(&datas_b[..last]).zip(coords);
         for ((a, b), coord) in frames {
-            let Some((va, vb, mask)) = sample_pair(a, b, coord, u) else {
+            let Some((va, vb, mask)) = sample_pair8((a, b), &g, coord, u) else {
                 continue;
             };
-            let wa = weights8(
-                deghost,
-                _mm256_abs_epi32(_mm256_sub_epi32(va, ra)),
-                m0,
-                mask,
-            );
-            acc_a = _mm256_add_epi32(acc_a, _mm256_mullo_epi32(wa, va));
-            acc_wa = _mm256_add_epi32(acc_wa, wa);
-            let wb = weights8(
-                deghost,
-                _mm256_abs_epi32(_mm256_sub_epi32(vb, rb)),
-                m0,
-                mask,
-            );
-            acc_b = _mm256_add_epi32(acc_b, _mm256_mullo_epi32(wb, vb));
-            acc_wb = _mm256_add_epi32(acc_wb, wb);
+            add_weighted8(deghost, (va, ra), (m0, mask), (&mut acc_a, &mut acc_wa));
+            add_weighted8(deghost, (vb, rb), (m0, mask), (&mut acc_b, &mut acc_wb));
             acc_n = _mm256_add_epi32(acc_n, _mm256_and_si256(mask, one));
         }
         for (dst, v) in [

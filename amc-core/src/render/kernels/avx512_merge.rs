@@ -44,10 +44,7 @@ pub(super) unsafe fn merge_row_gray(
             let Some((v, mask)) = sample_gray16(data, &g, coord, u, lanes) else {
                 continue;
             };
-            let d = _mm512_abs_epi32(_mm512_sub_epi32(v, v0));
-            let w = weights16(deghost, d, m0, mask);
-            acc = _mm512_add_epi32(acc, _mm512_mullo_epi32(w, v));
-            acc_w = _mm512_add_epi32(acc_w, w);
+            add_weighted16(deghost, (v, v0), (m0, mask), (&mut acc, &mut acc_w));
             acc_n = _mm512_mask_add_epi32(acc_n, mask, acc_n, one);
         }
         _mm512_mask_storeu_epi32(sum.as_mut_ptr().add(u) as *mut i32, lanes, acc);
@@ -96,22 +93,8 @@ pub(super) unsafe fn merge_row_gray_pair(
             let Some((va, vb, mask)) = sample_pair16((a, b), &g, coord, u, lanes) else {
                 continue;
             };
-            let wa = weights16(
-                deghost,
-                _mm512_abs_epi32(_mm512_sub_epi32(va, ra)),
-                m0,
-                mask,
-            );
-            acc_a = _mm512_add_epi32(acc_a, _mm512_mullo_epi32(wa, va));
-            acc_wa = _mm512_add_epi32(acc_wa, wa);
-            let wb = weights16(
-                deghost,
-                _mm512_abs_epi32(_mm512_sub_epi32(vb, rb)),
-                m0,
-                mask,
-            );
-            acc_b = _mm512_add_epi32(acc_b, _mm512_mullo_epi32(wb, vb));
-            acc_wb = _mm512_add_epi32(acc_wb, wb);
+            add_weighted16(deghost, (va, ra), (m0, mask), (&mut acc_a, &mut acc_wa));
+            add_weighted16(deghost, (vb, rb), (m0, mask), (&mut acc_b, &mut acc_wb));
             acc_n = _mm512_mask_add_epi32(acc_n, mask, acc_n, one);
         }
         for (dst, v) in [
@@ -125,6 +108,27 @@ pub(super) unsafe fn merge_row_gray_pair(
         }
         u += 16;
     }
+}
+
+/// One plane's sample `v` added to its weighted sum and the weight to the
+/// weights' sum, weighted by its agreement with the reference's `v0` (masks:
+/// the reference's lanes, the sample's).
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
+#[inline]
+unsafe fn add_weighted16(
+    deghost: Deghost,
+    (v, v0): (__m512i, __m512i),
+    (reference, mask): (__mmask16, __mmask16),
+    (acc, acc_w): (&mut __m512i, &mut __m512i),
+) {
+    let w = weights16(
+        deghost,
+        _mm512_abs_epi32(_mm512_sub_epi32(v, v0)),
+        reference,
+        mask,
+    );
+    *acc = _mm512_add_epi32(*acc, _mm512_mullo_epi32(w, v));
+    *acc_w = _mm512_add_epi32(*acc_w, w);
 }
 
 /// The ghost-free weights of sixteen samples differing by `d` from the
