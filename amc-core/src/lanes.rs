@@ -1,4 +1,4 @@
-//! Sums over `f32` slices in independent lanes.
+//! Sums over `f32` slices in independent lanes, and byte counts in byte lanes.
 //!
 //! A running `f32` sum is one serial chain of additions, which the compiler
 //! may not reorder (float addition is not associative), so such a loop runs at
@@ -99,9 +99,57 @@ pub fn sum(a: &[f32]) -> f32 {
     lane_sum(a, a, a, |x, _, _| (x, true)).0
 }
 
+/// Copies `src` into `dst` as bytes (`src[i] as u8`, over the shorter of
+/// the two) and counts the copies equal to `byte`.
+///
+/// A count kept in a `usize` vectorizes two bytes at a time at the baseline
+/// instruction set (one 64-bit lane each); kept in a byte over runs of 255,
+/// sixteen. Both coverage passes of a render ran at the first rate and were
+/// 7% of a 720p run.
+#[inline]
+pub fn narrow_and_count(dst: &mut [u8], src: &[u32], byte: u8) -> usize {
+    dst.chunks_mut(255)
+        .zip(src.chunks(255))
+        .map(|(dst, src)| {
+            let mut run = 0u8;
+            for (d, &s) in dst.iter_mut().zip(src) {
+                *d = s as u8;
+                run += (*d == byte) as u8;
+            }
+            run as usize
+        })
+        .sum()
+}
+
+/// How many bytes of `a` equal `byte` (counted as [`narrow_and_count`] does).
+#[inline]
+pub fn count_byte(a: &[u8], byte: u8) -> usize {
+    a.chunks(255)
+        .map(|run| run.iter().fold(0u8, |n, &x| n + (x == byte) as u8) as usize)
+        .sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn byte_counts_are_the_counts() {
+        // Runs below, at and past 255, so that a run's byte count is full.
+        for n in [0usize, 1, 254, 255, 256, 511, 1000] {
+            let src: Vec<u32> = (0..n as u32).map(|i| (i * 7) % 300).collect();
+            let mut dst = vec![9u8; n + 3];
+            for byte in [0u8, 6, 44] {
+                let want = src.iter().filter(|&&s| s as u8 == byte).count();
+                assert_eq!(narrow_and_count(&mut dst, &src, byte), want, "n = {n}");
+                assert!(dst[..n].iter().zip(&src).all(|(&d, &s)| d == s as u8));
+                assert_eq!(dst[n..], [9, 9, 9]);
+                assert_eq!(count_byte(&dst[..n], byte), want, "n = {n}");
+            }
+            let all = vec![3u8; n];
+            assert_eq!(count_byte(&all, 3), n);
+        }
+    }
 
     #[test]
     fn lane_sums_are_the_sums() {

@@ -47,17 +47,56 @@ pub fn luma_box_downscale_into(src: &FrameRef<'_>, s: usize, dst: &mut GrayImage
         return;
     }
     // Sum each s x s block's channels per output pixel (no scratch buffer, so
-    // no allocation per frame).
-    for v in 0..h {
-        let out = &mut dst.data[v * w..(v + 1) * w];
+    // no allocation per frame); the usual factors and pixel sizes with both
+    // known to the compiler, which then unrolls the block (the generic loop
+    // took 1.7 ms a 720p frame at 4, the `--fov auto` pass's preparation).
+    let rows = (src.data, stride, k);
+    match (s, c) {
+        (2, 3) => rgb_box_downscale::<2, 3>(rows, dst),
+        (3, 3) => rgb_box_downscale::<3, 3>(rows, dst),
+        (4, 3) => rgb_box_downscale::<4, 3>(rows, dst),
+        (6, 3) => rgb_box_downscale::<6, 3>(rows, dst),
+        (8, 3) => rgb_box_downscale::<8, 3>(rows, dst),
+        (2, 4) => rgb_box_downscale::<2, 4>(rows, dst),
+        (4, 4) => rgb_box_downscale::<4, 4>(rows, dst),
+        _ => {
+            for v in 0..h {
+                let out = &mut dst.data[v * w..(v + 1) * w];
+                for (u, o) in out.iter_mut().enumerate() {
+                    let mut a = [0u32; 3];
+                    for dy in 0..s {
+                        let start = (v * s + dy) * stride + u * s * c;
+                        for px in src.data[start..start + s * c].chunks_exact(c) {
+                            a[0] += px[0] as u32;
+                            a[1] += px[1] as u32;
+                            a[2] += px[2] as u32;
+                        }
+                    }
+                    *o = k[0] * a[0] as f32 + k[1] * a[1] as f32 + k[2] * a[2] as f32;
+                }
+            }
+        }
+    }
+}
+
+/// [`luma_box_downscale_into`] of packed pixels of `C` bytes by `S` (`dst`
+/// already sized): each block's channel sums, then the same weighted sum.
+#[inline(always)]
+fn rgb_box_downscale<const S: usize, const C: usize>(
+    (data, stride, k): (&[u8], usize, [f32; 3]),
+    dst: &mut GrayImage,
+) {
+    let w = dst.width;
+    for (v, out) in dst.data.chunks_exact_mut(w).enumerate() {
+        let rows: [&[u8]; S] = std::array::from_fn(|dy| &data[(v * S + dy) * stride..]);
         for (u, o) in out.iter_mut().enumerate() {
             let mut a = [0u32; 3];
-            for dy in 0..s {
-                let start = (v * s + dy) * stride + u * s * c;
-                for px in src.data[start..start + s * c].chunks_exact(c) {
-                    a[0] += px[0] as u32;
-                    a[1] += px[1] as u32;
-                    a[2] += px[2] as u32;
+            for row in rows {
+                let (px, _) = row[u * S * C..(u + 1) * S * C].as_chunks::<C>();
+                for p in px {
+                    a[0] += p[0] as u32;
+                    a[1] += p[1] as u32;
+                    a[2] += p[2] as u32;
                 }
             }
             *o = k[0] * a[0] as f32 + k[1] * a[1] as f32 + k[2] * a[2] as f32;
@@ -202,6 +241,48 @@ mod tests {
         // Block 0 holds values 0, 10, 40, 50 -> mean 25.
         assert!((g.data[0] - 25.0 / 255.0).abs() < 1e-5);
         assert!((g.data[1] - 45.0 / 255.0).abs() < 1e-5);
+    }
+
+    /// Every factor and pixel size, the unrolled paths and the generic one,
+    /// give the reference's block sums and weights bit for bit (widths and
+    /// heights that are no multiple of the factor included).
+    #[test]
+    fn packed_downscales_match_the_reference_bit_for_bit() {
+        for format in [PixelFormat::Rgb8, PixelFormat::Rgba8] {
+            let c = format.channels();
+            for s in 1..=9usize {
+                let (w, h) = (7 * s + s / 2 + 1, 3 * s + 2);
+                let mut f = Frame::new(w, h, format);
+                for (i, b) in f.data.iter_mut().enumerate() {
+                    *b = ((i * 2654435761) >> 7) as u8;
+                }
+                let mut got = GrayImage::default();
+                luma_box_downscale_into(&f.as_ref(), s, &mut got);
+                let norm = 1.0 / (255.0 * (s * s) as f32);
+                let k = LUMA_WEIGHTS.map(|x| x * norm);
+                assert_eq!((got.width, got.height), (w / s, h / s));
+                for v in 0..h / s {
+                    for u in 0..w / s {
+                        let mut a = [0u32; 3];
+                        for dy in 0..s {
+                            for dx in 0..s {
+                                let at = ((v * s + dy) * w + u * s + dx) * c;
+                                for (ch, sum) in a.iter_mut().enumerate() {
+                                    *sum += f.data[at + ch] as u32;
+                                }
+                            }
+                        }
+                        let want = k[0] * a[0] as f32 + k[1] * a[1] as f32 + k[2] * a[2] as f32;
+                        let at = v * (w / s) + u;
+                        assert_eq!(
+                            got.data[at].to_bits(),
+                            want.to_bits(),
+                            "{format:?} s {s} ({u}, {v})"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     #[test]

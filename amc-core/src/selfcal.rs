@@ -62,22 +62,17 @@ pub fn estimate_hfov(
     }
     let (w, h) = (frames[0].0.width, frames[0].0.height);
     let probe = CameraModel::pinhole_hfov(w, h, 60.0)?;
-    let mut frontend = TrackingFrontend::new(&probe, track_width)?;
+    let frontend = TrackingFrontend::new(&probe, track_width)?;
     let levels = Tracker::new(frontend.camera(), tracker.clone())?.levels();
-    let mut pyramids = Vec::with_capacity(frames.len());
-    for (f, _) in frames {
-        if f.width != w || f.height != h {
-            return Err(AmcError::FrameSizeChanged {
-                expected_w: w,
-                expected_h: h,
-                actual_w: f.width,
-                actual_h: f.height,
-            });
-        }
-        let mut p = Pyramid::default();
-        frontend.prepare(f, &mut p, levels);
-        pyramids.push(p);
+    if let Some((f, _)) = frames.iter().find(|(f, _)| f.width != w || f.height != h) {
+        return Err(AmcError::FrameSizeChanged {
+            expected_w: w,
+            expected_h: h,
+            actual_w: f.width,
+            actual_h: f.height,
+        });
     }
+    let pyramids = pyramids_of(frames, &frontend, levels);
     let times: Vec<f64> = frames.iter().map(|(_, t)| *t).collect();
     // One field of view's score: each its own tracker, so that scores run
     // at once (the grid and the last three) give the same values.
@@ -152,6 +147,34 @@ pub fn estimate_hfov(
         curve,
         confident,
     })
+}
+
+/// The tracking pyramids of `frames` (at once on rayon's threads with the
+/// `parallel` feature, each with its own copy of `frontend`: the same
+/// pyramids either way).
+fn pyramids_of(
+    frames: &[(FrameRef<'_>, f64)],
+    frontend: &TrackingFrontend,
+    levels: usize,
+) -> Vec<Pyramid> {
+    let prepare = |frontend: &mut TrackingFrontend, (f, _): &(FrameRef<'_>, f64)| {
+        let mut p = Pyramid::default();
+        frontend.prepare(f, &mut p, levels);
+        p
+    };
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        frames
+            .par_iter()
+            .map_init(|| frontend.clone(), prepare)
+            .collect()
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        let mut frontend = frontend.clone();
+        frames.iter().map(|f| prepare(&mut frontend, f)).collect()
+    }
 }
 
 /// `score` at each field of view, in order (at once on rayon's threads with

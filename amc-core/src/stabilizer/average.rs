@@ -38,24 +38,26 @@ impl Rendering {
             // Each plane is passed with what follows it in the buffer (the
             // next planes, then the tail padding) for the kernels' gathers.
             let plane = |i: usize, at: usize| &ring[first + i].frame.data[at..];
-            let complete = self.warper.average_plane_into(
-                |i| plane(i, 0),
-                w,
-                h,
-                &self.rotations,
-                oy,
-                &mut self.acc.count,
-                16,
-            );
-            self.chroma.average_plane_pair_into(
-                |i| (plane(i, u_at), plane(i, v_at)),
-                cw,
-                ch,
-                &self.rotations,
-                ou,
-                ov,
-                &mut self.chroma_cov,
-                128,
+            let (warper, chroma) = (&mut self.warper, &mut self.chroma);
+            let (count, chroma_cov) = (&mut self.acc.count, &mut self.chroma_cov);
+            let rotations = &self.rotations;
+            // Luma and chroma at once: the rows of each are split into bands,
+            // and a thread done with its luma bands takes chroma ones instead
+            // of waiting for the other at the end of the luma plane.
+            let (complete, ()) = super::push::join(
+                || warper.average_plane_into(|i| plane(i, 0), w, h, rotations, oy, count, 16),
+                || {
+                    chroma.average_plane_pair_into(
+                        |i| (plane(i, u_at), plane(i, v_at)),
+                        cw,
+                        ch,
+                        rotations,
+                        ou,
+                        ov,
+                        chroma_cov,
+                        128,
+                    );
+                },
             );
             complete as f64 / (ow * oh).max(1) as f64
         } else {

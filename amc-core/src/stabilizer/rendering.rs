@@ -123,7 +123,7 @@ impl Rendering {
         let uncovered = if render {
             let (ow, oh) = (self.out_cam.width, self.out_cam.height);
             let n = (ow * oh).min(self.acc.count.len());
-            self.acc.count[..n].iter().filter(|&&c| c == 0).count() as u64
+            crate::lanes::count_byte(&self.acc.count[..n], 0) as u64
         } else {
             0
         };

@@ -258,9 +258,11 @@ pub(super) unsafe fn sample_gray16(
 /// kernel's arithmetic (`sample_cubic_gray8`), sixteen lanes wide. A chunk
 /// with a lane at the plane's edge (`x0` or `y0` on the first or last tap,
 /// where this kernel's `x0` may also be one past the reference's with
-/// `ax = 0`) is sampled lane by lane by the scalar reference.
+/// `ax = 0`) is sampled lane by lane by the scalar reference. Not inlined, as
+/// in the AVX2 kernel: the bilinear path it branches off from is, into every
+/// row loop.
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
-#[inline]
+#[inline(never)]
 unsafe fn sample_cubic16(
     data: &[u8],
     g: &KernelGeometry,
@@ -279,9 +281,10 @@ unsafe fn sample_cubic16(
 }
 
 /// [`sample_cubic16`] of two planes of one geometry (the U and V planes of
-/// 4:2:0 frames): the weights and the window are found once for both.
+/// 4:2:0 frames): the weights and the window are found once for both. Not
+/// inlined, as [`sample_cubic16`].
 #[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi")]
-#[inline]
+#[inline(never)]
 unsafe fn sample_cubic16_pair(
     (a, b): (&[u8], &[u8]),
     g: &KernelGeometry,

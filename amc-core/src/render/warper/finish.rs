@@ -203,10 +203,5 @@ pub(super) fn finish_merged_gray_row(
 /// Writes a merged row's coverage (`counts`: frames per pixel, at most
 /// [`MAX_FRAMES`](super::MAX_FRAMES)); returns the pixels all `full` frames cover.
 fn write_coverage(cov_row: &mut [u8], counts: &[u32], full: u8) -> usize {
-    let mut complete = 0usize;
-    for (c, &k) in cov_row.iter_mut().zip(counts) {
-        *c = k as u8;
-        complete += (*c == full) as usize;
-    }
-    complete
+    crate::lanes::narrow_and_count(cov_row, counts, full)
 }
