@@ -156,35 +156,48 @@ pub(super) fn finish_merged_rgb_row(
 
 /// Writes one single-channel output row from
 /// [`Warper::merge_row`](super::Warper::merge_row)'s weighted sums (uncovered
-/// pixels `fill`): the first `n8` pixels by the vector kernel's finisher (its
-/// `round(sum / (256 n))` is `weighted_average`'s with the weights' sum for
-/// `n`, the same `f32` operations), the rest here; returns the pixels every
-/// frame covers. `plane` 1 is the second plane of a pair (`sums[1]`, `weight_b`).
-#[allow(clippy::too_many_arguments)]
+/// pixels `fill`) and its coverage; returns the pixels every frame covers.
+/// The pixels as [`merged_gray_pixels`] writes them for the first plane.
 pub(super) fn finish_merged_gray_row(
+    kernel: Kernel,
+    n8: usize,
+    scratch: &RowScratch,
+    out_row: &mut [u8],
+    cov_row: &mut [u8],
+    full: u8,
+    fill: u8,
+) -> usize {
+    merged_gray_pixels(kernel, n8, scratch, 0, out_row, cov_row, fill);
+    write_coverage(cov_row, &scratch.count[..cov_row.len()], full)
+}
+
+/// Writes the pixels of one single-channel output row from
+/// [`Warper::merge_row`](super::Warper::merge_row)'s weighted sums: the
+/// first `n8` by the vector kernel's finisher (its `round(sum / (256 n))` is
+/// `weighted_average`'s with the weights' sum for `n`, the same `f32`
+/// operations), the rest here. `plane` 1 is the second plane of a pair
+/// (`sums[1]`, `weight_b`), whose coverage is the first's: the finisher's
+/// scribbles on `cov_row` must be written over by the first plane's
+/// [`finish_merged_gray_row`], after this.
+pub(super) fn merged_gray_pixels(
     kernel: Kernel,
     n8: usize,
     scratch: &RowScratch,
     plane: usize,
     out_row: &mut [u8],
     cov_row: &mut [u8],
-    full: u8,
     fill: u8,
-) -> usize {
+) {
     let ow = cov_row.len();
     let weight = if plane == 0 {
         &scratch.weight
     } else {
         &scratch.weight_b
     };
-    let (sum, w, n) = (
-        &scratch.sums[plane][..ow],
-        &weight[..ow],
-        &scratch.count[..ow],
-    );
+    let (sum, w) = (&scratch.sums[plane][..ow], &weight[..ow]);
     // SAFETY: `n8 > 0` only with a vectorized kernel (a multiple of 8), and
     // every row buffer holds `ow >= n8` values. Its coverage (from the
-    // weights) is written again below, from the counts.
+    // weights) is written again by the caller, from the counts.
     let start = match n8 {
         0 => 0,
         _ => unsafe { kernel.finish_row_gray(sum, w, out_row, cov_row, n8, 0, fill) }
@@ -197,7 +210,6 @@ pub(super) fn finish_merged_gray_row(
     {
         *o = weighted_average(s, k, fill);
     }
-    write_coverage(cov_row, n, full)
 }
 
 /// Writes a merged row's coverage (`counts`: frames per pixel, at most

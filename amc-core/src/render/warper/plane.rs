@@ -1,6 +1,6 @@
 //! The average of one plane, or a pair of planes, of several planar frames.
 
-use super::finish::{finish_gray_row, finish_merged_gray_row};
+use super::finish::{finish_gray_row, finish_merged_gray_row, merged_gray_pixels};
 use super::supersample::Target;
 use super::{Warper, MAX_FRAMES};
 use crate::render::kernels::{Geometry, FRAME_PADDING};
@@ -54,7 +54,7 @@ impl Warper {
                         if let Some(deghost) = merged {
                             w.merge_row(&pass, None, v, scratch, true, deghost);
                             finish_merged_gray_row(
-                                w.kernel, pass.n8, scratch, 0, out_row, cov_row, full, fill,
+                                w.kernel, pass.n8, scratch, out_row, cov_row, full, fill,
                             )
                         } else {
                             w.accumulate_row(&pass, None, v, scratch, true);
@@ -142,13 +142,12 @@ impl Warper {
                         let (row_a, row_b) = out_row.split_at_mut(ow);
                         if let Some(deghost) = merged {
                             w.merge_row(&pass_a, Some(&pass_b), v, scratch, true, deghost);
-                            let n8 = pass_a.n8;
-                            let k = w.kernel;
-                            let complete = finish_merged_gray_row(
-                                k, n8, scratch, 0, row_a, cov_row, full, fill,
+                            let (k, n8) = (w.kernel, pass_a.n8);
+                            // The pair's one coverage, written once (by the first plane, last).
+                            merged_gray_pixels(k, n8, scratch, 1, row_b, cov_row, fill);
+                            return finish_merged_gray_row(
+                                k, n8, scratch, row_a, cov_row, full, fill,
                             );
-                            finish_merged_gray_row(k, n8, scratch, 1, row_b, cov_row, full, fill);
-                            return complete;
                         }
                         w.accumulate_row(&pass_a, Some(&pass_b), v, scratch, true);
                         let complete = finish_gray_row(
