@@ -7,6 +7,7 @@
 //! private 0600 of temporary files, since they are renamed into place.
 
 use crate::cleanup;
+use crate::direct::Staging;
 use crate::error::VideoError;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -18,6 +19,9 @@ pub struct AtomicFile {
     /// Bytes written so far, and how many of them the disk was asked to take.
     written: u64,
     writeback_from: u64,
+    /// Staged bytes, when the file is written past the page cache
+    /// ([`AtomicFile::write_direct`]).
+    direct: Option<Staging>,
 }
 
 /// Bytes written between two requests to start their writeback: a large
@@ -44,7 +48,18 @@ impl AtomicFile {
             path: path.to_path_buf(),
             written: 0,
             writeback_from: 0,
+            direct: None,
         })
+    }
+
+    /// Writes this file past the page cache where the file system allows
+    /// (see `direct.rs`): for large streamed outputs (`.y4m`), whose bytes
+    /// nobody reads back during the run. Call before the first write;
+    /// elsewhere the file stays buffered.
+    pub fn write_direct(&mut self) {
+        if let (Some(t), 0) = (self.tmp.as_ref(), self.written) {
+            self.direct = Staging::enable(t.as_file());
+        }
     }
 
     /// The final path.
@@ -59,11 +74,16 @@ impl AtomicFile {
 
     /// Flushes to disk and renames the file onto its final path.
     pub fn persist(mut self) -> Result<(), VideoError> {
-        let Some(tmp) = self.tmp.take() else {
+        let Some(mut tmp) = self.tmp.take() else {
             return Ok(());
         };
         let partial = tmp.path().to_path_buf();
         let path = self.path.clone();
+        if let Some(staged) = self.direct.as_mut() {
+            staged
+                .finish(tmp.as_file_mut())
+                .map_err(|e| VideoError::io(&path, "write", e))?;
+        }
         tmp.as_file()
             .sync_all()
             .map_err(|e| VideoError::io(&path, "write", e))?;
@@ -81,6 +101,11 @@ impl Write for AtomicFile {
         let Some(t) = self.tmp.as_mut() else {
             return Err(std::io::Error::other("the output was already finished"));
         };
+        if let Some(staged) = self.direct.as_mut() {
+            staged.write(t.as_file_mut(), buf)?;
+            self.written += buf.len() as u64;
+            return Ok(buf.len());
+        }
         let n = t.write(buf)?;
         self.written += n as u64;
         if self.written - self.writeback_from >= WRITEBACK_CHUNK {

@@ -21,6 +21,7 @@
 pub mod atomic;
 mod caps;
 pub mod cleanup;
+mod direct;
 mod error;
 mod ffmpeg;
 mod flv;

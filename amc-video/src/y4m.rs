@@ -435,7 +435,8 @@ pub(crate) struct Y4mSink {
 impl Y4mSink {
     /// Creates the temporary file and writes the header.
     pub fn create(path: &Path, spec: &OutputSpec) -> Result<Self, VideoError> {
-        let temp = AtomicFile::create(path, ".y4m")?;
+        let mut temp = AtomicFile::create(path, ".y4m")?;
+        temp.write_direct();
         let mut out = BufWriter::with_capacity(1 << 20, temp);
         let (num, den) = fps_rational(spec.fps);
         writeln!(

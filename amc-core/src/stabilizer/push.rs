@@ -7,7 +7,8 @@ use super::telemetry::Telemetry;
 use super::tracking::Tracked;
 use super::Stabilizer;
 use crate::error::AmcError;
-use crate::image::{Frame, FrameRef};
+use crate::image::{Frame, FrameRef, PixelFormat};
+use crate::render::{AutoDeghost, Deghost};
 use crate::shutter::{IntraFrame, RollingProjector};
 use crate::so3::Rot;
 use crate::tracker::TrackInfo;
@@ -31,21 +32,28 @@ impl Stabilizer {
     pub fn push(&mut self, frame: FrameRef<'_>, t: f64) -> Result<Option<Telemetry>, AmcError> {
         let dt = self.begin(&frame, t)?;
         // Pipelined, the output that became ready at the previous push is
-        // rendered now, beside the tracking of this frame (the ring still
-        // holds every frame it needs: this one is added after).
+        // rendered now, beside the tracking of this frame and its copy into
+        // the ring's next buffer (the ring still holds every frame the render
+        // needs: this one is added after).
         let pending = self.output_pending();
         let src = (self.width, self.height);
+        let mut copy = self.copy_slot();
         let (tracked, rendered) = if pending {
             let (tracking, rendering) = (&mut self.tracking, &mut self.rendering);
             let (ring, params) = (&self.ring, &self.params);
+            let (copy, meter) = (&mut copy, self.auto_deghost.as_mut());
             join(
-                || tracking.track(&frame, t),
+                || {
+                    copy.fill(&frame, meter);
+                    tracking.track(&frame, t)
+                },
                 || Some(rendering.render_next(ring, params, src)),
             )
         } else {
+            copy.fill(&frame, self.auto_deghost.as_mut());
             (self.tracking.track(&frame, t), None)
         };
-        self.enqueue(&frame, t, dt, tracked);
+        self.enqueue(copy, t, dt, tracked);
         Ok(self.ready(rendered))
     }
 
@@ -61,14 +69,27 @@ impl Stabilizer {
         given: GivenPose,
     ) -> Result<Option<Telemetry>, AmcError> {
         let dt = self.begin(&frame, t)?;
-        let rendered = self.output_pending().then(|| self.render_next());
+        let mut copy = self.copy_slot();
+        let rendered = if self.output_pending() {
+            let (rendering, ring, params) = (&mut self.rendering, &self.ring, &self.params);
+            let src = (self.width, self.height);
+            let (copy, meter) = (&mut copy, self.auto_deghost.as_mut());
+            join(
+                || copy.fill(&frame, meter),
+                || Some(rendering.render_next(ring, params, src)),
+            )
+            .1
+        } else {
+            copy.fill(&frame, self.auto_deghost.as_mut());
+            None
+        };
         let tracked = Tracked {
             pose: given.pose,
             path: given.path,
             rendered: given.path,
             info: given.info,
         };
-        self.enqueue(&frame, t, dt, tracked);
+        self.enqueue(copy, t, dt, tracked);
         Ok(self.ready(rendered))
     }
 
@@ -86,8 +107,31 @@ impl Stabilizer {
         Ok(dt)
     }
 
-    /// Filters the view with a tracked frame and adds it to the ring.
-    fn enqueue(&mut self, frame: &FrameRef<'_>, t: f64, dt: f64, tracked: Tracked) {
+    /// A buffer for the next frame's copy into the ring: one that left the
+    /// ring, else a new one (one more than the ring holds, so that the copy
+    /// can run before the ring's oldest frame leaves it).
+    fn copy_slot(&mut self) -> FrameCopy {
+        let (frame, rows) = self
+            .spare
+            .pop()
+            .unwrap_or_else(|| (Frame::new(0, 0, PixelFormat::Rgb8), RollingProjector::default()));
+        FrameCopy {
+            frame,
+            rows,
+            index: self.received,
+            deghost: None,
+        }
+    }
+
+    /// Filters the view with a tracked frame (copied into `copy`) and adds it
+    /// to the ring.
+    fn enqueue(&mut self, copy: FrameCopy, t: f64, dt: f64, tracked: Tracked) {
+        let FrameCopy {
+            frame: buf,
+            mut rows,
+            deghost,
+            ..
+        } = copy;
         let Tracked {
             pose: r_est,
             path: intra,
@@ -105,19 +149,7 @@ impl Stabilizer {
                 self.spare.push((old.frame, old.rows));
             }
         }
-        let (mut buf, mut rows) = self
-            .spare
-            .pop()
-            .unwrap_or_else(|| (Frame::new(0, 0, frame.format), RollingProjector::default()));
         rows.set(&rendered_path, self.height);
-        buf.copy_from(frame);
-        // Tail padding for the vectorized sampler's dword gathers.
-        buf.data
-            .extend_from_slice(&[0; crate::render::kernels::FRAME_PADDING]);
-        let deghost = self
-            .auto_deghost
-            .as_mut()
-            .and_then(|a| a.observe(self.received, frame));
         self.ring.push_back(Buffered {
             frame: buf,
             index: self.received,
@@ -211,6 +243,27 @@ impl Stabilizer {
     pub(super) fn render_next(&mut self) -> Telemetry {
         let src = (self.width, self.height);
         self.rendering.render_next(&self.ring, &self.params, src)
+    }
+}
+
+/// A pushed frame on its way into the ring: its copy, and what `deghost=auto`
+/// measured of it (both done beside the render of the previous output).
+struct FrameCopy {
+    frame: Frame,
+    rows: RollingProjector,
+    index: u64,
+    deghost: Option<Deghost>,
+}
+
+impl FrameCopy {
+    /// Copies `frame` (with the tail padding of the vectorized samplers'
+    /// dword loads) and lets `deghost=auto`'s noise meter observe it.
+    fn fill(&mut self, frame: &FrameRef<'_>, meter: Option<&mut AutoDeghost>) {
+        self.frame.copy_from(frame);
+        self.frame
+            .data
+            .extend_from_slice(&[0; crate::render::kernels::FRAME_PADDING]);
+        self.deghost = meter.and_then(|a| a.observe(self.index, frame));
     }
 }
 

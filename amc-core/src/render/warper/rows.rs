@@ -285,9 +285,10 @@ impl Warper {
             use rayon::prelude::*;
             let threads = rayon::current_num_threads();
             if threads > 1 && oh >= 2 * threads {
-                // A few bands per thread, so a band that samples slowly (strong
-                // rotation, cache misses) does not leave the others idle.
-                let band = oh.div_ceil(4 * threads);
+                // Twelve bands per thread, so a band that samples slowly (strong
+                // rotation, cache misses) or a thread that joins late (from the
+                // next frame's tracking) leaves the others little to wait for.
+                let band = oh.div_ceil(12 * threads);
                 let mut scratches = std::mem::take(&mut self.band_scratch);
                 scratches.resize_with(oh.div_ceil(band), RowScratch::default);
                 let this = &*self;
