@@ -29,16 +29,23 @@ pub fn golden_section<E>(
 /// The same points, decisions and result as [`golden_section`], in fewer
 /// rounds (a round costs one evaluation's time on two cores). `record` sees
 /// every evaluation, the guesses that were not needed included.
+///
+/// `f(x, bound)` is the value at `x`, except that where it is above `bound`
+/// it may return any value above `bound` instead (an evaluation stopped
+/// early, once it could only end above it): `bound` is the best value of the
+/// bracket's inner points, a point worse than that only loses the next
+/// comparison and leaves the bracket, so the steps and result are the same.
+/// The two starting points get no bound.
 pub fn golden_section_paired<E: Send>(
-    f: impl Fn(f64) -> Result<f64, E> + Sync,
+    f: impl Fn(f64, f64) -> Result<f64, E> + Sync,
     a: f64,
     b: f64,
     iters: usize,
     mut record: impl FnMut(f64, f64),
 ) -> Result<f64, E> {
     // `f` at `x`, and at `y` beside it where there is one.
-    let mut both = |x: f64, y: Option<f64>| -> Result<(f64, Option<f64>), E> {
-        let (fx, fy) = pair(&f, x, y);
+    let mut both = |x: f64, y: Option<f64>, bound: f64| -> Result<(f64, Option<f64>), E> {
+        let (fx, fy) = pair(&|x| f(x, bound), x, y);
         let (fx, fy) = (fx?, fy.transpose()?);
         record(x, fx);
         if let (Some(y), Some(fy)) = (y, fy) {
@@ -47,22 +54,25 @@ pub fn golden_section_paired<E: Send>(
         Ok((fx, fy))
     };
     let (c, d) = Golden::inner(a, b);
-    let (fc, fd) = both(c, Some(d))?;
+    let (fc, fd) = both(c, Some(d), f64::INFINITY)?;
     let fd = fd.unwrap_or(f64::NAN);
     let mut s = Golden::new(a, b, fc, fd);
     let mut seen = vec![(c, fc), (d, fd)];
     let mut guessed: Option<(f64, f64)> = None;
     for left in (1..=iters).rev() {
         let p = s.next();
+        // `p` is compared with the better inner point, and a guess at the
+        // point after it with that or `p`'s value, whichever is lower.
+        let bound = s.fc.min(s.fd);
         let v = match guessed.take() {
             Some((x, v)) if x.to_bits() == p.to_bits() => v,
             _ if left >= 2 && cfg!(feature = "parallel") => {
                 let guess = s.guess_after(p, &seen);
-                let (v, w) = both(p, Some(guess))?;
+                let (v, w) = both(p, Some(guess), bound)?;
                 guessed = w.map(|w| (guess, w));
                 v
             }
-            _ => both(p, None)?.0,
+            _ => both(p, None, bound)?.0,
         };
         seen.push((p, v));
         s.step(v);
@@ -175,6 +185,7 @@ impl Golden {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
 
     #[test]
     fn finds_a_parabolas_minimum() {
@@ -209,7 +220,7 @@ mod tests {
                 .unwrap();
                 let mut seen = Vec::new();
                 let two = golden_section_paired(
-                    |x| Ok::<_, ()>(f(x)),
+                    |x, _| Ok::<_, ()>(f(x)),
                     -1.0,
                     2.5,
                     iters,
@@ -219,10 +230,37 @@ mod tests {
                 assert_eq!(one.to_bits(), two.to_bits(), "{iters} steps");
                 // Every point the sequential search took was evaluated.
                 assert!(order.iter().all(|x| seen.contains(x)));
+                // Stopped early above the bound, at any value above it: the
+                // same steps and result.
+                let stopped = AtomicUsize::new(0);
+                let three = golden_section_paired(
+                    |x, bound| {
+                        let v = f(x);
+                        Ok::<_, ()>(if v > bound {
+                            stopped.fetch_add(1, Ordering::Relaxed);
+                            bound.next_up()
+                        } else {
+                            v
+                        })
+                    },
+                    -1.0,
+                    2.5,
+                    iters,
+                    |_, _| {},
+                )
+                .unwrap();
+                assert_eq!(
+                    one.to_bits(),
+                    three.to_bits(),
+                    "{iters} steps, stopped early"
+                );
+                if iters >= 7 {
+                    assert!(stopped.load(Ordering::Relaxed) > 0, "nothing stopped early");
+                }
             }
         }
         assert_eq!(
-            golden_section_paired(|_| Err::<f64, _>("no"), 0.0, 1.0, 3, |_, _| {}),
+            golden_section_paired(|_, _| Err::<f64, _>("no"), 0.0, 1.0, 3, |_, _| {}),
             Err("no")
         );
     }

@@ -75,8 +75,12 @@ pub fn estimate_hfov(
     let pyramids = pyramids_of(frames, &frontend, levels);
     let times: Vec<f64> = frames.iter().map(|(_, t)| *t).collect();
     // One field of view's score: each its own tracker, so that scores run
-    // at once (the grid and the last three) give the same values.
-    let score_of = |hfov: f64| -> Result<f64, AmcError> {
+    // at once (the grid and the last three) give the same values. A score
+    // stops once its sum shows it can only end above `bound` (the frames' mean
+    // with every frame counted is a lower bound of it) and returns that
+    // lower bound: it then loses every comparison it takes part in.
+    let frames_n = pyramids.len() as f64;
+    let score_of = |hfov: f64, bound: f64| -> Result<f64, AmcError> {
         let cam = CameraModel::pinhole_hfov(w, h, hfov)?;
         let track_cam = TrackingFrontend::new(&cam, track_width)?.camera().clone();
         let mut tr = Tracker::new(&track_cam, tracker.clone())?;
@@ -86,13 +90,16 @@ pub fn estimate_hfov(
             if info.iterations > 0 && info.rms_residual.is_finite() {
                 sum += (info.rms_residual as f64).powi(2);
                 n += 1;
+                if sum / frames_n > bound {
+                    return Ok(sum / frames_n);
+                }
             }
         }
         Ok(if n > 0 { sum / n as f64 } else { f64::INFINITY })
     };
     let mut curve = Vec::new();
     let scores = |hfovs: &[f64], curve: &mut Vec<(f64, f64)>| -> Result<Vec<f64>, AmcError> {
-        let got = scores_of(hfovs, &score_of)?;
+        let got = scores_of(hfovs, &|h| score_of(h, f64::INFINITY))?;
         curve.extend(hfovs.iter().copied().zip(got.iter().copied()));
         Ok(got)
     };
@@ -107,11 +114,9 @@ pub fn estimate_hfov(
         .map(|i| lf_lo + (lf_hi - lf_lo) * i as f64 / (GRID - 1) as f64)
         .collect();
     let hfovs: Vec<f64> = lfs.iter().map(|lf| to_hfov(lf.exp())).collect();
-    let grid: Vec<(f64, f64)> = lfs
-        .iter()
-        .copied()
-        .zip(scores(&hfovs, &mut curve)?)
-        .collect();
+    let grid_scores = grid_scores_of(&hfovs, &score_of)?;
+    curve.extend(hfovs.iter().copied().zip(grid_scores.iter().copied()));
+    let grid: Vec<(f64, f64)> = lfs.iter().copied().zip(grid_scores).collect();
     let best = grid
         .iter()
         .enumerate()
@@ -123,7 +128,7 @@ pub fn estimate_hfov(
     );
     // Golden-section refinement in log focal length.
     let lf_best = golden_section_paired(
-        |lf: f64| score_of(to_hfov(lf.exp())),
+        |lf: f64, bound: f64| score_of(to_hfov(lf.exp()), bound),
         a,
         b,
         12,
@@ -177,6 +182,67 @@ fn pyramids_of(
     }
 }
 
+/// The grid's scores, in its order: each exact where it can be the grid's
+/// best, else a lower bound above a score already found (see `score_of` in
+/// [`estimate_hfov`]), so the best and its place are the same as with every
+/// score exact. The middle of the range, where cameras' fields of view
+/// are, goes first: its scores bound the rest, and the far ends (whose
+/// tracking converges worst and costs most) mostly stop early. On rayon's
+/// threads with the `parallel` feature, each taking the next field of view.
+fn grid_scores_of(
+    hfovs: &[f64],
+    score: &(impl Fn(f64, f64) -> Result<f64, AmcError> + Sync),
+) -> Result<Vec<f64>, AmcError> {
+    use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+    let n = hfovs.len();
+    let mid = n / 2;
+    // mid, mid - 1, mid + 1, mid - 2, ...
+    let order: Vec<usize> = (0..n)
+        .map(|k| {
+            if k % 2 == 1 {
+                mid - k.div_ceil(2)
+            } else {
+                mid + k / 2
+            }
+        })
+        .collect();
+    // The best exact score so far (non-negative, so its bits order as it does).
+    let best = AtomicU64::new(f64::INFINITY.to_bits());
+    let next = AtomicUsize::new(0);
+    let work = || -> Vec<(usize, Result<f64, AmcError>)> {
+        let mut done = Vec::new();
+        loop {
+            let k = next.fetch_add(1, Ordering::Relaxed);
+            let Some(&i) = order.get(k) else {
+                return done;
+            };
+            let bound = f64::from_bits(best.load(Ordering::Relaxed));
+            let got = score(hfovs[i], bound);
+            if let Ok(v) = got {
+                if v <= bound {
+                    best.fetch_min(v.to_bits(), Ordering::Relaxed);
+                }
+            }
+            done.push((i, got));
+        }
+    };
+    #[cfg(feature = "parallel")]
+    let done: Vec<_> = {
+        use rayon::prelude::*;
+        (0..rayon::current_num_threads())
+            .into_par_iter()
+            .flat_map_iter(|_| work())
+            .collect()
+    };
+    #[cfg(not(feature = "parallel"))]
+    let done = work();
+    let mut out = vec![f64::INFINITY; n];
+    for (i, got) in done {
+        out[i] = got?;
+    }
+    Ok(out)
+}
+
 /// `score` at each field of view, in order (at once on rayon's threads with
 /// the `parallel` feature: each value is the same either way).
 fn scores_of(
@@ -191,5 +257,52 @@ fn scores_of(
     #[cfg(not(feature = "parallel"))]
     {
         hfovs.iter().map(|&h| score(h)).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    /// Scores stopped above the best found so far leave the grid's best, and
+    /// its place, as every score exact would; the far ends stop early.
+    #[test]
+    fn grid_scores_stopped_early_keep_the_best_in_its_place() {
+        let hfovs: Vec<f64> = (0..15).map(|i| 20.0 + 10.0 * i as f64).collect();
+        for truth in [25.0, 71.0, 90.0, 104.0, 158.0] {
+            let exact = |h: f64| 1.0 + ((h - truth) / 10.0).powi(2);
+            let stopped = AtomicUsize::new(0);
+            // As `score_of` does: a sum over 90 frames, stopped once its
+            // mean over all of them is above the bound.
+            let score = |h: f64, bound: f64| -> Result<f64, AmcError> {
+                let per_frame = exact(h);
+                let mut sum = 0.0;
+                for _ in 0..90 {
+                    sum += per_frame;
+                    if sum / 90.0 > bound {
+                        stopped.fetch_add(1, Ordering::Relaxed);
+                        return Ok(sum / 90.0);
+                    }
+                }
+                Ok(sum / 90.0)
+            };
+            let got = grid_scores_of(&hfovs, &score).unwrap();
+            let argmin = |v: &[f64]| {
+                v.iter()
+                    .enumerate()
+                    .min_by(|a, b| a.1.total_cmp(b.1))
+                    .map(|(i, s)| (i, s.to_bits()))
+            };
+            let all: Vec<f64> = hfovs
+                .iter()
+                .map(|&h| score(h, f64::INFINITY).unwrap())
+                .collect();
+            assert_eq!(argmin(&got), argmin(&all), "true field of view {truth}");
+            assert!(
+                stopped.load(Ordering::Relaxed) > 0,
+                "none stopped at {truth}"
+            );
+        }
     }
 }

@@ -132,7 +132,10 @@ mod tests {
         let mut file = AtomicFile::create(&path, ".y4m").unwrap();
         file.write_direct();
         let mut expected = Vec::new();
-        for (i, len) in [6usize, 1_382_400, 6, 3_000_001, 5_000_000, 4095, 1].iter().enumerate() {
+        for (i, len) in [6usize, 1_382_400, 6, 3_000_001, 5_000_000, 4095, 1]
+            .iter()
+            .enumerate()
+        {
             let piece: Vec<u8> = (0..*len).map(|k| (k * 7 + i * 13) as u8).collect();
             file.write_all(&piece).unwrap();
             expected.extend_from_slice(&piece);

@@ -111,10 +111,12 @@ impl Stabilizer {
     /// ring, else a new one (one more than the ring holds, so that the copy
     /// can run before the ring's oldest frame leaves it).
     fn copy_slot(&mut self) -> FrameCopy {
-        let (frame, rows) = self
-            .spare
-            .pop()
-            .unwrap_or_else(|| (Frame::new(0, 0, PixelFormat::Rgb8), RollingProjector::default()));
+        let (frame, rows) = self.spare.pop().unwrap_or_else(|| {
+            (
+                Frame::new(0, 0, PixelFormat::Rgb8),
+                RollingProjector::default(),
+            )
+        });
         FrameCopy {
             frame,
             rows,
