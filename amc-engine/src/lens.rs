@@ -60,7 +60,12 @@ pub fn resolve_lens(
         static_zoom: false,
         frame_size: size,
     })?;
-    passes::make(&mut plan, input, opts, On::default())?;
+    passes::make(
+        &mut plan,
+        input,
+        &passes::estimate_options(input, opts),
+        On::default(),
+    )?;
     Ok(plan.finish()?.lens)
 }
 

@@ -30,6 +30,19 @@ impl On<'_> {
     }
 }
 
+/// `opts` for a first pass that only estimates (the lens, the readout): the
+/// frames in the input's own format (planar 4:2:0 for videos and `.y4m`),
+/// which the tracker reads its luma from without a colour conversion, as the
+/// run itself does from a video to a video. (RGB frames cost a 720p `.y4m`'s
+/// `--fov auto` pass a conversion and twice the memory of each of its 90
+/// frames: about 0.1 s, docs/speed.md.)
+pub(crate) fn estimate_options(input: &Path, opts: &InputOptions) -> InputOptions {
+    InputOptions {
+        pixel_format: video::native_format(input),
+        ..opts.clone()
+    }
+}
+
 /// Makes every pass `plan` has left over `input` (opened with `opts`),
 /// probing the frame size first where a field of view needs it. A pass that
 /// reads no frame is [`RunError::NoFrames`].

@@ -31,7 +31,12 @@ pub fn resolve_readout(
         static_zoom: false,
         frame_size: None,
     })?;
-    passes::make(&mut plan, input, opts, On::default())?;
+    passes::make(
+        &mut plan,
+        input,
+        &passes::estimate_options(input, opts),
+        On::default(),
+    )?;
     Ok(plan.finish()?.readout)
 }
 
@@ -74,7 +79,12 @@ fn resolve_choice(
         static_zoom: false,
         frame_size: size,
     })?;
-    passes::make(&mut plan, input, opts, On::default())?;
+    passes::make(
+        &mut plan,
+        input,
+        &passes::estimate_options(input, opts),
+        On::default(),
+    )?;
     Ok(plan.finish()?)
 }
 
