@@ -16,7 +16,7 @@ secs=${AMC_SCHEMA_SECS:-100}
 amc=${AMC_BIN:-target/release/amc}
 st=$(command -v schemathesis || command -v st || true)
 [ -n "$st" ] || { echo "schemathesis is not installed: pip install schemathesis" >&2; exit 1; }
-[ -x "$amc" ] || cargo build --release -p amc-server --bin amc
+[ -x "$amc" ] || cargo build --release -p amc-cli --bin amc
 out=target/schemathesis
 mkdir -p "$out"
 work=$(mktemp -d)
