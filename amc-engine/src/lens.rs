@@ -2,7 +2,7 @@
 //! camera: the lens file is read here, the rest is the core's pass plan
 //! ([`amc_core::plan`]).
 
-use super::passes::{self, On};
+use super::passes;
 use super::RunError;
 use amc_core::plan::{LensChoice, PassPlan, PlanChoices};
 use amc_core::{LensSpec, ReadoutSpec, StabilizerParams};
@@ -60,12 +60,7 @@ pub fn resolve_lens(
         static_zoom: false,
         frame_size: size,
     })?;
-    passes::make(
-        &mut plan,
-        input,
-        &passes::estimate_options(input, opts),
-        On::default(),
-    )?;
+    passes::estimate(&mut plan, input, opts)?;
     Ok(plan.finish()?.lens)
 }
 

@@ -30,17 +30,23 @@ impl On<'_> {
     }
 }
 
-/// `opts` for a first pass that only estimates (the lens, the readout): the
-/// frames in the input's own format (planar 4:2:0 for videos and `.y4m`),
-/// which the tracker reads its luma from without a colour conversion, as the
-/// run itself does from a video to a video. (RGB frames cost a 720p `.y4m`'s
-/// `--fov auto` pass a conversion and twice the memory of each of its 90
-/// frames: about 0.1 s, docs/speed.md.)
-pub(crate) fn estimate_options(input: &Path, opts: &InputOptions) -> InputOptions {
-    InputOptions {
+/// Makes the passes of a plan that only estimates (the lens, the readout)
+/// on the caller's thread, reading frames in the input's own format
+/// (planar 4:2:0 for videos and `.y4m`) whatever `opts` asks: the tracker
+/// reads its luma from them without a colour conversion, as the run itself
+/// does from a video to a video. (RGB frames cost a 720p `.y4m`'s `--fov
+/// auto` pass a conversion and twice the memory of each of its 90 frames:
+/// about 0.1 s, docs/speed.md.)
+pub(crate) fn estimate(
+    plan: &mut PassPlan,
+    input: &Path,
+    opts: &InputOptions,
+) -> Result<(), RunError> {
+    let opts = InputOptions {
         pixel_format: video::native_format(input),
         ..opts.clone()
-    }
+    };
+    make(plan, input, &opts, On::default())
 }
 
 /// Makes every pass `plan` has left over `input` (opened with `opts`),

@@ -4,7 +4,7 @@
 //! are the core's pass plan ([`amc_core::plan`]).
 
 use super::lens::{lens_choice, ResolvedLens};
-use super::passes::{self, On};
+use super::passes;
 use super::RunError;
 use amc_core::plan::{LensChoice, PassPlan, PlanChoices};
 use amc_core::{ReadoutSpec, StabilizerOptions, StabilizerParams};
@@ -31,12 +31,7 @@ pub fn resolve_readout(
         static_zoom: false,
         frame_size: None,
     })?;
-    passes::make(
-        &mut plan,
-        input,
-        &passes::estimate_options(input, opts),
-        On::default(),
-    )?;
+    passes::estimate(&mut plan, input, opts)?;
     Ok(plan.finish()?.readout)
 }
 
@@ -79,12 +74,7 @@ fn resolve_choice(
         static_zoom: false,
         frame_size: size,
     })?;
-    passes::make(
-        &mut plan,
-        input,
-        &passes::estimate_options(input, opts),
-        On::default(),
-    )?;
+    passes::estimate(&mut plan, input, opts)?;
     Ok(plan.finish()?)
 }
 
