@@ -107,7 +107,8 @@ pub(crate) fn fuse_pass(
             estimator.push(frame.as_ref(), t)?;
             match head.as_mut() {
                 Some(h) if (h.len() + 1) * frame.data.len() <= CACHE_BYTES => {
-                    h.push((frame.clone(), t))
+                    let fresh = Frame::new(info.width, info.height, opts.pixel_format);
+                    h.push((std::mem::replace(&mut frame, fresh), t))
                 }
                 _ => head = None,
             }
@@ -153,7 +154,12 @@ pub(crate) fn fuse_pass(
         seen.extend(stab.push(frame.as_ref(), t)?);
         cached_bytes += frame.data.len();
         match cache.as_mut() {
-            Some(c) if cached_bytes <= CACHE_BYTES => c.push((frame.clone(), t)),
+            // The frame itself, not a copy: the decoder fills a new buffer
+            // for the next one on its own thread (with more than one).
+            Some(c) if cached_bytes <= CACHE_BYTES => {
+                let fresh = Frame::new(info.width, info.height, opts.pixel_format);
+                c.push((std::mem::replace(&mut frame, fresh), t))
+            }
             _ => cache = None,
         }
     }
