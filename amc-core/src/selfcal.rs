@@ -48,11 +48,17 @@ pub struct FocalEstimate {
 pub const CONFIDENCE_RATIO: f64 = 1.2;
 
 /// Estimates the focal length of a pinhole camera from `frames` (with their
-/// timestamps in seconds), e.g. the first 2-3 seconds of a clip.
+/// timestamps in seconds), e.g. the first 2-3 seconds of a clip, read out
+/// over `readout_s` seconds (0: a global shutter). With a rolling shutter
+/// each field of view is scored with the readout's model: fast motion bends
+/// such frames in a way no rotation of a global shutter explains, which
+/// flattened the scores into a fallback (250 deg/s over 12 ms, 640x360:
+/// 70 deg instead of 100; see docs/accuracy.md).
 pub fn estimate_hfov(
     frames: &[(FrameRef<'_>, f64)],
     track_width: usize,
     tracker: &TrackerParams,
+    readout_s: f64,
 ) -> Result<FocalEstimate, AmcError> {
     if frames.len() < MIN_FRAMES {
         return Err(AmcError::TooFewFrames {
@@ -84,6 +90,9 @@ pub fn estimate_hfov(
         let cam = CameraModel::pinhole_hfov(w, h, hfov)?;
         let track_cam = TrackingFrontend::new(&cam, track_width)?.camera().clone();
         let mut tr = Tracker::new(&track_cam, tracker.clone())?;
+        if readout_s > 0.0 {
+            tr.set_rolling(crate::shutter::RowTime::new(&cam, &track_cam), readout_s);
+        }
         let (mut sum, mut n) = (0.0, 0usize);
         for (p, &t) in pyramids.iter().zip(&times) {
             let (_, info) = tr.track(p, t);

@@ -451,7 +451,13 @@ impl PassPlan {
     /// The lens `fov = auto` finds from `frames`.
     fn lens_from(&self, frames: &[(Frame, f64)]) -> Result<ResolvedLens, AmcError> {
         let refs: Vec<_> = frames.iter().map(|(f, t)| (f.as_ref(), *t)).collect();
-        let est = selfcal::estimate_hfov(&refs, self.params.track_width, &self.params.tracker)?;
+        let readout_s = self.readout_spec.given(None).unwrap_or(0.0) * 1e-3;
+        let est = selfcal::estimate_hfov(
+            &refs,
+            self.params.track_width,
+            &self.params.tracker,
+            readout_s,
+        )?;
         if !est.confident {
             let (w, h) = (frames[0].0.width, frames[0].0.height);
             return Ok(ResolvedLens {

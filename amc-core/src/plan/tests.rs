@@ -229,7 +229,7 @@ fn the_lens_pass_is_the_estimate_or_the_fallback() {
     // The same frames through the estimator itself.
     let refs: Vec<_> = frames.iter().map(|(f, t)| (f.as_ref(), *t)).collect();
     let p = StabilizerParams::default();
-    let est = selfcal::estimate_hfov(&refs, p.track_width, &p.tracker).unwrap();
+    let est = selfcal::estimate_hfov(&refs, p.track_width, &p.tracker, 0.0).unwrap();
     if est.confident {
         assert_eq!(
             r.lens.note,
