@@ -190,6 +190,7 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         .collect();
     let bar = progress::Bar::new("stabilize", !args.quiet);
     let report = |p| bar.update(p);
+    let refit_lens = matches!(resolved.lens.note, engine::LensNote::FellBack);
     let run = engine::run(&RunConfig {
         input: &input.frames,
         output: Some(&args.output),
@@ -207,9 +208,13 @@ fn stabilize(args: StabilizeArgs, control: &engine::RunControl) -> Result<(), Cl
         progress: Some(&report),
         gyro: gyro_log.as_ref(),
         measure_readout,
+        refit_lens,
         threads: args.run.input.threads(),
     })?;
     bar.finish();
+    if let (Some(hfov), false) = (run.refit_hfov_deg, args.quiet) {
+        eprintln!("{}", engine::refit_line(hfov));
+    }
     if let (Some(g), false) = (&run.gyro, args.quiet) {
         eprintln!("{}", g.line());
     }

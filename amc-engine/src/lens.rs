@@ -5,7 +5,7 @@
 use super::passes;
 use super::RunError;
 use amc_core::plan::{LensChoice, PassPlan, PlanChoices};
-use amc_core::{LensSpec, ReadoutSpec, StabilizerParams};
+use amc_core::{CameraModel, LensSpec, ReadoutSpec, StabilizerParams};
 use amc_video::InputOptions;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -62,6 +62,40 @@ pub fn resolve_lens(
     })?;
     passes::estimate(&mut plan, input, opts)?;
     Ok(plan.finish()?.lens)
+}
+
+/// The lens `--fov auto` finds in `input` once its readout is known
+/// (`readout_ms`, measured against a gyro log after a first estimate fell
+/// back): the estimate's camera and field of view, or `None` where the
+/// footage still does not pin it down. `size` is the frame size.
+pub(crate) fn refit_with_readout(
+    input: &Path,
+    params: &StabilizerParams,
+    opts: &InputOptions,
+    size: (usize, usize),
+    readout_ms: f64,
+) -> Result<Option<(CameraModel, f64)>, RunError> {
+    let mut plan = PassPlan::new(PlanChoices {
+        lens: LensChoice::Auto,
+        readout: ReadoutSpec::Ms(readout_ms),
+        params: params.clone(),
+        static_zoom: false,
+        frame_size: Some(size),
+    })?;
+    passes::estimate(&mut plan, input, opts)?;
+    let lens = plan.finish()?.lens;
+    Ok(match lens.note {
+        LensNote::Estimated { hfov_deg, .. } => Some((lens.camera, hfov_deg)),
+        _ => None,
+    })
+}
+
+/// What the user is told of a lens [`refit_with_readout`] found.
+pub fn refit_line(hfov_deg: f64) -> String {
+    format!(
+        "estimated horizontal field of view: {hfov_deg:.1} deg (again, with the readout \
+         measured against the gyro log; pass --fov or --lens to set it)"
+    )
 }
 
 /// Options to open an input with: `fps` overrides its timestamps (image folders

@@ -26,8 +26,8 @@ mod telemetry;
 pub use control::RunControl;
 pub use error::RunError;
 pub use lens::{
-    folder_lens_file, input_options, resolve_lens, LensNote, ResolvedLens, AUTO_FOV_FRAMES,
-    FALLBACK_FOV_DEG,
+    folder_lens_file, input_options, refit_line, resolve_lens, LensNote, ResolvedLens,
+    AUTO_FOV_FRAMES, FALLBACK_FOV_DEG,
 };
 pub use log_readout::{LogReadout, MeasureReadout};
 pub use paths::check_distinct;

@@ -60,6 +60,11 @@ pub struct RunConfig<'a> {
     /// against the log, in place of `params`' readout, as
     /// [`LogReadout::measure`](super::LogReadout::measure) says.
     pub measure_readout: Option<MeasureReadout>,
+    /// The lens is `--fov auto`'s fallback: with a gyro log whose readout
+    /// the run measures, the field of view is estimated again with that
+    /// readout (a rolling shutter's frames can hide it from the first,
+    /// global-shutter estimate), and the first pass made again with it.
+    pub refit_lens: bool,
     /// Threads of the run: 1 decodes, stabilizes and encodes on the caller's
     /// thread; 2 or more decode and encode on threads of their own beside it
     /// (see `stages`) and render each frame's rows on a pool of this many
@@ -109,6 +114,11 @@ pub struct RunSummary {
     /// The gyro log's sync and fusion, when the run was given one that fits.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gyro: Option<GyroReport>,
+    /// The field of view (degrees) `--fov auto` found once the gyro log
+    /// measured the readout, where the first estimate had fallen back
+    /// ([`RunConfig::refit_lens`]); the run used it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refit_hfov_deg: Option<f64>,
     /// Warnings for the user about the run (the caller adds them: e.g.
     /// `readout_ms=auto` fell back to a global shutter).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -171,18 +181,47 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
     let pool = render_pool(cfg.threads)?;
     let mut warnings = Vec::new();
     let mut readout_ms = cfg.params.shutter.readout_ms;
+    let mut lens = cfg.lens.clone();
+    let mut refit_hfov_deg = None;
     let mut fused = match cfg.gyro {
         Some(log) => {
-            let first = fusion::fuse_pass(
-                cfg.input,
-                &opts,
-                &cfg.lens,
-                &cfg.params,
-                cfg.measure_readout,
-                log,
-                &pool,
-                cfg.control,
-            )?;
+            let first_pass = |lens: &CameraModel, params: &StabilizerParams, measure| {
+                fusion::fuse_pass(
+                    cfg.input,
+                    &opts,
+                    lens,
+                    params,
+                    measure,
+                    log,
+                    &pool,
+                    cfg.control,
+                )
+            };
+            let mut first = first_pass(&lens, &cfg.params, cfg.measure_readout)?;
+            if cfg.refit_lens {
+                // The readout the first pass used, or the one it measured
+                // against the log even where that did not pin it down (a
+                // wrong lens hides it too): the lens again with it, and where
+                // that finds one, the first pass again with that lens.
+                let used = first.readout.as_ref().map(|(ms, _)| *ms);
+                let measured = first
+                    .fused
+                    .as_ref()
+                    .ok()
+                    .and_then(|f| f.report.readout.as_ref())
+                    .map(|r| r.readout_ms);
+                let ms = used.filter(|&ms| ms > 0.0).or(measured).unwrap_or(0.0);
+                let size = (lens.width, lens.height);
+                if ms > 0.0 {
+                    if let Some((camera, hfov)) =
+                        super::lens::refit_with_readout(cfg.input, &cfg.params, &opts, size, ms)?
+                    {
+                        first = first_pass(&camera, &cfg.params, cfg.measure_readout)?;
+                        lens = camera;
+                        refit_hfov_deg = Some(hfov);
+                    }
+                }
+            }
             if let Some((ms, warning)) = first.readout {
                 readout_ms = ms;
                 warnings.extend(warning);
@@ -202,7 +241,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
     params.shutter.readout_ms = readout_ms;
     // With fused poses, `zoom = static` frames them (no second tracking pass).
     let static_zoom = match &fused {
-        Some(f) => fusion::static_zoom(f, &cfg.lens, &params)?,
+        Some(f) => fusion::static_zoom(f, &lens, &params)?,
         None => static_zoom(cfg, &params, &opts, &pool)?,
     };
     let src: Box<dyn FrameSource> = match fused.as_mut().and_then(|f| f.cached.take()) {
@@ -211,7 +250,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
     };
     let info = src.info().clone();
     let threaded = cfg.threads > 1;
-    let mut stab = Stabilizer::new(&cfg.lens, info.width, info.height, params.clone())?;
+    let mut stab = Stabilizer::new(&lens, info.width, info.height, params.clone())?;
     if let Some(z) = static_zoom {
         stab.set_static_zoom(z);
     }
@@ -346,6 +385,7 @@ pub fn run(cfg: &RunConfig<'_>) -> Result<RunSummary, RunError> {
         readout_ms: params.shutter.readout_ms,
         deghost_levels: stab.deghost_levels().unwrap_or(0.0),
         gyro: fused.map(|f| f.report),
+        refit_hfov_deg,
         warnings,
         per_frame,
     })

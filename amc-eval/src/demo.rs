@@ -215,6 +215,7 @@ pub fn run(args: &DemoConfig, say: &dyn Fn(&str)) -> Result<String, DemoError> {
             control: None,
             progress: None,
             gyro: None,
+            refit_lens: false,
             measure_readout: None,
             threads: engine::default_threads(),
         })?;

@@ -129,6 +129,7 @@ pub fn run(
             control: None,
             progress: Some(&report),
             gyro: None,
+            refit_lens: false,
             measure_readout: None,
             threads: args.threads,
         };

@@ -192,6 +192,7 @@ pub fn stabilize(
         (_, None) => {}
     }
     params.shutter.readout_ms = readout.readout_ms;
+    let refit_lens = matches!(lens.note, LensNote::FellBack);
     let lens = lens.camera;
     engine::run(&RunConfig {
         input: &spec.input,
@@ -210,10 +211,17 @@ pub fn stabilize(
         progress: None,
         gyro: gyro.as_ref(),
         measure_readout: log_readout.measure(asked, &readout),
+        refit_lens,
         threads: limits.threads,
     })
     .map_err(|e| run_error(e, &spec.input))
     .and_then(|mut summary| {
+        if let Some(hfov) = summary.refit_hfov_deg {
+            // The gyro's readout let `fov=auto` find the lens after all.
+            let fallback = lens_fallback_warning();
+            warnings.retain(|w| *w != fallback);
+            tracing::info!(%input, "{}", engine::refit_line(hfov));
+        }
         summary.warnings.extend(warnings);
         if summary.looks_truncated() {
             return Err(ApiError::Unsupported(format!(
