@@ -39,6 +39,44 @@ fn vec3(v: &Value) -> [f64; 3] {
     [0, 1, 2].map(|i| a[i].as_f64().unwrap())
 }
 
+/// The mounting of [`flight_controller_clip`]'s log (rotation vector, rad).
+const FLIGHT_CONTROLLER_MOUNT: [f64; 3] = [0.1, 0.5, 0.05];
+
+/// Issue 50's held-out kind, as a flight controller records it: `amc synth`
+/// renders `dir/clip` (640x360, 60 fps, 300 deg/s, plus `clip_args`: length,
+/// seed, readout) with a 1 kHz log mounted [`FLIGHT_CONTROLLER_MOUNT`] off,
+/// biased and noisy (plus `log_args`: offset, glitch), and x264 codes it
+/// into `dir/clip.mp4`. Returns both.
+fn flight_controller_clip(
+    dir: &Path,
+    clip_args: &[&str],
+    log_args: &[&str],
+) -> (std::path::PathBuf, std::path::PathBuf) {
+    let clip = dir.join("clip");
+    let mut args = vec![
+        "--width",
+        "640",
+        "--height",
+        "360",
+        "--shake-dps",
+        "300",
+        "--gyro-rate-hz",
+        "1000",
+        "--gyro-mount-rotvec",
+        "0.1,0.5,0.05",
+        "--gyro-bias",
+        "-0.02,0.01,0.03",
+        "--gyro-noise",
+        "0.01",
+    ];
+    args.extend(clip_args);
+    args.extend(log_args);
+    synth(&clip, &args);
+    let video = dir.join("clip.mp4");
+    amc_e2e::fixtures::encode_frames(&clip, 60, &video);
+    (clip, video)
+}
+
 /// A clip with its log, synchronized; the truths checked.
 fn synthetic(dps: &str, readout_ms: &str, glitch: bool) {
     let dir = tempfile::tempdir().unwrap();
@@ -122,38 +160,18 @@ fn rolling_shutter_300_dps_with_a_glitch() {
 #[test]
 fn fused_motion_halves_the_per_frame_error_and_bridges_a_glitch() {
     let dir = tempfile::tempdir().unwrap();
-    let clip = dir.path().join("clip");
-    synth(
-        &clip,
+    let (clip, video) = flight_controller_clip(
+        dir.path(),
         &[
-            "--width",
-            "640",
-            "--height",
-            "360",
             "--seconds",
             "6",
             "--seed",
             "5",
-            "--shake-dps",
-            "300",
             "--rolling-shutter-ms",
             "16",
-            "--gyro-rate-hz",
-            "1000",
-            "--gyro-offset-s",
-            "-12.7",
-            "--gyro-mount-rotvec",
-            "0.1,0.5,0.05",
-            "--gyro-bias",
-            "-0.02,0.01,0.03",
-            "--gyro-noise",
-            "0.01",
-            "--gyro-glitch",
-            "2.0,0.02,6",
         ],
+        &["--gyro-offset-s", "-12.7", "--gyro-glitch", "2.0,0.02,6"],
     );
-    let video = dir.path().join("clip.mp4");
-    amc_e2e::fixtures::encode_frames(&clip, 60, &video);
     let run = |gyro: &str| {
         let telemetry = dir.path().join(format!("{}.csv", gyro.len()));
         let r = amc_ok(&[
@@ -396,37 +414,19 @@ fn exported_gcsv_reads_back_in_sync() {
 #[test]
 fn a_log_alone_finds_the_lens_of_a_fast_rolling_shutter_clip() {
     let dir = tempfile::tempdir().unwrap();
-    let clip = dir.path().join("clip");
-    let (offset, mount) = (-8.3, [0.1, 0.5, 0.05]);
-    synth(
-        &clip,
+    let (offset, mount) = (-8.3, FLIGHT_CONTROLLER_MOUNT);
+    let (clip, video) = flight_controller_clip(
+        dir.path(),
         &[
-            "--width",
-            "640",
-            "--height",
-            "360",
             "--seconds",
             "4",
             "--seed",
             "11",
-            "--shake-dps",
-            "300",
             "--rolling-shutter-ms",
             "20",
-            "--gyro-rate-hz",
-            "1000",
-            "--gyro-offset-s",
-            "-8.3",
-            "--gyro-mount-rotvec",
-            "0.1,0.5,0.05",
-            "--gyro-bias",
-            "-0.02,0.01,0.03",
-            "--gyro-noise",
-            "0.01",
         ],
+        &["--gyro-offset-s", "-8.3"],
     );
-    let video = dir.path().join("clip.mp4");
-    amc_e2e::fixtures::encode_frames(&clip, 60, &video);
     let run = |gyro: &str| {
         let telemetry = dir.path().join(format!("{}.csv", gyro.len()));
         let (m, stderr) = stabilize(
