@@ -90,6 +90,15 @@ pub(crate) fn fuse_pass(
     let info = src.info().clone();
     let mut src = Reader::new(src, opts.pixel_format, pool.current_num_threads() > 1);
     let mut frame = Frame::new(info.width, info.height, opts.pixel_format);
+    // A decoded frame kept for the main pass: the frame itself, not a copy;
+    // the decoder fills a new buffer for the next one (on its own thread
+    // with more than one).
+    let take = |frame: &mut Frame| {
+        std::mem::replace(
+            frame,
+            Frame::new(info.width, info.height, opts.pixel_format),
+        )
+    };
     // The readout pass's frames, tracked again by the first pass (decoded
     // again where they would not fit in memory).
     let mut head: Option<Vec<(Frame, f64)>> = Some(Vec::new());
@@ -107,8 +116,7 @@ pub(crate) fn fuse_pass(
             estimator.push(frame.as_ref(), t)?;
             match head.as_mut() {
                 Some(h) if (h.len() + 1) * frame.data.len() <= CACHE_BYTES => {
-                    let fresh = Frame::new(info.width, info.height, opts.pixel_format);
-                    h.push((std::mem::replace(&mut frame, fresh), t))
+                    h.push((take(&mut frame), t))
                 }
                 _ => head = None,
             }
@@ -154,12 +162,7 @@ pub(crate) fn fuse_pass(
         seen.extend(stab.push(frame.as_ref(), t)?);
         cached_bytes += frame.data.len();
         match cache.as_mut() {
-            // The frame itself, not a copy: the decoder fills a new buffer
-            // for the next one on its own thread (with more than one).
-            Some(c) if cached_bytes <= CACHE_BYTES => {
-                let fresh = Frame::new(info.width, info.height, opts.pixel_format);
-                c.push((std::mem::replace(&mut frame, fresh), t))
-            }
+            Some(c) if cached_bytes <= CACHE_BYTES => c.push((take(&mut frame), t)),
             _ => cache = None,
         }
     }

@@ -4,7 +4,7 @@
 
 use super::passes;
 use super::RunError;
-use amc_core::plan::{LensChoice, PassPlan, PlanChoices};
+use amc_core::plan::{LensChoice, PlanChoices};
 use amc_core::{CameraModel, LensSpec, ReadoutSpec, StabilizerParams};
 use amc_video::InputOptions;
 use std::path::{Path, PathBuf};
@@ -53,15 +53,14 @@ pub fn resolve_lens(
     size: Option<(usize, usize)>,
 ) -> Result<ResolvedLens, RunError> {
     // A plan of the lens alone: a readout from the lens makes no pass.
-    let mut plan = PassPlan::new(PlanChoices {
+    let choices = PlanChoices {
         lens: lens_choice(spec)?,
         readout: ReadoutSpec::FromLens,
         params: params.clone(),
         static_zoom: false,
         frame_size: size,
-    })?;
-    passes::estimate(&mut plan, input, opts)?;
-    Ok(plan.finish()?.lens)
+    };
+    Ok(passes::estimate(choices, input, opts)?.lens)
 }
 
 /// The lens `--fov auto` finds in `input` once its readout is known
@@ -75,15 +74,14 @@ pub(crate) fn refit_with_readout(
     size: (usize, usize),
     readout_ms: f64,
 ) -> Result<Option<(CameraModel, f64)>, RunError> {
-    let mut plan = PassPlan::new(PlanChoices {
+    let choices = PlanChoices {
         lens: LensChoice::Auto,
         readout: ReadoutSpec::Ms(readout_ms),
         params: params.clone(),
         static_zoom: false,
         frame_size: Some(size),
-    })?;
-    passes::estimate(&mut plan, input, opts)?;
-    let lens = plan.finish()?.lens;
+    };
+    let lens = passes::estimate(choices, input, opts)?.lens;
     Ok(match lens.note {
         LensNote::Estimated { hfov_deg, .. } => Some((lens.camera, hfov_deg)),
         _ => None,

@@ -4,7 +4,7 @@
 
 use super::control::RunControl;
 use super::RunError;
-use amc_core::plan::PassPlan;
+use amc_core::plan::{PassPlan, PlanChoices, Resolved};
 use amc_core::Frame;
 use amc_video::{self as video, InputOptions};
 use std::path::Path;
@@ -30,23 +30,26 @@ impl On<'_> {
     }
 }
 
-/// Makes the passes of a plan that only estimates (the lens, the readout)
-/// on the caller's thread, reading frames in the input's own format
-/// (planar 4:2:0 for videos and `.y4m`) whatever `opts` asks: the tracker
-/// reads its luma from them without a colour conversion, as the run itself
-/// does from a video to a video. (RGB frames cost a 720p `.y4m`'s `--fov
-/// auto` pass a conversion and twice the memory of each of its 90 frames:
-/// about 0.1 s, docs/speed.md.)
+/// Plans `choices` (a plan that only estimates: the lens, the readout),
+/// makes its passes on the caller's thread and returns what they resolved.
+/// Frames are read in the input's own format (planar 4:2:0 for videos and
+/// `.y4m`) whatever `opts` asks: the tracker reads its luma from them
+/// without a colour conversion, as the run itself does from a video to a
+/// video. (RGB frames cost a 720p `.y4m`'s `--fov auto` pass a conversion
+/// and twice the memory of each of its 90 frames: about 0.1 s,
+/// docs/speed.md.)
 pub(crate) fn estimate(
-    plan: &mut PassPlan,
+    choices: PlanChoices,
     input: &Path,
     opts: &InputOptions,
-) -> Result<(), RunError> {
+) -> Result<Resolved, RunError> {
+    let mut plan = PassPlan::new(choices)?;
     let opts = InputOptions {
         pixel_format: video::native_format(input),
         ..opts.clone()
     };
-    make(plan, input, &opts, On::default())
+    make(&mut plan, input, &opts, On::default())?;
+    Ok(plan.finish()?)
 }
 
 /// Makes every pass `plan` has left over `input` (opened with `opts`),

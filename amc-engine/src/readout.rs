@@ -6,7 +6,7 @@
 use super::lens::{lens_choice, ResolvedLens};
 use super::passes;
 use super::RunError;
-use amc_core::plan::{LensChoice, PassPlan, PlanChoices};
+use amc_core::plan::{LensChoice, PlanChoices};
 use amc_core::{ReadoutSpec, StabilizerOptions, StabilizerParams};
 use amc_video::InputOptions;
 use std::path::Path;
@@ -24,15 +24,14 @@ pub fn resolve_readout(
     params: &StabilizerParams,
     opts: &InputOptions,
 ) -> Result<ResolvedReadout, RunError> {
-    let mut plan = PassPlan::new(PlanChoices {
+    let choices = PlanChoices {
         lens: LensChoice::Known(lens.clone()),
         readout: spec.clone(),
         params: params.clone(),
         static_zoom: false,
         frame_size: None,
-    })?;
-    passes::estimate(&mut plan, input, opts)?;
-    Ok(plan.finish()?.readout)
+    };
+    Ok(passes::estimate(choices, input, opts)?.readout)
 }
 
 /// Resolves the lens ([`resolve_lens`](super::resolve_lens)), then the
@@ -67,15 +66,14 @@ fn resolve_choice(
     opts: &InputOptions,
     size: Option<(usize, usize)>,
 ) -> Result<Resolved, RunError> {
-    let mut plan = PassPlan::new(PlanChoices {
+    let choices = PlanChoices {
         lens,
         readout: options.readout.clone(),
         params: options.params.clone(),
         static_zoom: false,
         frame_size: size,
-    })?;
-    passes::estimate(&mut plan, input, opts)?;
-    Ok(plan.finish()?)
+    };
+    passes::estimate(choices, input, opts)
 }
 
 #[cfg(test)]
